@@ -1,0 +1,52 @@
+//! # zeroset-primitives — the geometry kernel of zeroset
+//!
+//! Rays, hit records, the traits a primitive implements, the built-in primitives and the generic
+//! root finder. It depends on glam alone and knows nothing of scenes or files.
+//!
+//! ## Conventions (stated once, used everywhere)
+//! - **Precision.** Parameters, rays and results are `f64` (glam's `DVec3`). On the scalar code
+//!   paths here an f64 operation costs the same as an f32 one, and f64 keeps closed forms within a
+//!   few f32 ulp of exact for inputs that are themselves f32-accurate; see `docs/numerics.md`.
+//! - **Φ sign.** `Φ < 0` inside, `Φ = 0` on the surface, `Φ > 0` outside. Open surfaces (plane,
+//!   triangle, disk, polygon, open cylinder and cone) call the side their normal points to
+//!   "outside".
+//! - **Normal.** `∇Φ / |∇Φ|`, pointing to `Φ > 0`; never flipped toward the viewer
+//!   ([`SurfaceHit::facing_normal`] gives the viewer-facing one).
+//! - **t.** A [`Ray`] is `origin + t·dir`; `t` is in units of `dir` (metric distance when `dir` is
+//!   unit, as for every camera ray). Queries take a closed [`Interval`] `t_min ≤ t ≤ t_max`.
+//! - **(u, v).** Each [`Parametric`] type states its domain ([`Parametric::domain`]) and seams in
+//!   its module docs; `∂p/∂u × ∂p/∂v` points to `Φ > 0`.
+//! - **Frames.** Each primitive is defined by world-space parameters as listed in its module;
+//!   [`Transformed`] places any primitive under an affine map, preserving `t`.
+//!
+//! ## Two-stage intersection
+//! [`Intersect::intersect`] returns a cheap [`RawHit`]; the closest one is finished once with
+//! [`SurfaceHit::complete`], computing only what a [`HitRequest`] asks for.
+
+pub mod bounds;
+pub mod error;
+pub mod hit;
+pub mod math;
+pub mod ray;
+pub mod root;
+pub mod traits;
+pub mod transformed;
+
+pub mod plane;
+pub mod sphere;
+
+#[cfg(feature = "testing")]
+pub mod testing;
+
+pub use bounds::Aabb;
+pub use error::PrimitiveError;
+pub use hit::{HitRequest, RawHit, SurfaceHit};
+pub use ray::{Interval, Ray};
+pub use root::{first_root, RootOptions, RootReport};
+pub use traits::{Implicit, Intersect, Parametric, Primitive, UvDomain};
+pub use transformed::Transformed;
+
+pub use plane::Plane;
+pub use sphere::Sphere;
+
+pub use glam;

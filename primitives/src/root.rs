@@ -1,0 +1,194 @@
+//! The generic intersector: first root of Φ along a ray, for any [`Implicit`] type.
+//!
+//! 1. **Clip** the query interval to the type's bounds (slab test); unbounded types march the
+//!    whole query interval, which must then be finite.
+//! 2. **Bracket** the first sign change of `g(t) = Φ(origin + t·dir)`:
+//!    - with a declared Lipschitz bound `L` (|∇Φ| ≤ L), step by `|g(t)| / (L·|dir|)` (sphere
+//!      tracing), never less than the tolerance: the ball of that radius holds no root, so no
+//!      surface thicker than the tolerance is skipped. A step whose slope `|Δg|/(|dir|·Δt)` exceeds
+//!      `L` proves the bound wrong: it is counted (see [`lipschitz_violations`]) and the march
+//!      goes on with twice the observed slope, from the last sample;
+//!    - without one, sample `g` at [`RootOptions::samples`] evenly spaced points.
+//!    A ray that touches the surface without crossing it (exact tangency) is a miss; one that
+//!    crosses it over a stretch longer than the tolerance is found.
+//! 3. **Refine** the bracket by the Illinois variant of regula falsi, falling back to bisection
+//!    whenever an interpolation step fails to halve the bracket, until it is no wider than
+//!    [`RootOptions::tolerance`] (in units of `t`). The returned `t` is then within the
+//!    tolerance of a root.
+//!
+//! Points rejected by [`Implicit::within_boundary`] are stepped over and the march continues.
+
+use crate::hit::RawHit;
+use crate::ray::{Interval, Ray};
+use crate::traits::Implicit;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+static LIPSCHITZ_VIOLATIONS: AtomicU64 = AtomicU64::new(0);
+
+/// How many rays, process-wide, found Φ steeper than the Lipschitz bound its type declared.
+#[must_use]
+pub fn lipschitz_violations() -> u64 {
+    LIPSCHITZ_VIOLATIONS.load(Ordering::Relaxed)
+}
+
+/// Tolerances of the generic root finder.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RootOptions {
+    /// Width, in units of `t`, to which the bracket around a root is refined; also the smallest
+    /// sphere-tracing step. The default is `1e-7`.
+    pub tolerance: f64,
+    /// Number of uniform samples over the clipped interval when the type declares no Lipschitz
+    /// bound. The default is 512.
+    pub samples: u32,
+    /// Most Φ evaluations spent on one ray before giving up (a miss). The default is 100,000.
+    pub max_evaluations: u32,
+}
+
+impl Default for RootOptions {
+    fn default() -> Self {
+        Self { tolerance: 1e-7, samples: 512, max_evaluations: 100_000 }
+    }
+}
+
+impl RootOptions {
+    /// The defaults with another tolerance.
+    #[must_use]
+    pub fn with_tolerance(tolerance: f64) -> Self {
+        Self { tolerance, ..Self::default() }
+    }
+}
+
+/// What the root finder found along one ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RootReport {
+    /// The first root in the interval, if any.
+    pub hit: Option<RawHit>,
+    /// Whether Φ was seen to change faster than the declared Lipschitz bound.
+    pub lipschitz_violated: bool,
+    /// Φ evaluations spent.
+    pub evaluations: u32,
+}
+
+struct Marcher<'a, I: Implicit + ?Sized> {
+    surface: &'a I,
+    ray: &'a Ray,
+    evaluations: u32,
+}
+
+impl<I: Implicit + ?Sized> Marcher<'_, I> {
+    fn g(&mut self, t: f64) -> f64 {
+        self.evaluations += 1;
+        self.surface.phi(self.ray.at(t))
+    }
+
+    /// Refines a bracket `[a, b]` with `g(a)`, `g(b)` of opposite signs (Illinois + bisection).
+    fn refine(&mut self, mut a: f64, mut ga: f64, mut b: f64, mut gb: f64, tolerance: f64) -> f64 {
+        let mut side = 0i8;
+        let mut width = b - a;
+        while b - a > tolerance {
+            // secant point, kept strictly inside
+            let mut t = (a * gb - b * ga) / (gb - ga);
+            if !(t > a && t < b) {
+                t = 0.5 * (a + b);
+            }
+            let gt = self.g(t);
+            if gt == 0.0 {
+                return t;
+            }
+            if (gt < 0.0) == (ga < 0.0) {
+                a = t;
+                ga = gt;
+                if side == -1 {
+                    gb *= 0.5;
+                }
+                side = -1;
+            } else {
+                b = t;
+                gb = gt;
+                if side == 1 {
+                    ga *= 0.5;
+                }
+                side = 1;
+            }
+            // bisect if the secant made poor progress
+            if b - a > 0.5 * width {
+                let m = 0.5 * (a + b);
+                let gm = self.g(m);
+                if gm == 0.0 {
+                    return m;
+                }
+                if (gm < 0.0) == (ga < 0.0) {
+                    a = m;
+                    ga = gm;
+                } else {
+                    b = m;
+                    gb = gm;
+                }
+                side = 0;
+            }
+            width = b - a;
+        }
+        // the endpoint with the smaller |g| is the better estimate
+        if ga.abs() <= gb.abs() {
+            a
+        } else {
+            b
+        }
+    }
+}
+
+/// The first point in `range` where Φ crosses zero along `ray` (see the module docs).
+pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval, options: &RootOptions) -> RootReport {
+    let mut report = RootReport { hit: None, lipschitz_violated: false, evaluations: 0 };
+    let Some(clipped) = surface.bounds().clip(ray, range) else { return report };
+    if !(clipped.min.is_finite() && clipped.max.is_finite()) || !ray.is_valid() {
+        return report;
+    }
+    let dir_len = ray.dir.length();
+    let tolerance = options.tolerance.max(f64::MIN_POSITIVE);
+    let mut m = Marcher { surface, ray, evaluations: 0 };
+    let (t_start, t_end) = (clipped.min, clipped.max);
+
+    let mut t0 = t_start;
+    let mut g0 = m.g(t0);
+    let uniform_step = (t_end - t_start) / f64::from(options.samples.max(1));
+    let mut slope = surface.lipschitz().map(|l| l * dir_len);
+
+    while t0 < t_end && m.evaluations < options.max_evaluations {
+        if g0 == 0.0 && surface.within_boundary(ray.at(t0)) {
+            report.hit = Some(RawHit::at(t0));
+            break;
+        }
+        let step = match slope {
+            Some(k) => (g0.abs() / k).max(tolerance),
+            None => uniform_step,
+        };
+        let t1 = (t0 + step).min(t_end);
+        let g1 = m.g(t1);
+        if let Some(k) = slope {
+            let observed = (g1 - g0).abs() / (t1 - t0);
+            if observed > k * (1.0 + 1e-9) + f64::MIN_POSITIVE {
+                if !report.lipschitz_violated {
+                    report.lipschitz_violated = true;
+                    LIPSCHITZ_VIOLATIONS.fetch_add(1, Ordering::Relaxed);
+                }
+                slope = Some(2.0 * observed);
+                // re-march from t0 with the steeper slope unless the step was already minimal
+                if step > tolerance {
+                    continue;
+                }
+            }
+        }
+        if (g0 < 0.0) != (g1 < 0.0) || g1 == 0.0 {
+            let t = if g1 == 0.0 { t1 } else { m.refine(t0, g0, t1, g1, tolerance) };
+            if surface.within_boundary(ray.at(t)) {
+                report.hit = Some(RawHit::at(t));
+                break;
+            }
+        }
+        t0 = t1;
+        g0 = g1;
+    }
+    report.evaluations = m.evaluations;
+    report
+}

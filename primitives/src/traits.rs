@@ -1,0 +1,151 @@
+//! The extension points: [`Implicit`], [`Parametric`], [`Intersect`] and the object-safe
+//! [`Primitive`] a scene stores.
+//!
+//! The minimum a new primitive type writes is [`Implicit::phi`] and [`Implicit::bounds`] plus an
+//! empty `impl Intersect for MyType {}`: the gradient (normals) comes from central differences and
+//! the intersection from the generic root finder in [`crate::root`]. Built-ins override both with
+//! closed forms.
+
+use crate::bounds::Aabb;
+use crate::hit::RawHit;
+use crate::math::central_difference;
+use crate::ray::{Interval, Ray};
+use crate::root::{self, RootOptions};
+use glam::{DVec2, DVec3};
+
+/// A surface given as the zero set of a scalar function Φ.
+///
+/// Sign convention: **Φ < 0 inside, Φ = 0 on the surface, Φ > 0 outside.** For open surfaces
+/// (plane, disk, polygon, triangle) "outside" is the front side, the one the normal points to.
+pub trait Implicit {
+    /// Φ at `p` (same space as the primitive's parameters).
+    fn phi(&self, p: DVec3) -> f64;
+
+    /// A box containing every point of the surface (may be infinite for unbounded surfaces).
+    fn bounds(&self) -> Aabb;
+
+    /// ∇Φ at `p`. The default is a central difference with step `6·10⁻⁶ ×` the bounds' diagonal
+    /// (≈ ∛ε, the optimal step for an O(h²) formula in f64), or `6·10⁻⁶·max(1, |p|)` for unbounded
+    /// surfaces. Built-ins override it with the analytic gradient.
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        let scale = self.bounds().diagonal_length();
+        let scale = if scale.is_finite() && scale > 0.0 { scale } else { p.length().max(1.0) };
+        central_difference(|q| self.phi(q), p, 6e-6 * scale)
+    }
+
+    /// A bound `L` with `|Φ(a) − Φ(b)| ≤ L·|a − b|` everywhere in the bounds, if the type knows one.
+    ///
+    /// With a bound, the generic root finder steps by `|Φ|/L` and cannot step over a surface; a
+    /// bound that is too small is detected where it is violated along a ray, counted (see
+    /// [`root::lipschitz_violations`]) and the march continues with the larger observed slope.
+    /// Without one, the finder samples the ray uniformly ([`RootOptions::samples`]) and can miss
+    /// features thinner than one sample spacing.
+    fn lipschitz(&self) -> Option<f64> {
+        None
+    }
+
+    /// Whether a point of Φ's zero set belongs to the surface. Open surfaces whose Φ describes
+    /// their supporting surface (a polygon's plane, a disk's plane, an open cylinder's infinite
+    /// tube) restrict it here; the default keeps the whole zero set.
+    fn within_boundary(&self, p: DVec3) -> bool {
+        let _ = p;
+        true
+    }
+}
+
+/// The rectangle `u ∈ [u.0, u.1]`, `v ∈ [v.0, v.1]` a parametric form is defined on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvDomain {
+    /// Range of `u`.
+    pub u: (f64, f64),
+    /// Range of `v`.
+    pub v: (f64, f64),
+}
+
+impl UvDomain {
+    /// `[0, 1] × [0, 1]`.
+    pub const UNIT: Self = Self { u: (0.0, 1.0), v: (0.0, 1.0) };
+}
+
+/// A surface given as a map from a parameter rectangle `(u, v)` to points.
+pub trait Parametric {
+    /// Where `(u, v)` may range. Planar primitives use plane coordinates, so their domain covers
+    /// the shape's bounding rectangle and [`Implicit::within_boundary`] says which points count.
+    fn domain(&self) -> UvDomain {
+        UvDomain::UNIT
+    }
+
+    /// The surface point at `(u, v)`.
+    fn point(&self, uv: DVec2) -> DVec3;
+
+    /// `(∂p/∂u, ∂p/∂v)` at `(u, v)`. Their cross product points to the `Φ > 0` side. The default
+    /// is a central difference; built-ins give the analytic form.
+    fn partials(&self, uv: DVec2) -> (DVec3, DVec3) {
+        let h = 1e-6;
+        let du = DVec2::new(h, 0.0);
+        let dv = DVec2::new(0.0, h);
+        (
+            (self.point(uv + du) - self.point(uv - du)) / (2.0 * h),
+            (self.point(uv + dv) - self.point(uv - dv)) / (2.0 * h),
+        )
+    }
+
+    /// The parameters of a point `p` on the surface (the inverse of [`Parametric::point`]).
+    fn uv(&self, p: DVec3) -> DVec2;
+}
+
+/// First-hit ray intersection.
+pub trait Intersect: Implicit {
+    /// The hit with the smallest `t` in the closed `range`, or `None`.
+    ///
+    /// The default runs the generic root finder ([`root::first_root`]) on Φ with
+    /// [`Intersect::root_options`]; closed-form primitives override it.
+    fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        root::first_root(self, ray, range, &self.root_options()).hit
+    }
+
+    /// Tolerances of the generic root finder for this type.
+    fn root_options(&self) -> RootOptions {
+        RootOptions::default()
+    }
+
+    /// Unit outward normal (towards Φ > 0) at the hit `raw` found along `ray`. The default
+    /// normalises [`Implicit::gradient`] at `ray.at(raw.t)` and returns zero where ∇Φ vanishes.
+    fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 {
+        self.gradient(ray.at(raw.t)).normalize_or_zero()
+    }
+
+    /// Surface parameters at the hit, where the type has them. The default has none; types that
+    /// implement [`Parametric`] return `Some(Parametric::uv(point))`.
+    fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> {
+        let _ = (ray, raw);
+        None
+    }
+}
+
+/// What a scene stores: anything that intersects, is printable and can be shared across threads.
+/// Implemented for every such type; use it as `Arc<dyn Primitive>`.
+pub trait Primitive: Intersect + std::fmt::Debug + Send + Sync {}
+
+impl<T: Intersect + std::fmt::Debug + Send + Sync + ?Sized> Primitive for T {}
+
+macro_rules! forward_through_pointer {
+    ($($ptr:ident)::+) => {
+        impl<P: Implicit + ?Sized> Implicit for $($ptr)::+<P> {
+            fn phi(&self, p: DVec3) -> f64 { (**self).phi(p) }
+            fn bounds(&self) -> Aabb { (**self).bounds() }
+            fn gradient(&self, p: DVec3) -> DVec3 { (**self).gradient(p) }
+            fn lipschitz(&self) -> Option<f64> { (**self).lipschitz() }
+            fn within_boundary(&self, p: DVec3) -> bool { (**self).within_boundary(p) }
+        }
+        impl<P: Intersect + ?Sized> Intersect for $($ptr)::+<P> {
+            fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> { (**self).intersect(ray, range) }
+            fn root_options(&self) -> RootOptions { (**self).root_options() }
+            fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 { (**self).normal_at(ray, raw) }
+            fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> { (**self).uv_at(ray, raw) }
+        }
+    };
+}
+
+forward_through_pointer!(std::sync::Arc);
+forward_through_pointer!(Box);

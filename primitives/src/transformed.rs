@@ -1,0 +1,137 @@
+//! Any primitive under an affine transform.
+//!
+//! `Transformed<P>` stores `world_from_local` (the affine map taking the primitive's own space to
+//! the world), its inverse `local_from_world`, and `normal_from_local`, the inverse transpose of the
+//! linear part. A world ray is mapped into local space **without renormalising its direction**,
+//! so the ray parameter `t` of a hit is the same in both spaces and stays a world-space distance
+//! for a unit world direction. Normals map by `normal_from_local` and are renormalised, so they
+//! still point to the `Φ > 0` side (also under a reflection).
+//!
+//! Φ_world(p) = Φ_local(local_from_world · p): the same zero set and sign, but not a distance when
+//! the transform scales; its Lipschitz bound is `L_local · ‖local_from_world‖` (Frobenius norm of
+//! the linear part, an upper bound of the spectral norm).
+
+use crate::bounds::Aabb;
+use crate::error::PrimitiveError;
+use crate::hit::RawHit;
+use crate::ray::{Interval, Ray};
+use crate::root::RootOptions;
+use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
+use glam::{DAffine3, DMat3, DVec2, DVec3};
+
+/// `inner` placed in the world by `world_from_local`.
+#[derive(Clone, Debug)]
+pub struct Transformed<P> {
+    inner: P,
+    world_from_local: DAffine3,
+    local_from_world: DAffine3,
+    normal_from_local: DMat3,
+}
+
+fn frobenius(m: &DMat3) -> f64 {
+    (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared()).sqrt()
+}
+
+impl<P> Transformed<P> {
+    /// `inner` under `world_from_local`; errors on a non-finite or singular transform.
+    pub fn new(inner: P, world_from_local: DAffine3) -> Result<Self, PrimitiveError> {
+        let m = world_from_local.matrix3;
+        if !world_from_local.is_finite() {
+            return Err(PrimitiveError::new("Transform", "matrix", "must be finite"));
+        }
+        let det = m.determinant();
+        let scale = frobenius(&m);
+        if !(det.abs() > 1e-12 * scale * scale * scale) {
+            return Err(PrimitiveError::new("Transform", "matrix", format!("is singular (determinant {det:e})")));
+        }
+        let local_from_world = world_from_local.inverse();
+        Ok(Self { inner, world_from_local, local_from_world, normal_from_local: local_from_world.matrix3.transpose() })
+    }
+
+    /// The untransformed primitive.
+    #[must_use]
+    pub fn inner(&self) -> &P {
+        &self.inner
+    }
+
+    /// Local → world map.
+    #[must_use]
+    pub fn world_from_local(&self) -> &DAffine3 {
+        &self.world_from_local
+    }
+
+    /// World → local map.
+    #[must_use]
+    pub fn local_from_world(&self) -> &DAffine3 {
+        &self.local_from_world
+    }
+
+    /// The world ray expressed in local space, with the same parameter `t`.
+    #[inline]
+    #[must_use]
+    pub fn local_ray(&self, ray: &Ray) -> Ray {
+        Ray::new(self.local_from_world.transform_point3(ray.origin), self.local_from_world.transform_vector3(ray.dir))
+    }
+}
+
+impl<P: Implicit> Implicit for Transformed<P> {
+    fn phi(&self, p: DVec3) -> f64 {
+        self.inner.phi(self.local_from_world.transform_point3(p))
+    }
+
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        self.normal_from_local * self.inner.gradient(self.local_from_world.transform_point3(p))
+    }
+
+    fn bounds(&self) -> Aabb {
+        self.inner.bounds().transformed(&self.world_from_local)
+    }
+
+    fn lipschitz(&self) -> Option<f64> {
+        self.inner.lipschitz().map(|l| l * frobenius(&self.local_from_world.matrix3))
+    }
+
+    fn within_boundary(&self, p: DVec3) -> bool {
+        self.inner.within_boundary(self.local_from_world.transform_point3(p))
+    }
+}
+
+impl<P: Intersect> Intersect for Transformed<P> {
+    #[inline]
+    fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        self.inner.intersect(&self.local_ray(ray), range)
+    }
+
+    fn root_options(&self) -> RootOptions {
+        self.inner.root_options()
+    }
+
+    fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 {
+        (self.normal_from_local * self.inner.normal_at(&self.local_ray(ray), raw)).normalize_or_zero()
+    }
+
+    fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> {
+        self.inner.uv_at(&self.local_ray(ray), raw)
+    }
+}
+
+impl<P: Parametric> Parametric for Transformed<P> {
+    fn domain(&self) -> UvDomain {
+        self.inner.domain()
+    }
+
+    fn point(&self, uv: DVec2) -> DVec3 {
+        self.world_from_local.transform_point3(self.inner.point(uv))
+    }
+
+    /// The local partials mapped by the linear part. Under a reflection (negative determinant)
+    /// their cross product points to the `Φ < 0` side.
+    fn partials(&self, uv: DVec2) -> (DVec3, DVec3) {
+        let (du, dv) = self.inner.partials(uv);
+        (self.world_from_local.matrix3 * du, self.world_from_local.matrix3 * dv)
+    }
+
+    fn uv(&self, p: DVec3) -> DVec2 {
+        self.inner.uv(self.local_from_world.transform_point3(p))
+    }
+}
