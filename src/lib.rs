@@ -1,1 +1,19 @@
-//! zeroset
+//! # zeroset — ray casting of implicit surfaces with exact depth and normal AOVs
+//!
+//! Scenes are RON files ([`scene`]), primitives come from the `zeroset-primitives` kernel or
+//! from user types registered in the [`registry`]; the renderer ([`render`]) casts one ray per
+//! pixel through the pixel centre of a pinhole [`camera`], keeps the first hit, and writes the
+//! requested [`aov`]s to EXR and PNG ([`output`]). [`query`] answers batches of rays.
+
+pub mod aov;
+pub mod bvh;
+pub mod camera;
+pub mod cli;
+pub mod output;
+pub mod query;
+pub mod registry;
+pub mod render;
+pub mod scene;
+pub mod shapes;
+
+pub use zeroset_primitives as primitives;

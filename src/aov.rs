@@ -1,0 +1,60 @@
+//! Arbitrary output variables: what a render can write, and their EXR channel names.
+//!
+//! | AOV            | channels              | value on a hit                                      | on a miss |
+//! |----------------|-----------------------|-----------------------------------------------------|-----------|
+//! | `Beauty`       | `R, G, B`             | shaded colour (linear)                              | background |
+//! | `Alpha`        | `A`                   | 1                                                   | 0 |
+//! | `Depth`        | `Z`                   | camera-space planar depth along the view axis       | +∞ (or `--depth-miss`) |
+//! | `Distance`     | `distance`            | ray distance `t` from the eye (unit-length rays)     | +∞ (or `--depth-miss`) |
+//! | `Normal`       | `N.X, N.Y, N.Z`       | world-space unit ∇Φ normal, outward, not flipped    | 0 |
+//! | `Position`     | `P.X, P.Y, P.Z`       | world-space hit point                               | 0 |
+//! | `CameraNormal` | `Nc.X, Nc.Y, Nc.Z`    | the normal in camera space (+x right, +y up, −z view) | 0 |
+//! | `PrimitiveId`  | `id`                  | index of the object in the scene's `objects` list   | −1 |
+//! | `Uv`           | `u, v`                | surface parameters (0 where a type has none)        | 0 |
+
+use serde::Deserialize;
+
+/// One output variable (see the module table).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Deserialize, clap::ValueEnum)]
+#[serde(deny_unknown_fields)]
+pub enum Aov {
+    /// Shaded colour `R, G, B`.
+    Beauty,
+    /// Coverage `A`.
+    Alpha,
+    /// Planar depth `Z`.
+    Depth,
+    /// Ray distance `distance`.
+    Distance,
+    /// World normal `N.X, N.Y, N.Z`.
+    Normal,
+    /// World position `P.X, P.Y, P.Z`.
+    Position,
+    /// Camera-space normal `Nc.X, Nc.Y, Nc.Z`.
+    CameraNormal,
+    /// Object index `id`.
+    PrimitiveId,
+    /// Surface parameters `u, v`.
+    Uv,
+}
+
+impl Aov {
+    /// The default outputs: beauty, coverage, depth and normals.
+    pub const DEFAULT: [Aov; 4] = [Aov::Beauty, Aov::Alpha, Aov::Depth, Aov::Normal];
+
+    /// EXR channel names, in order.
+    #[must_use]
+    pub fn channels(self) -> &'static [&'static str] {
+        match self {
+            Aov::Beauty => &["R", "G", "B"],
+            Aov::Alpha => &["A"],
+            Aov::Depth => &["Z"],
+            Aov::Distance => &["distance"],
+            Aov::Normal => &["N.X", "N.Y", "N.Z"],
+            Aov::Position => &["P.X", "P.Y", "P.Z"],
+            Aov::CameraNormal => &["Nc.X", "Nc.Y", "Nc.Z"],
+            Aov::PrimitiveId => &["id"],
+            Aov::Uv => &["u", "v"],
+        }
+    }
+}

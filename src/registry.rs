@@ -1,0 +1,141 @@
+//! The primitive registry: RON primitive names → parsers of their descriptions.
+//!
+//! Every primitive a scene names — built-in or user-defined — is found here by its RON name
+//! (`Sphere(...)`, `Torus(...)`). A name maps to a parser that deserialises the entry into a type
+//! implementing [`SceneShape`], whose [`SceneShape::build`] validates the parameters and makes the
+//! [`Primitive`]. Built-ins are registered the same way as user types (see [`register`]); there is
+//! no privileged list.
+//!
+//! ```
+//! use serde::Deserialize;
+//! use std::sync::Arc;
+//! use zeroset::registry::{register, SceneShape};
+//! use zeroset_primitives::{Primitive, PrimitiveError, Sphere};
+//!
+//! /// A unit sphere with only a centre parameter.
+//! #[derive(Debug, Deserialize)]
+//! #[serde(deny_unknown_fields)]
+//! struct UnitBall { center: (f64, f64, f64) }
+//!
+//! impl SceneShape for UnitBall {
+//!     fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+//!         let (x, y, z) = self.center;
+//!         Ok(Arc::new(Sphere::new(glam::DVec3::new(x, y, z), 1.0)?))
+//!     }
+//! }
+//!
+//! register::<UnitBall>("UnitBall");
+//! assert!(zeroset::registry::registered_names().contains(&"UnitBall".to_string()));
+//! ```
+
+use serde::de::{DeserializeOwned, DeserializeSeed, EnumAccess, Error as _, VariantAccess, Visitor};
+use serde::{Deserialize, Deserializer};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::sync::{Arc, LazyLock, RwLock};
+use zeroset_primitives::{Primitive, PrimitiveError};
+
+/// A scene-file description of a primitive: parsed from RON, validated and built into a
+/// [`Primitive`] after the whole file has parsed.
+pub trait SceneShape: fmt::Debug + Send + Sync {
+    /// Validates the parameters and builds the primitive (in the object's local space; the
+    /// object's transform is applied by the scene).
+    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError>;
+}
+
+pub(crate) type ShapeParserFn = for<'a, 'de> fn(&'a mut dyn erased_serde::Deserializer<'de>) -> Result<Box<dyn SceneShape>, erased_serde::Error>;
+
+static REGISTRY: LazyLock<RwLock<BTreeMap<String, ShapeParserFn>>> = LazyLock::new(|| {
+    let mut map = BTreeMap::new();
+    crate::shapes::register_builtins(&mut |name, parser| {
+        map.insert(name.to_string(), parser);
+    });
+    RwLock::new(map)
+});
+
+/// The parser for `T`, as stored in the registry.
+pub(crate) fn parser_for<T: SceneShape + DeserializeOwned + 'static>() -> ShapeParserFn {
+    |d| Ok(Box::new(erased_serde::deserialize::<T>(d)?))
+}
+
+/// Registers `T` under the RON name `name` (replacing an earlier registration of that name).
+pub fn register<T: SceneShape + DeserializeOwned + 'static>(name: &str) {
+    REGISTRY.write().unwrap_or_else(|e| e.into_inner()).insert(name.to_string(), parser_for::<T>());
+}
+
+/// Every registered RON name, sorted.
+#[must_use]
+pub fn registered_names() -> Vec<String> {
+    REGISTRY.read().unwrap_or_else(|e| e.into_inner()).keys().cloned().collect()
+}
+
+fn lookup(name: &str) -> Option<ShapeParserFn> {
+    REGISTRY.read().unwrap_or_else(|e| e.into_inner()).get(name).copied()
+}
+
+/// A parsed primitive description of any registered type (`Name(field: value, …)` in RON).
+#[derive(Debug)]
+pub struct ShapeDesc {
+    /// The RON name it was given under.
+    pub name: String,
+    /// The parsed description.
+    pub shape: Box<dyn SceneShape>,
+}
+
+impl<'de> Deserialize<'de> for ShapeDesc {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        deserializer.deserialize_enum("Primitive", &[], ShapeVisitor)
+    }
+}
+
+struct ShapeVisitor;
+
+impl<'de> Visitor<'de> for ShapeVisitor {
+    type Value = ShapeDesc;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a primitive such as `Sphere(center: (0, 0, 0), radius: 1)`")
+    }
+
+    fn visit_enum<A: EnumAccess<'de>>(self, data: A) -> Result<ShapeDesc, A::Error> {
+        let (VariantName(name), variant) = data.variant()?;
+        let Some(parser) = lookup(&name) else {
+            return Err(A::Error::custom(format!(
+                "unknown primitive `{name}`; registered primitives: {}",
+                registered_names().join(", ")
+            )));
+        };
+        let shape = variant.newtype_variant_seed(ParserSeed(parser))?;
+        Ok(ShapeDesc { name, shape })
+    }
+}
+
+/// A variant name, read as an identifier (not a quoted string).
+struct VariantName(String);
+
+impl<'de> Deserialize<'de> for VariantName {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct NameVisitor;
+        impl Visitor<'_> for NameVisitor {
+            type Value = VariantName;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a primitive name")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<VariantName, E> {
+                Ok(VariantName(v.to_string()))
+            }
+        }
+        deserializer.deserialize_identifier(NameVisitor)
+    }
+}
+
+struct ParserSeed(ShapeParserFn);
+
+impl<'de> DeserializeSeed<'de> for ParserSeed {
+    type Value = Box<dyn SceneShape>;
+
+    fn deserialize<D: Deserializer<'de>>(self, deserializer: D) -> Result<Self::Value, D::Error> {
+        let mut erased = <dyn erased_serde::Deserializer>::erase(deserializer);
+        (self.0)(&mut erased).map_err(D::Error::custom)
+    }
+}

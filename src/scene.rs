@@ -1,0 +1,468 @@
+//! Scenes: the RON description, its validation, and the loaded scene the renderer traces.
+//!
+//! The format is documented with one example per primitive in `scenes/README.md`. Parsing is
+//! strict: unknown fields and unknown primitive names are errors reported as
+//! `file:line:column: message`; after parsing, every value is validated and an error names the
+//! object (index and name) and field.
+
+use crate::aov::Aov;
+use crate::bvh::Bvh;
+use crate::camera::{Camera, CameraError};
+use crate::registry::ShapeDesc;
+use glam::{DAffine3, DQuat, DVec3};
+use ron::extensions::Extensions;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use zeroset_primitives::{Interval, Primitive, RawHit, Ray, Transformed};
+
+/// Why a scene could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The scene file.
+        path: String,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// RON syntax, an unknown field or primitive, a wrong type.
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// The scene file.
+        path: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What the parser said.
+        message: String,
+    },
+    /// A value that parsed but is impossible (zero radius, NaN, up parallel to the view…).
+    #[error("{path}: {location}: {message}")]
+    Invalid {
+        /// The scene file.
+        path: String,
+        /// What is wrong: `camera`, `objects[3] "ball"`, `lights[0]`, ….
+        location: String,
+        /// Field and problem.
+        message: String,
+    },
+}
+
+fn default_vfov() -> Option<f64> {
+    None
+}
+fn default_up() -> DVec3 {
+    DVec3::Y
+}
+fn default_eye() -> DVec3 {
+    DVec3::new(0.0, 0.0, -5.0)
+}
+fn default_width() -> u32 {
+    640
+}
+fn default_height() -> u32 {
+    480
+}
+fn default_ambient() -> DVec3 {
+    DVec3::splat(0.1)
+}
+fn default_color() -> DVec3 {
+    DVec3::splat(0.8)
+}
+fn default_white() -> DVec3 {
+    DVec3::ONE
+}
+fn default_shininess() -> f64 {
+    32.0
+}
+fn default_aovs() -> Vec<Aov> {
+    Aov::DEFAULT.to_vec()
+}
+fn default_true() -> bool {
+    true
+}
+fn default_scale() -> DVec3 {
+    DVec3::ONE
+}
+
+/// `camera: (eye: …, look_at: … | direction: …, up: …, vfov_deg: … | hfov_deg: …, width, height)`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDesc {
+    /// Eye position; default `(0, 0, −5)`.
+    #[serde(default = "default_eye")]
+    pub eye: DVec3,
+    /// Point looked at; default the origin unless `direction` is given.
+    #[serde(default)]
+    pub look_at: Option<DVec3>,
+    /// View direction (instead of `look_at`).
+    #[serde(default)]
+    pub direction: Option<DVec3>,
+    /// Up vector (orthonormalised against the view); default +Y.
+    #[serde(default = "default_up")]
+    pub up: DVec3,
+    /// Vertical field of view in degrees; default 45 unless `hfov_deg` is given.
+    #[serde(default = "default_vfov")]
+    pub vfov_deg: Option<f64>,
+    /// Horizontal field of view in degrees (square pixels).
+    #[serde(default)]
+    pub hfov_deg: Option<f64>,
+    /// Width in pixels; default 640.
+    #[serde(default = "default_width")]
+    pub width: u32,
+    /// Height in pixels; default 480.
+    #[serde(default = "default_height")]
+    pub height: u32,
+}
+
+/// `material: (color: (r, g, b), specular: 0, shininess: 32)`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Material {
+    /// Diffuse reflectance (linear RGB); default 0.8 grey.
+    #[serde(default = "default_color")]
+    pub color: DVec3,
+    /// Blinn-Phong specular weight; default 0 (pure Lambert).
+    #[serde(default)]
+    pub specular: f64,
+    /// Blinn-Phong exponent; default 32.
+    #[serde(default = "default_shininess")]
+    pub shininess: f64,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self { color: default_color(), specular: 0.0, shininess: default_shininess() }
+    }
+}
+
+/// `(axis: (0, 1, 0), degrees: 30)`: a rotation about `axis`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RotationDesc {
+    /// Rotation axis (any length > 0).
+    pub axis: DVec3,
+    /// Angle in degrees, counter-clockwise looking down the axis.
+    pub degrees: f64,
+}
+
+/// `transform: (translate: …, rotate: (axis: …, degrees: …), scale: (sx, sy, sz))`: applied as
+/// scale, then rotation, then translation (`world_from_local = T·R·S`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransformDesc {
+    /// Translation; default none.
+    #[serde(default)]
+    pub translate: DVec3,
+    /// Rotation; default none.
+    #[serde(default)]
+    pub rotate: Option<RotationDesc>,
+    /// Per-axis scale; default `(1, 1, 1)`.
+    #[serde(default = "default_scale")]
+    pub scale: DVec3,
+}
+
+/// One entry of `objects`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectDesc {
+    /// Optional name, used in messages and the query output.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// The primitive: any registered name, e.g. `Sphere(radius: 1)`.
+    pub shape: ShapeDesc,
+    /// Placement; default identity.
+    #[serde(default)]
+    pub transform: Option<TransformDesc>,
+    /// Surface material.
+    #[serde(default)]
+    pub material: Material,
+}
+
+/// A light source.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum Light {
+    /// A point light; irradiance falls off as `intensity / d²`.
+    Point {
+        /// Position.
+        position: DVec3,
+        /// Radiant intensity (linear RGB); default white.
+        #[serde(default = "default_white")]
+        intensity: DVec3,
+    },
+    /// A light at infinity shining along `direction`.
+    Directional {
+        /// Direction the light travels (from the light towards the scene).
+        direction: DVec3,
+        /// Irradiance on a surface facing the light (linear RGB); default white.
+        #[serde(default = "default_white")]
+        intensity: DVec3,
+    },
+}
+
+/// `outputs: (aovs: [Beauty, Alpha, Depth, Normal], previews: true)`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Outputs {
+    /// AOVs written to the EXR; default beauty, alpha, depth, normal.
+    #[serde(default = "default_aovs")]
+    pub aovs: Vec<Aov>,
+    /// Whether PNG previews (beauty, depth, normals) are written; default true.
+    #[serde(default = "default_true")]
+    pub previews: bool,
+}
+
+impl Default for Outputs {
+    fn default() -> Self {
+        Self { aovs: default_aovs(), previews: true }
+    }
+}
+
+/// The whole file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Scene")]
+pub struct SceneDesc {
+    /// The camera.
+    pub camera: CameraDesc,
+    /// The objects.
+    #[serde(default)]
+    pub objects: Vec<ObjectDesc>,
+    /// Light sources; with none, a headlight at the eye lights the scene (no shadows).
+    #[serde(default)]
+    pub lights: Vec<Light>,
+    /// Ambient light (linear RGB); default 0.1 grey.
+    #[serde(default = "default_ambient")]
+    pub ambient: DVec3,
+    /// Colour of rays that hit nothing (linear RGB); default black.
+    #[serde(default)]
+    pub background: DVec3,
+    /// What to write.
+    #[serde(default)]
+    pub outputs: Outputs,
+}
+
+/// A placed primitive with its material.
+#[derive(Clone, Debug)]
+pub struct Object {
+    /// Name from the scene file, if any.
+    pub name: Option<String>,
+    /// The primitive in world space (its transform applied).
+    pub primitive: Arc<dyn Primitive>,
+    /// Surface material.
+    pub material: Material,
+}
+
+/// A loaded, validated scene.
+#[derive(Debug)]
+pub struct Scene {
+    /// Where it was loaded from (for messages and the EXR header).
+    pub source: Option<PathBuf>,
+    /// The camera.
+    pub camera: Camera,
+    /// Objects, in file order (the `PrimitiveId` AOV is an index into this).
+    pub objects: Vec<Object>,
+    /// Light sources.
+    pub lights: Vec<Light>,
+    /// Ambient light.
+    pub ambient: DVec3,
+    /// Background colour.
+    pub background: DVec3,
+    /// Requested outputs.
+    pub outputs: Outputs,
+    /// Objects with infinite bounds, tested on every ray.
+    unbounded: Vec<u32>,
+    /// Objects with finite bounds, indexed by `bvh` items.
+    bounded: Vec<u32>,
+    bvh: Bvh,
+}
+
+/// RON options used for scene files: `Some(…)` may be omitted, and a primitive's fields may be
+/// written directly inside its name's parentheses.
+#[must_use]
+pub fn ron_options() -> ron::Options {
+    ron::Options::default().with_default_extension(Extensions::IMPLICIT_SOME | Extensions::UNWRAP_VARIANT_NEWTYPES)
+}
+
+fn check_finite(location: &str, field: &str, v: DVec3) -> Result<(), (String, String)> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err((location.to_string(), format!("field `{field}`: must be finite, got {v}")))
+    }
+}
+
+impl Scene {
+    /// Reads, parses and validates a scene file.
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.display().to_string(), source })?;
+        let mut scene = Self::from_ron(&text, &path.display().to_string())?;
+        scene.source = Some(path.to_path_buf());
+        Ok(scene)
+    }
+
+    /// Parses and validates scene text; `path` is only used in messages.
+    pub fn from_ron(text: &str, path: &str) -> Result<Self, SceneError> {
+        let desc: SceneDesc = ron_options().from_str(text).map_err(|e| SceneError::Parse {
+            path: path.to_string(),
+            line: e.span.start.line,
+            column: e.span.start.col,
+            message: e.code.to_string(),
+        })?;
+        Self::from_desc(desc)
+            .map_err(|(location, message)| SceneError::Invalid { path: path.to_string(), location, message })
+    }
+
+    /// Validates a parsed description; the error is `(location, message)`.
+    pub fn from_desc(desc: SceneDesc) -> Result<Self, (String, String)> {
+        let camera = build_camera(&desc.camera).map_err(|e| ("camera".to_string(), format!("field `{}`: {}", e.field, e.problem)))?;
+        check_finite("scene", "ambient", desc.ambient)?;
+        check_finite("scene", "background", desc.background)?;
+        let mut objects = Vec::with_capacity(desc.objects.len());
+        for (index, object) in desc.objects.into_iter().enumerate() {
+            let location = match &object.name {
+                Some(name) => format!("objects[{index}] {name:?} ({})", object.shape.name),
+                None => format!("objects[{index}] ({})", object.shape.name),
+            };
+            let mut primitive = object.shape.shape.build().map_err(|e| (location.clone(), format!("field `{}`: {}", e.field, e.problem)))?;
+            if let Some(t) = &object.transform {
+                let m = build_transform(t).map_err(|m| (location.clone(), m))?;
+                primitive = Arc::new(Transformed::new(primitive, m).map_err(|e| (location.clone(), format!("transform: {}", e.problem)))?);
+            }
+            let m = object.material;
+            check_finite(&location, "material.color", m.color)?;
+            if !(m.specular.is_finite() && m.specular >= 0.0 && m.shininess.is_finite() && m.shininess > 0.0) {
+                return Err((location, "field `material`: specular must be ≥ 0 and shininess > 0, both finite".into()));
+            }
+            objects.push(Object { name: object.name, primitive, material: m });
+        }
+        for (index, light) in desc.lights.iter().enumerate() {
+            let location = format!("lights[{index}]");
+            match *light {
+                Light::Point { position, intensity } => {
+                    check_finite(&location, "position", position)?;
+                    check_finite(&location, "intensity", intensity)?;
+                }
+                Light::Directional { direction, intensity } => {
+                    if !direction.is_finite() || direction.length() == 0.0 {
+                        return Err((location, "field `direction`: must be finite and non-zero".into()));
+                    }
+                    check_finite(&location, "intensity", intensity)?;
+                }
+            }
+        }
+        if desc.outputs.aovs.is_empty() {
+            return Err(("outputs".into(), "field `aovs`: list at least one AOV".into()));
+        }
+        Ok(Self::assemble(camera, objects, desc.lights, desc.ambient, desc.background, desc.outputs))
+    }
+
+    /// Builds the acceleration structure over validated parts.
+    #[must_use]
+    pub fn assemble(camera: Camera, objects: Vec<Object>, lights: Vec<Light>, ambient: DVec3, background: DVec3, outputs: Outputs) -> Self {
+        let mut bounded = Vec::new();
+        let mut unbounded = Vec::new();
+        let mut boxes = Vec::new();
+        for (i, o) in objects.iter().enumerate() {
+            let b = o.primitive.bounds();
+            if b.is_finite() {
+                bounded.push(i as u32);
+                boxes.push(b);
+            } else {
+                unbounded.push(i as u32);
+            }
+        }
+        let bvh = Bvh::build(&boxes);
+        Self { source: None, camera, objects, lights, ambient, background, outputs, unbounded, bounded, bvh }
+    }
+
+    /// The closest hit along `ray` with `t` in `range`: the object index and its raw hit.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, mut range: Interval) -> Option<(u32, RawHit)> {
+        let mut best = None;
+        for &i in &self.unbounded {
+            if let Some(hit) = self.objects[i as usize].primitive.intersect(ray, range) {
+                range.max = hit.t;
+                best = Some((i, hit));
+            }
+        }
+        let mut raw = None;
+        let item = self.bvh.closest(ray, range, |item, r| {
+            let hit = self.objects[self.bounded[item as usize] as usize].primitive.intersect(ray, r)?;
+            raw = Some(hit);
+            Some(hit.t)
+        });
+        match (item, raw) {
+            (Some(item), Some(_)) => {
+                // `raw` holds the last hit reported, which is the closest one
+                Some((self.bounded[item as usize], raw.expect("a hit accompanies the item")))
+            }
+            _ => best,
+        }
+    }
+
+    /// Whether anything blocks `ray` within `range` (shadow rays).
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray, range: Interval) -> bool {
+        self.intersect(ray, range).is_some()
+    }
+}
+
+fn build_camera(c: &CameraDesc) -> Result<Camera, CameraError> {
+    let direction = match (c.look_at, c.direction) {
+        (Some(_), Some(_)) => {
+            return Err(CameraError { field: "direction", problem: "give either `look_at` or `direction`, not both".into() })
+        }
+        (Some(target), None) => {
+            if !target.is_finite() {
+                return Err(CameraError { field: "look_at", problem: format!("must be finite, got {target}") });
+            }
+            target - c.eye
+        }
+        (None, Some(d)) => d,
+        (None, None) => -c.eye,
+    };
+    let vfov = match (c.vfov_deg, c.hfov_deg) {
+        (Some(v), None) => v,
+        (None, Some(h)) => {
+            if !(h > 0.0 && h < 180.0) {
+                return Err(CameraError { field: "hfov_deg", problem: format!("must lie in (0, 180) degrees, got {h}") });
+            }
+            Camera::vfov_from_hfov(h, c.width.max(1), c.height.max(1))
+        }
+        (None, None) => 45.0,
+        (Some(v), Some(h)) => {
+            let implied = Camera::vfov_from_hfov(h, c.width.max(1), c.height.max(1));
+            if (implied - v).abs() > 1e-6 * v.abs().max(1.0) {
+                return Err(CameraError {
+                    field: "hfov_deg",
+                    problem: format!("{h}° is inconsistent with vfov_deg {v}° at {}×{} with square pixels", c.width, c.height),
+                });
+            }
+            v
+        }
+    };
+    Camera::new(c.eye, direction, c.up, vfov, c.width, c.height)
+}
+
+fn build_transform(t: &TransformDesc) -> Result<DAffine3, String> {
+    if !t.translate.is_finite() {
+        return Err(format!("field `transform.translate`: must be finite, got {}", t.translate));
+    }
+    if !t.scale.is_finite() || t.scale.x * t.scale.y * t.scale.z == 0.0 {
+        return Err(format!("field `transform.scale`: must be finite and non-zero, got {}", t.scale));
+    }
+    let rotation = match &t.rotate {
+        None => DQuat::IDENTITY,
+        Some(r) => {
+            if !r.axis.is_finite() || r.axis.length() == 0.0 || !r.degrees.is_finite() {
+                return Err("field `transform.rotate`: axis must be finite and non-zero, degrees finite".into());
+            }
+            DQuat::from_axis_angle(r.axis.normalize(), r.degrees.to_radians())
+        }
+    };
+    Ok(DAffine3::from_scale_rotation_translation(t.scale, rotation, t.translate))
+}
