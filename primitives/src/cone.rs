@@ -194,7 +194,7 @@ impl Cone {
 
     /// World vector from meridian components `(along ρ̂, along a)` at local `(x, y)`; on the axis
     /// the radial part is dropped.
-    fn from_meridian(&self, l: DVec3, m: DVec2) -> DVec3 {
+    fn meridian_to_world(&self, l: DVec3, m: DVec2) -> DVec3 {
         let rho = l.truncate().length();
         let radial = if rho > 0.0 {
             (l.x * self.e1 + l.y * self.e2) / rho
@@ -279,7 +279,7 @@ impl Implicit for Cone {
             let n = self.side_normal;
             DVec2::new(n.x, if self.radius_at(l.z) < 0.0 { -n.y } else { n.y })
         };
-        self.from_meridian(l, m)
+        self.meridian_to_world(l, m)
     }
 
     fn bounds(&self) -> Aabb {
@@ -356,7 +356,7 @@ impl Intersect for Cone {
             BOTTOM => -self.axis,
             TOP => self.axis,
             _ => {
-                let n = self.from_meridian(self.local(ray.at(raw.t)), self.side_normal);
+                let n = self.meridian_to_world(self.local(ray.at(raw.t)), self.side_normal);
                 // on the axis (an apex) only the axial part remains: ±a
                 n.normalize_or_zero()
             }
@@ -545,8 +545,8 @@ mod tests {
     #[test]
     fn ray_through_the_apex_of_a_tilted_cone() {
         // a tilted axis, so that nothing below is exactly representable; the ray enters the solid
-        // through the apex at 5° to the axis. Without the apex test the double root there rounds
-        // either way and a capped cone reports its exit through the base instead.
+        // through the apex at 5° to the axis. Without the apex test the side's double root there
+        // is found or lost by rounding, and comes with a radial normal pointing anywhere.
         let axis = DVec3::new(1.0, 2.0, 3.0).normalize();
         let (e1, _) = orthonormal_basis(axis);
         let base = DVec3::new(0.3, -1.7, 2.9);

@@ -151,6 +151,10 @@ impl Implicit for Cuboid {
 }
 
 impl Intersect for Cuboid {
+    #[allow(
+        clippy::neg_cmp_op_on_partial_ord,
+        reason = "`!(t_near <= t_far)` rejects NaN as well"
+    )]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
         let (mut t_near, mut near_face) = (f64::NEG_INFINITY, 0);
         let (mut t_far, mut far_face) = (f64::INFINITY, 0);

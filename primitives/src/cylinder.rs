@@ -149,3 +149,151 @@ impl Parametric for Cylinder {
         self.cone.uv(p)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cone::{BOTTOM, SIDE, TOP};
+    use crate::math::orthonormal_basis;
+
+    /// Radius 1, from z = 0 to z = 2 on the Z axis.
+    fn cylinder(capped: bool) -> Cylinder {
+        Cylinder::new(DVec3::ZERO, DVec3::Z, 1.0, 2.0, capped).unwrap()
+    }
+
+    fn hit(c: &Cylinder, ray: Ray) -> Option<(f64, u32, DVec3)> {
+        c.intersect(&ray, Interval::POSITIVE)
+            .map(|h| (h.t, h.feature, c.normal_at(&ray, &h)))
+    }
+
+    #[test]
+    fn rejects_bad_parameters() {
+        let make = |r, h| Cylinder::new(DVec3::ZERO, DVec3::Z, r, h, true);
+        assert!(make(1.0, 1.0).is_ok());
+        assert!(
+            make(0.0, 1.0).is_err() && make(-1.0, 1.0).is_err() && make(f64::NAN, 1.0).is_err()
+        );
+        assert!(
+            make(1.0, 0.0).is_err()
+                && make(1.0, -2.0).is_err()
+                && make(1.0, f64::INFINITY).is_err()
+        );
+        assert!(Cylinder::new(DVec3::ZERO, DVec3::ZERO, 1.0, 1.0, true).is_err());
+        assert!(Cylinder::new(DVec3::new(0.0, f64::NAN, 0.0), DVec3::Z, 1.0, 1.0, true).is_err());
+    }
+
+    #[test]
+    fn side_and_cap_hits_are_exact() {
+        for capped in [true, false] {
+            let c = cylinder(capped);
+            let ray = Ray::new(DVec3::new(-3.0, 0.0, 1.0), DVec3::X);
+            assert_eq!(hit(&c, ray), Some((2.0, SIDE, -DVec3::X)));
+            // from inside: the far wall, normal still outward
+            assert_eq!(
+                hit(&c, Ray::new(DVec3::new(0.0, 0.0, 1.0), DVec3::X)),
+                Some((1.0, SIDE, DVec3::X))
+            );
+        }
+        let c = cylinder(true);
+        assert_eq!(
+            hit(&c, Ray::new(DVec3::new(0.5, 0.0, 5.0), -DVec3::Z)),
+            Some((3.0, TOP, DVec3::Z))
+        );
+        // a ray lying in the top plane meets the side at the rim
+        assert_eq!(
+            hit(&c, Ray::new(DVec3::new(-3.0, 0.0, 2.0), DVec3::X)),
+            Some((2.0, SIDE, -DVec3::X))
+        );
+    }
+
+    #[test]
+    fn tilted_side_hit_matches_geometry() {
+        let axis = DVec3::new(1.0, 2.0, 3.0).normalize();
+        let (e1, e2) = orthonormal_basis(axis);
+        let base = DVec3::new(0.3, -1.7, 2.9);
+        let out = (0.6 * e1 + 0.8 * e2).normalize();
+        let c = Cylinder::new(base, axis, 1.25, 3.0, true).unwrap();
+        let ray = Ray::new(base + 1.5 * axis + 6.0 * out, -out);
+        let (t, feature, n) = hit(&c, ray).unwrap();
+        assert!((t - 4.75).abs() < 1e-14, "t = {t}");
+        assert_eq!(feature, SIDE);
+        assert!((n - out).length() < 1e-14, "{n}");
+    }
+
+    #[test]
+    fn rays_along_the_axis() {
+        // Z axis: the local perpendicular direction is exactly zero, A = B = 0
+        for capped in [true, false] {
+            let c = cylinder(capped);
+            let inside = hit(&c, Ray::new(DVec3::new(0.5, 0.0, -5.0), DVec3::Z));
+            assert_eq!(inside, capped.then_some((5.0, BOTTOM, -DVec3::Z)));
+            assert_eq!(
+                hit(&c, Ray::new(DVec3::new(1.5, 0.0, -5.0), DVec3::Z)),
+                None
+            );
+            let from_within = hit(&c, Ray::new(DVec3::new(0.5, 0.0, 1.0), -DVec3::Z));
+            assert_eq!(from_within, capped.then_some((1.0, BOTTOM, -DVec3::Z)));
+        }
+        // a tilted axis: rounding leaves a tiny perpendicular part, the side roots are huge
+        let axis = DVec3::new(1.0, 2.0, 3.0).normalize();
+        let (e1, _) = orthonormal_basis(axis);
+        let c = Cylinder::new(DVec3::ZERO, axis, 1.0, 2.0, true).unwrap();
+        let (t, feature, n) = hit(&c, Ray::new(0.5 * e1 - 5.0 * axis, axis)).unwrap();
+        assert!(
+            (t - 5.0).abs() < 1e-14 && feature == BOTTOM && n == -axis,
+            "{t} {feature} {n}"
+        );
+        let open = Cylinder::new(DVec3::ZERO, axis, 1.0, 2.0, false).unwrap();
+        assert!(open
+            .intersect(&Ray::new(0.5 * e1 - 5.0 * axis, axis), Interval::POSITIVE)
+            .is_none());
+    }
+
+    #[test]
+    fn ray_through_the_cap_rim() {
+        // aimed at the rim point (1, 0, 2) from (−2, 0, 3): side and top cap both at t = 1
+        let c = cylinder(true);
+        let ray = Ray::new(DVec3::new(-2.0, 0.0, 3.0), DVec3::new(3.0, 0.0, -1.0));
+        let (t, feature, n) = hit(&c, ray).unwrap();
+        assert_eq!(t, 1.0);
+        assert_eq!((feature, n), (TOP, DVec3::Z), "the cap keeps the tie");
+        // the open tube has no cap: the side, at the same point
+        assert_eq!(hit(&cylinder(false), ray), Some((1.0, SIDE, DVec3::X)));
+    }
+
+    #[test]
+    fn phi_values() {
+        let (solid, tube) = (cylinder(true), cylinder(false));
+        assert_eq!(solid.phi(DVec3::new(0.0, 0.0, 1.0)), -1.0);
+        assert_eq!(solid.phi(DVec3::new(0.0, 0.5, 1.75)), -0.25);
+        assert_eq!(solid.gradient(DVec3::new(0.0, 0.5, 1.75)), DVec3::Z);
+        assert_eq!(solid.phi(DVec3::new(0.0, 0.0, 2.5)), 0.5);
+        assert_eq!(solid.phi(DVec3::new(2.0, 0.0, 3.0)), 2f64.sqrt());
+        assert!(
+            (solid.gradient(DVec3::new(2.0, 0.0, 3.0)) - DVec3::new(1.0, 0.0, 1.0) / 2f64.sqrt())
+                .length()
+                < 1e-15
+        );
+        assert_eq!(tube.phi(DVec3::new(0.0, 0.0, 5.0)), -1.0);
+        assert_eq!(tube.phi(DVec3::new(3.0, 0.0, 1.0)), 2.0);
+        assert!(
+            !tube.within_boundary(DVec3::new(1.0, 0.0, 2.5))
+                && tube.within_boundary(DVec3::new(1.0, 0.0, 2.0))
+        );
+    }
+
+    #[test]
+    fn uv_covers_the_caps_continuously() {
+        let c = cylinder(true);
+        assert_eq!(c.domain().v, (-1.0, 2.0));
+        assert_eq!(cylinder(false).domain().v, (0.0, 1.0));
+        // bottom cap at radius 0.5, a quarter turn from e₁ = X towards e₂ = Y
+        let p = c.point(DVec2::new(0.25, -0.5));
+        assert!((p - DVec3::new(0.0, 0.5, 0.0)).length() < 1e-15, "{p}");
+        assert!((c.uv(p) - DVec2::new(0.25, -0.5)).length() < 1e-15);
+        let top = c.point(DVec2::new(0.5, 1.5));
+        assert!((top - DVec3::new(-0.5, 0.0, 2.0)).length() < 1e-15, "{top}");
+        let (du, dv) = c.partials(DVec2::new(0.5, 1.5));
+        assert!((du.cross(dv).normalize() - DVec3::Z).length() < 1e-15);
+    }
+}
