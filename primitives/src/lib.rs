@@ -34,6 +34,10 @@ pub mod transformed;
 
 pub mod plane;
 pub mod sphere;
+pub mod cuboid;
+pub mod cylinder;
+pub mod cone;
+pub mod ellipsoid;
 
 #[cfg(feature = "testing")]
 pub mod testing;
@@ -48,5 +52,9 @@ pub use transformed::Transformed;
 
 pub use plane::Plane;
 pub use sphere::Sphere;
+pub use cuboid::Cuboid;
+pub use cylinder::Cylinder;
+pub use cone::Cone;
+pub use ellipsoid::Ellipsoid;
 
 pub use glam;

@@ -140,7 +140,10 @@ impl<I: Implicit + ?Sized> Marcher<'_, I> {
 /// The first point in `range` where Φ crosses zero along `ray` (see the module docs).
 pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval, options: &RootOptions) -> RootReport {
     let mut report = RootReport { hit: None, lipschitz_violated: false, evaluations: 0 };
-    let Some(clipped) = surface.bounds().clip(ray, range) else { return report };
+    // grow the bounds by the tolerance, so that the march starts strictly outside a surface
+    // that touches its bounds (a box), not on it with a Φ of either sign from rounding
+    let margin = options.tolerance * ray.dir.length();
+    let Some(clipped) = surface.bounds().expanded(margin).clip(ray, range) else { return report };
     if !(clipped.min.is_finite() && clipped.max.is_finite()) || !ray.is_valid() {
         return report;
     }

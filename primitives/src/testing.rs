@@ -171,7 +171,10 @@ fn check_instance<P: Primitive + Parametric>(
         }
         let h = 1e-6 * scale;
         let numeric = crate::math::central_difference(|q| prim.phi(q), p, h);
-        if numeric.length() > 1e-3 * g.length() {
+        // central differences are a reference only where Φ is smooth on the scale of the step;
+        // within a step of a conical point (a cone's apex) halving the step changes the estimate
+        let halved = crate::math::central_difference(|q| prim.phi(q), p, 0.5 * h);
+        if numeric.length() > 1e-3 * g.length() && angle_deg(numeric, halved) < 1e-3 {
             let a = angle_deg(g, numeric);
             assert!(a < 1e-2, "{label}: analytic ∇Φ differs from central differences by {a}° at {p}");
         }

@@ -1,9 +1,12 @@
-//! Shared numerics: floating-point error bounds, orthonormal bases, 2-D polygon predicates.
+//! Shared numerics: floating-point error bounds, orthonormal bases, 2-D polygon predicates, a
+//! cancellation-free quadratic solver.
 
 pub mod basis;
 pub mod polygon2d;
+pub mod quadratic;
 
 pub use basis::orthonormal_basis;
+pub use quadratic::solve_quadratic;
 
 /// `γₙ = n·ε / (1 − n·ε)` with ε the f64 unit roundoff (2⁻⁵³): the relative error bound of `n`
 /// successive rounded operations (Higham; pbrt-v4 §6.8).
