@@ -45,9 +45,16 @@ impl Bvh {
         let mut work: Vec<BuildItem> = bounds
             .iter()
             .enumerate()
-            .map(|(i, b)| BuildItem { bounds: *b, centroid: b.center(), index: i as u32 })
+            .map(|(i, b)| BuildItem {
+                bounds: *b,
+                centroid: b.center(),
+                index: i as u32,
+            })
             .collect();
-        let mut bvh = Self { nodes: Vec::with_capacity(2 * bounds.len()), items: Vec::with_capacity(bounds.len()) };
+        let mut bvh = Self {
+            nodes: Vec::with_capacity(2 * bounds.len()),
+            items: Vec::with_capacity(bounds.len()),
+        };
         if !work.is_empty() {
             bvh.build_node(&mut work);
         }
@@ -63,8 +70,16 @@ impl Bvh {
     fn build_node(&mut self, work: &mut [BuildItem]) -> usize {
         let bounds = work.iter().fold(Aabb::EMPTY, |b, w| b.union(w.bounds));
         let node_index = self.nodes.len();
-        self.nodes.push(Node { bounds, offset: 0, count: 0 });
-        let split = if work.len() > MAX_LEAF { best_split(work, &bounds) } else { None };
+        self.nodes.push(Node {
+            bounds,
+            offset: 0,
+            count: 0,
+        });
+        let split = if work.len() > MAX_LEAF {
+            best_split(work, &bounds)
+        } else {
+            None
+        };
         match split {
             None => {
                 self.nodes[node_index].offset = self.items.len() as u32;
@@ -85,7 +100,12 @@ impl Bvh {
     /// within `range`; `test` returns the hit parameter if it found one inside the range, which
     /// then becomes the new `range.max`. Returns the final range's `max`-setting item, if any.
     #[inline]
-    pub fn closest(&self, ray: &Ray, mut range: Interval, mut test: impl FnMut(u32, Interval) -> Option<f64>) -> Option<u32> {
+    pub fn closest(
+        &self,
+        ray: &Ray,
+        mut range: Interval,
+        mut test: impl FnMut(u32, Interval) -> Option<f64>,
+    ) -> Option<u32> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -196,7 +216,8 @@ fn best_split(work: &mut [BuildItem], bounds: &Aabb) -> Option<usize> {
             if count == 0 || right_count[split] == 0 {
                 continue;
             }
-            let cost = 1.0 + (acc.surface_area() * count as f64 + right_area[split] * right_count[split] as f64) / parent_area;
+            let cost =
+                1.0 + (acc.surface_area() * count as f64 + right_area[split] * right_count[split] as f64) / parent_area;
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, split));
             }
@@ -230,8 +251,16 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
         let boxes: Vec<Aabb> = (0..500)
             .map(|_| {
-                let c = DVec3::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0));
-                let h = DVec3::new(rng.random_range(0.01..1.0), rng.random_range(0.01..1.0), rng.random_range(0.01..1.0));
+                let c = DVec3::new(
+                    rng.random_range(-10.0..10.0),
+                    rng.random_range(-10.0..10.0),
+                    rng.random_range(-10.0..10.0),
+                );
+                let h = DVec3::new(
+                    rng.random_range(0.01..1.0),
+                    rng.random_range(0.01..1.0),
+                    rng.random_range(0.01..1.0),
+                );
                 Aabb::new(c - h, c + h)
             })
             .collect();
@@ -247,7 +276,10 @@ mod tests {
                 .filter_map(|(i, b)| entry(b, &ray, Interval::POSITIVE).map(|t| (t, i as u32)))
                 .min_by(|a, b| a.0.total_cmp(&b.0));
             let found = bvh.closest(&ray, Interval::POSITIVE, |i, r| entry(&boxes[i as usize], &ray, r));
-            assert_eq!(found.map(|i| entry(&boxes[i as usize], &ray, Interval::POSITIVE).unwrap()), brute.map(|b| b.0));
+            assert_eq!(
+                found.map(|i| entry(&boxes[i as usize], &ray, Interval::POSITIVE).unwrap()),
+                brute.map(|b| b.0)
+            );
         }
     }
 }

@@ -44,18 +44,31 @@ pub struct CameraError {
 }
 
 fn err(field: &'static str, problem: impl Into<String>) -> CameraError {
-    CameraError { field, problem: problem.into() }
+    CameraError {
+        field,
+        problem: problem.into(),
+    }
 }
 
 impl Camera {
     /// A camera at `eye` looking along `direction` (any length > 0), with `up` orthonormalised
     /// against it, vertical field of view `vfov_deg` ∈ (0°, 180°) and `width × height` pixels.
-    pub fn new(eye: DVec3, direction: DVec3, up: DVec3, vfov_deg: f64, width: u32, height: u32) -> Result<Self, CameraError> {
+    pub fn new(
+        eye: DVec3,
+        direction: DVec3,
+        up: DVec3,
+        vfov_deg: f64,
+        width: u32,
+        height: u32,
+    ) -> Result<Self, CameraError> {
         if !eye.is_finite() {
             return Err(err("eye", format!("must be finite, got {eye}")));
         }
         if !direction.is_finite() || direction.length() == 0.0 {
-            return Err(err("look_at", "the view direction must be finite and non-zero (look_at equals eye?)"));
+            return Err(err(
+                "look_at",
+                "the view direction must be finite and non-zero (look_at equals eye?)",
+            ));
         }
         if !up.is_finite() || up.length() == 0.0 {
             return Err(err("up", format!("must be finite and non-zero, got {up}")));
@@ -64,7 +77,10 @@ impl Camera {
             return Err(err("vfov_deg", format!("must lie in (0, 180) degrees, got {vfov_deg}")));
         }
         if width == 0 || height == 0 {
-            return Err(err(if width == 0 { "width" } else { "height" }, "must be at least 1 pixel"));
+            return Err(err(
+                if width == 0 { "width" } else { "height" },
+                "must be at least 1 pixel",
+            ));
         }
         let forward = direction.normalize();
         let side = forward.cross(up.normalize());
@@ -73,18 +89,35 @@ impl Camera {
         }
         let right = side.normalize();
         let true_up = right.cross(forward);
-        Ok(Self { eye, forward, right, up: true_up, tan_half_vfov: (vfov_deg.to_radians() * 0.5).tan(), width, height })
+        Ok(Self {
+            eye,
+            forward,
+            right,
+            up: true_up,
+            tan_half_vfov: (vfov_deg.to_radians() * 0.5).tan(),
+            width,
+            height,
+        })
     }
 
     /// The same camera at another resolution, keeping the vertical field of view.
     pub fn with_resolution(&self, width: u32, height: u32) -> Result<Self, CameraError> {
-        Self::new(self.eye, self.forward, self.up, 2.0 * self.tan_half_vfov.atan().to_degrees(), width, height)
+        Self::new(
+            self.eye,
+            self.forward,
+            self.up,
+            2.0 * self.tan_half_vfov.atan().to_degrees(),
+            width,
+            height,
+        )
     }
 
     /// The vertical field of view (degrees) giving horizontal field `hfov_deg` at this aspect.
     #[must_use]
     pub fn vfov_from_hfov(hfov_deg: f64, width: u32, height: u32) -> f64 {
-        2.0 * ((hfov_deg.to_radians() * 0.5).tan() * f64::from(height) / f64::from(width)).atan().to_degrees()
+        2.0 * ((hfov_deg.to_radians() * 0.5).tan() * f64::from(height) / f64::from(width))
+            .atan()
+            .to_degrees()
     }
 
     /// `tan(θh/2) = tan(θv/2)·W/H`.
@@ -151,7 +184,15 @@ mod tests {
     use super::*;
 
     fn camera() -> Camera {
-        Camera::new(DVec3::new(0.0, 3.0, -9.0), DVec3::new(0.0, -2.2, 9.0), DVec3::Y, 40.0, 1280, 720).unwrap()
+        Camera::new(
+            DVec3::new(0.0, 3.0, -9.0),
+            DVec3::new(0.0, -2.2, 9.0),
+            DVec3::Y,
+            40.0,
+            1280,
+            720,
+        )
+        .unwrap()
     }
 
     #[test]
@@ -174,12 +215,42 @@ mod tests {
 
     #[test]
     fn impossible_cameras_are_errors() {
-        assert_eq!(Camera::new(DVec3::ZERO, DVec3::Y, DVec3::Y, 40.0, 10, 10).unwrap_err().field, "up");
-        assert_eq!(Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 180.0, 10, 10).unwrap_err().field, "vfov_deg");
-        assert_eq!(Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 0.0, 10, 10).unwrap_err().field, "vfov_deg");
-        assert_eq!(Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 40.0, 0, 10).unwrap_err().field, "width");
-        assert_eq!(Camera::new(DVec3::ZERO, DVec3::ZERO, DVec3::Y, 40.0, 1, 1).unwrap_err().field, "look_at");
-        assert_eq!(Camera::new(DVec3::NAN, DVec3::Z, DVec3::Y, 40.0, 1, 1).unwrap_err().field, "eye");
+        assert_eq!(
+            Camera::new(DVec3::ZERO, DVec3::Y, DVec3::Y, 40.0, 10, 10)
+                .unwrap_err()
+                .field,
+            "up"
+        );
+        assert_eq!(
+            Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 180.0, 10, 10)
+                .unwrap_err()
+                .field,
+            "vfov_deg"
+        );
+        assert_eq!(
+            Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 0.0, 10, 10)
+                .unwrap_err()
+                .field,
+            "vfov_deg"
+        );
+        assert_eq!(
+            Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 40.0, 0, 10)
+                .unwrap_err()
+                .field,
+            "width"
+        );
+        assert_eq!(
+            Camera::new(DVec3::ZERO, DVec3::ZERO, DVec3::Y, 40.0, 1, 1)
+                .unwrap_err()
+                .field,
+            "look_at"
+        );
+        assert_eq!(
+            Camera::new(DVec3::NAN, DVec3::Z, DVec3::Y, 40.0, 1, 1)
+                .unwrap_err()
+                .field,
+            "eye"
+        );
     }
 
     #[test]
@@ -188,7 +259,9 @@ mod tests {
         let m = c.world_to_camera();
         let ahead = m.transform_point3(c.eye + 5.0 * c.forward);
         assert!((ahead - DVec3::new(0.0, 0.0, -5.0)).length() < 1e-12);
-        let ndc = c.world_to_ndc(0.1, 100.0).project_point3(c.eye + 5.0 * c.forward + 1.0 * c.right);
+        let ndc = c
+            .world_to_ndc(0.1, 100.0)
+            .project_point3(c.eye + 5.0 * c.forward + 1.0 * c.right);
         assert!(ndc.x > 0.0 && ndc.y.abs() < 1e-12);
     }
 }

@@ -115,7 +115,11 @@ fn with_threads(threads: Option<usize>, f: impl FnOnce() -> Result<()> + Send) -
     match threads {
         None => f(),
         Some(0) => bail!("--threads must be at least 1"),
-        Some(n) => rayon::ThreadPoolBuilder::new().num_threads(n).build().context("creating the thread pool")?.install(f),
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .context("creating the thread pool")?
+            .install(f),
     }
 }
 
@@ -126,14 +130,30 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     if args.width.is_some() || args.height.is_some() {
         let w = args.width.unwrap_or(scene.camera.width);
         let h = args.height.unwrap_or(scene.camera.height);
-        scene.camera = scene.camera.with_resolution(w, h).map_err(|e| anyhow::anyhow!("--width/--height: {e}"))?;
+        scene.camera = scene
+            .camera
+            .with_resolution(w, h)
+            .map_err(|e| anyhow::anyhow!("--width/--height: {e}"))?;
     }
     let crop = match &args.crop {
         None => None,
         Some(c) => {
-            let w = Window { x0: c[0], y0: c[1], x1: c[2], y1: c[3] };
+            let w = Window {
+                x0: c[0],
+                y0: c[1],
+                x1: c[2],
+                y1: c[3],
+            };
             if w.x0 >= w.x1 || w.y0 >= w.y1 || w.x1 > scene.camera.width || w.y1 > scene.camera.height {
-                bail!("--crop {},{},{},{}: need x0 < x1 ≤ {} and y0 < y1 ≤ {}", c[0], c[1], c[2], c[3], scene.camera.width, scene.camera.height);
+                bail!(
+                    "--crop {},{},{},{}: need x0 < x1 ≤ {} and y0 < y1 ≤ {}",
+                    c[0],
+                    c[1],
+                    c[2],
+                    c[3],
+                    scene.camera.width,
+                    scene.camera.height
+                );
             }
             Some(w)
         }
@@ -145,7 +165,12 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let (dir, stem) = output_location(&args.output, &args.scene)?;
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
 
-    let options = RenderOptions { aovs, crop, depth_miss: args.depth_miss, progress: true };
+    let options = RenderOptions {
+        aovs,
+        crop,
+        depth_miss: args.depth_miss,
+        progress: true,
+    };
     let frame = render(&scene, &options);
 
     let exr_path = dir.join(format!("{stem}.exr"));
@@ -180,10 +205,25 @@ fn render_command(args: &RenderArgs) -> Result<()> {
 fn output_location(output: &Path, scene: &Path) -> Result<(PathBuf, String)> {
     if output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
         let dir = output.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
-        let stem = output.file_stem().context("output file name")?.to_string_lossy().into_owned();
-        Ok((if dir.as_os_str().is_empty() { PathBuf::from(".") } else { dir }, stem))
+        let stem = output
+            .file_stem()
+            .context("output file name")?
+            .to_string_lossy()
+            .into_owned();
+        Ok((
+            if dir.as_os_str().is_empty() {
+                PathBuf::from(".")
+            } else {
+                dir
+            },
+            stem,
+        ))
     } else {
-        let stem = scene.file_stem().context("scene file name")?.to_string_lossy().into_owned();
+        let stem = scene
+            .file_stem()
+            .context("scene file name")?
+            .to_string_lossy()
+            .into_owned();
         Ok((output.to_path_buf(), stem))
     }
 }

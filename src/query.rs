@@ -48,19 +48,29 @@ pub fn parse_rays(text: &str, path: &str) -> Result<Vec<QueryRay>, QueryError> {
         }
         let fields: Vec<&str> = trimmed.split(',').map(str::trim).collect();
         let numbers: Result<Vec<f64>, _> = fields.iter().map(|f| f.parse::<f64>()).collect();
-        let err = |message: String| QueryError { path: path.to_string(), line: line_no, message };
+        let err = |message: String| QueryError {
+            path: path.to_string(),
+            line: line_no,
+            message,
+        };
         let Ok(v) = numbers else {
             if rays.is_empty() && index == 0 {
                 continue; // header
             }
-            return Err(err(format!("expected numbers `ox,oy,oz,dx,dy,dz[,tmin,tmax]`, got `{trimmed}`")));
+            return Err(err(format!(
+                "expected numbers `ox,oy,oz,dx,dy,dz[,tmin,tmax]`, got `{trimmed}`"
+            )));
         };
         if v.len() != 6 && v.len() != 8 {
             return Err(err(format!("expected 6 or 8 fields, got {}", v.len())));
         }
         let origin = DVec3::new(v[0], v[1], v[2]);
         let dir = DVec3::new(v[3], v[4], v[5]);
-        let range = if v.len() == 8 { Interval::new(v[6], v[7]) } else { Interval::POSITIVE };
+        let range = if v.len() == 8 {
+            Interval::new(v[6], v[7])
+        } else {
+            Interval::POSITIVE
+        };
         if !origin.is_finite() || !dir.is_finite() {
             return Err(err("origin and direction must be finite".into()));
         }
@@ -70,7 +80,10 @@ pub fn parse_rays(text: &str, path: &str) -> Result<Vec<QueryRay>, QueryError> {
         if range.min.is_nan() || range.max.is_nan() || range.is_empty() {
             return Err(err(format!("invalid t range [{}, {}]", range.min, range.max)));
         }
-        rays.push(QueryRay { ray: Ray::new(origin, dir), range });
+        rays.push(QueryRay {
+            ray: Ray::new(origin, dir),
+            range,
+        });
     }
     Ok(rays)
 }
@@ -81,7 +94,15 @@ pub fn first_hits(scene: &Scene, rays: &[QueryRay]) -> Vec<Option<(u32, SurfaceH
     rays.par_iter()
         .map(|q| {
             scene.intersect(&q.ray, q.range).map(|(object, raw)| {
-                (object, SurfaceHit::complete(&*scene.objects[object as usize].primitive, &q.ray, &raw, HitRequest::ALL))
+                (
+                    object,
+                    SurfaceHit::complete(
+                        &*scene.objects[object as usize].primitive,
+                        &q.ray,
+                        &raw,
+                        HitRequest::ALL,
+                    ),
+                )
             })
         })
         .collect()
@@ -96,7 +117,11 @@ pub fn format_hits(scene: &Scene, hits: &[Option<(u32, SurfaceHit)>]) -> String 
             None => out.push_str("0,,,,,,,,,,,\n"),
             Some((object, h)) => {
                 let n = h.normal.unwrap_or_default();
-                let name = scene.objects[*object as usize].name.as_deref().unwrap_or("").replace([',', '\n'], " ");
+                let name = scene.objects[*object as usize]
+                    .name
+                    .as_deref()
+                    .unwrap_or("")
+                    .replace([',', '\n'], " ");
                 let uv = h.uv.map_or(",".to_string(), |uv| format!("{:e},{:e}", uv.x, uv.y));
                 let _ = writeln!(
                     out,

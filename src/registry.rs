@@ -43,7 +43,8 @@ pub trait SceneShape: fmt::Debug + Send + Sync {
     fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError>;
 }
 
-pub(crate) type ShapeParserFn = for<'a, 'de> fn(&'a mut dyn erased_serde::Deserializer<'de>) -> Result<Box<dyn SceneShape>, erased_serde::Error>;
+pub(crate) type ShapeParserFn =
+    for<'a, 'de> fn(&'a mut dyn erased_serde::Deserializer<'de>) -> Result<Box<dyn SceneShape>, erased_serde::Error>;
 
 static REGISTRY: LazyLock<RwLock<BTreeMap<String, ShapeParserFn>>> = LazyLock::new(|| {
     let mut map = BTreeMap::new();
@@ -60,13 +61,21 @@ pub(crate) fn parser_for<T: SceneShape + DeserializeOwned + 'static>() -> ShapeP
 
 /// Registers `T` under the RON name `name` (replacing an earlier registration of that name).
 pub fn register<T: SceneShape + DeserializeOwned + 'static>(name: &str) {
-    REGISTRY.write().unwrap_or_else(|e| e.into_inner()).insert(name.to_string(), parser_for::<T>());
+    REGISTRY
+        .write()
+        .unwrap_or_else(|e| e.into_inner())
+        .insert(name.to_string(), parser_for::<T>());
 }
 
 /// Every registered RON name, sorted.
 #[must_use]
 pub fn registered_names() -> Vec<String> {
-    REGISTRY.read().unwrap_or_else(|e| e.into_inner()).keys().cloned().collect()
+    REGISTRY
+        .read()
+        .unwrap_or_else(|e| e.into_inner())
+        .keys()
+        .cloned()
+        .collect()
 }
 
 fn lookup(name: &str) -> Option<ShapeParserFn> {

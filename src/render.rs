@@ -56,7 +56,12 @@ pub struct RenderOptions {
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        Self { aovs: Aov::DEFAULT.to_vec(), crop: None, depth_miss: f32::INFINITY, progress: false }
+        Self {
+            aovs: Aov::DEFAULT.to_vec(),
+            crop: None,
+            depth_miss: f32::INFINITY,
+            progress: false,
+        }
     }
 }
 
@@ -105,7 +110,8 @@ impl Frame {
         if x < self.window.x0 || x >= self.window.x1 || y < self.window.y0 || y >= self.window.y1 {
             return None;
         }
-        let index = ((y - self.window.y0) as usize * self.window.width() as usize + (x - self.window.x0) as usize) * self.channel_count();
+        let index = ((y - self.window.y0) as usize * self.window.width() as usize + (x - self.window.x0) as usize)
+            * self.channel_count();
         Some(&self.samples[index + offset..index + offset + aov.channels().len()])
     }
 
@@ -128,7 +134,12 @@ impl Frame {
 #[must_use]
 pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
     let camera = &scene.camera;
-    let window = options.crop.unwrap_or(Window { x0: 0, y0: 0, x1: camera.width, y1: camera.height });
+    let window = options.crop.unwrap_or(Window {
+        x0: 0,
+        y0: 0,
+        x1: camera.width,
+        y1: camera.height,
+    });
     let mut aovs = Vec::new();
     for a in &options.aovs {
         if !aovs.contains(a) {
@@ -136,7 +147,9 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         }
     }
     let request = HitRequest {
-        normal: aovs.iter().any(|a| matches!(a, Aov::Beauty | Aov::Normal | Aov::CameraNormal)),
+        normal: aovs
+            .iter()
+            .any(|a| matches!(a, Aov::Beauty | Aov::Normal | Aov::CameraNormal)),
         uv: aovs.contains(&Aov::Uv),
     };
     let channels: usize = aovs.iter().map(|a| a.channels().len()).sum();
@@ -146,7 +159,10 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
 
     let start = Instant::now();
     let bar = ProgressBar::with_draw_target(Some(u64::from(window.height())), ProgressDrawTarget::hidden());
-    bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} rows, {elapsed} elapsed, ~{eta} left").expect("valid template"));
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} rows, {elapsed} elapsed, ~{eta} left")
+            .expect("valid template"),
+    );
     let bar_shown = AtomicBool::new(false);
 
     samples.par_chunks_mut(row_len).enumerate().for_each(|(row, out)| {
@@ -155,7 +171,10 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
             let x = window.x0 + column as u32;
             let ray = camera.pixel_ray(x, y);
             let hit = scene.intersect(&ray, Interval::POSITIVE).map(|(object, raw)| {
-                (object, SurfaceHit::complete(&*scene.objects[object as usize].primitive, &ray, &raw, request))
+                (
+                    object,
+                    SurfaceHit::complete(&*scene.objects[object as usize].primitive, &ray, &raw, request),
+                )
             });
             let mut k = 0;
             for aov in &aovs {
@@ -167,18 +186,35 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         }
         if options.progress {
             bar.inc(1);
-            if !bar_shown.load(Ordering::Relaxed) && start.elapsed() > Duration::from_secs(1) && !bar_shown.swap(true, Ordering::Relaxed) {
+            if !bar_shown.load(Ordering::Relaxed)
+                && start.elapsed() > Duration::from_secs(1)
+                && !bar_shown.swap(true, Ordering::Relaxed)
+            {
                 bar.set_draw_target(ProgressDrawTarget::stderr());
             }
         }
     });
     bar.finish_and_clear();
-    Frame { width: camera.width, height: camera.height, window, aovs, samples, elapsed: start.elapsed() }
+    Frame {
+        width: camera.width,
+        height: camera.height,
+        window,
+        aovs,
+        samples,
+        elapsed: start.elapsed(),
+    }
 }
 
 /// The (up to three) channel values of one AOV for one pixel.
 #[inline]
-fn pixel_values(scene: &Scene, aov: Aov, ray: &Ray, hit: Option<&(u32, SurfaceHit)>, world_to_camera: &glam::DMat4, depth_miss: f32) -> [f32; 3] {
+fn pixel_values(
+    scene: &Scene,
+    aov: Aov,
+    ray: &Ray,
+    hit: Option<&(u32, SurfaceHit)>,
+    world_to_camera: &glam::DMat4,
+    depth_miss: f32,
+) -> [f32; 3] {
     let v3 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
     let Some((object, hit)) = hit else {
         return match aov {

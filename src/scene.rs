@@ -135,7 +135,11 @@ pub struct Material {
 
 impl Default for Material {
     fn default() -> Self {
-        Self { color: default_color(), specular: 0.0, shininess: default_shininess() }
+        Self {
+            color: default_color(),
+            specular: 0.0,
+            shininess: default_shininess(),
+        }
     }
 }
 
@@ -147,6 +151,16 @@ pub struct RotationDesc {
     pub axis: DVec3,
     /// Angle in degrees, counter-clockwise looking down the axis.
     pub degrees: f64,
+}
+
+impl RotationDesc {
+    /// The rotation as a unit quaternion; errors on a zero or non-finite axis or angle.
+    pub fn quat(&self) -> Result<DQuat, String> {
+        if !self.axis.is_finite() || self.axis.length() == 0.0 || !self.degrees.is_finite() {
+            return Err("axis must be finite and non-zero, degrees finite".into());
+        }
+        Ok(DQuat::from_axis_angle(self.axis.normalize(), self.degrees.to_radians()))
+    }
 }
 
 /// `transform: (translate: …, rotate: (axis: …, degrees: …), scale: (sx, sy, sz))`: applied as
@@ -218,7 +232,10 @@ pub struct Outputs {
 
 impl Default for Outputs {
     fn default() -> Self {
-        Self { aovs: default_aovs(), previews: true }
+        Self {
+            aovs: default_aovs(),
+            previews: true,
+        }
     }
 }
 
@@ -291,14 +308,20 @@ fn check_finite(location: &str, field: &str, v: DVec3) -> Result<(), (String, St
     if v.is_finite() {
         Ok(())
     } else {
-        Err((location.to_string(), format!("field `{field}`: must be finite, got {v}")))
+        Err((
+            location.to_string(),
+            format!("field `{field}`: must be finite, got {v}"),
+        ))
     }
 }
 
 impl Scene {
     /// Reads, parses and validates a scene file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.display().to_string(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
         let mut scene = Self::from_ron(&text, &path.display().to_string())?;
         scene.source = Some(path.to_path_buf());
         Ok(scene)
@@ -312,13 +335,17 @@ impl Scene {
             column: e.span.start.col,
             message: e.code.to_string(),
         })?;
-        Self::from_desc(desc)
-            .map_err(|(location, message)| SceneError::Invalid { path: path.to_string(), location, message })
+        Self::from_desc(desc).map_err(|(location, message)| SceneError::Invalid {
+            path: path.to_string(),
+            location,
+            message,
+        })
     }
 
     /// Validates a parsed description; the error is `(location, message)`.
     pub fn from_desc(desc: SceneDesc) -> Result<Self, (String, String)> {
-        let camera = build_camera(&desc.camera).map_err(|e| ("camera".to_string(), format!("field `{}`: {}", e.field, e.problem)))?;
+        let camera = build_camera(&desc.camera)
+            .map_err(|e| ("camera".to_string(), format!("field `{}`: {}", e.field, e.problem)))?;
         check_finite("scene", "ambient", desc.ambient)?;
         check_finite("scene", "background", desc.background)?;
         let mut objects = Vec::with_capacity(desc.objects.len());
@@ -327,17 +354,31 @@ impl Scene {
                 Some(name) => format!("objects[{index}] {name:?} ({})", object.shape.name),
                 None => format!("objects[{index}] ({})", object.shape.name),
             };
-            let mut primitive = object.shape.shape.build().map_err(|e| (location.clone(), format!("field `{}`: {}", e.field, e.problem)))?;
+            let mut primitive = object
+                .shape
+                .shape
+                .build()
+                .map_err(|e| (location.clone(), format!("field `{}`: {}", e.field, e.problem)))?;
             if let Some(t) = &object.transform {
                 let m = build_transform(t).map_err(|m| (location.clone(), m))?;
-                primitive = Arc::new(Transformed::new(primitive, m).map_err(|e| (location.clone(), format!("transform: {}", e.problem)))?);
+                primitive = Arc::new(
+                    Transformed::new(primitive, m)
+                        .map_err(|e| (location.clone(), format!("transform: {}", e.problem)))?,
+                );
             }
             let m = object.material;
             check_finite(&location, "material.color", m.color)?;
             if !(m.specular.is_finite() && m.specular >= 0.0 && m.shininess.is_finite() && m.shininess > 0.0) {
-                return Err((location, "field `material`: specular must be ≥ 0 and shininess > 0, both finite".into()));
+                return Err((
+                    location,
+                    "field `material`: specular must be ≥ 0 and shininess > 0, both finite".into(),
+                ));
             }
-            objects.push(Object { name: object.name, primitive, material: m });
+            objects.push(Object {
+                name: object.name,
+                primitive,
+                material: m,
+            });
         }
         for (index, light) in desc.lights.iter().enumerate() {
             let location = format!("lights[{index}]");
@@ -357,12 +398,26 @@ impl Scene {
         if desc.outputs.aovs.is_empty() {
             return Err(("outputs".into(), "field `aovs`: list at least one AOV".into()));
         }
-        Ok(Self::assemble(camera, objects, desc.lights, desc.ambient, desc.background, desc.outputs))
+        Ok(Self::assemble(
+            camera,
+            objects,
+            desc.lights,
+            desc.ambient,
+            desc.background,
+            desc.outputs,
+        ))
     }
 
     /// Builds the acceleration structure over validated parts.
     #[must_use]
-    pub fn assemble(camera: Camera, objects: Vec<Object>, lights: Vec<Light>, ambient: DVec3, background: DVec3, outputs: Outputs) -> Self {
+    pub fn assemble(
+        camera: Camera,
+        objects: Vec<Object>,
+        lights: Vec<Light>,
+        ambient: DVec3,
+        background: DVec3,
+        outputs: Outputs,
+    ) -> Self {
         let mut bounded = Vec::new();
         let mut unbounded = Vec::new();
         let mut boxes = Vec::new();
@@ -376,7 +431,18 @@ impl Scene {
             }
         }
         let bvh = Bvh::build(&boxes);
-        Self { source: None, camera, objects, lights, ambient, background, outputs, unbounded, bounded, bvh }
+        Self {
+            source: None,
+            camera,
+            objects,
+            lights,
+            ambient,
+            background,
+            outputs,
+            unbounded,
+            bounded,
+            bvh,
+        }
     }
 
     /// The closest hit along `ray` with `t` in `range`: the object index and its raw hit.
@@ -391,7 +457,9 @@ impl Scene {
         }
         let mut raw = None;
         let item = self.bvh.closest(ray, range, |item, r| {
-            let hit = self.objects[self.bounded[item as usize] as usize].primitive.intersect(ray, r)?;
+            let hit = self.objects[self.bounded[item as usize] as usize]
+                .primitive
+                .intersect(ray, r)?;
             raw = Some(hit);
             Some(hit.t)
         });
@@ -414,11 +482,17 @@ impl Scene {
 fn build_camera(c: &CameraDesc) -> Result<Camera, CameraError> {
     let direction = match (c.look_at, c.direction) {
         (Some(_), Some(_)) => {
-            return Err(CameraError { field: "direction", problem: "give either `look_at` or `direction`, not both".into() })
+            return Err(CameraError {
+                field: "direction",
+                problem: "give either `look_at` or `direction`, not both".into(),
+            })
         }
         (Some(target), None) => {
             if !target.is_finite() {
-                return Err(CameraError { field: "look_at", problem: format!("must be finite, got {target}") });
+                return Err(CameraError {
+                    field: "look_at",
+                    problem: format!("must be finite, got {target}"),
+                });
             }
             target - c.eye
         }
@@ -429,7 +503,10 @@ fn build_camera(c: &CameraDesc) -> Result<Camera, CameraError> {
         (Some(v), None) => v,
         (None, Some(h)) => {
             if !(h > 0.0 && h < 180.0) {
-                return Err(CameraError { field: "hfov_deg", problem: format!("must lie in (0, 180) degrees, got {h}") });
+                return Err(CameraError {
+                    field: "hfov_deg",
+                    problem: format!("must lie in (0, 180) degrees, got {h}"),
+                });
             }
             Camera::vfov_from_hfov(h, c.width.max(1), c.height.max(1))
         }
@@ -439,7 +516,10 @@ fn build_camera(c: &CameraDesc) -> Result<Camera, CameraError> {
             if (implied - v).abs() > 1e-6 * v.abs().max(1.0) {
                 return Err(CameraError {
                     field: "hfov_deg",
-                    problem: format!("{h}° is inconsistent with vfov_deg {v}° at {}×{} with square pixels", c.width, c.height),
+                    problem: format!(
+                        "{h}° is inconsistent with vfov_deg {v}° at {}×{} with square pixels",
+                        c.width, c.height
+                    ),
                 });
             }
             v
@@ -450,19 +530,26 @@ fn build_camera(c: &CameraDesc) -> Result<Camera, CameraError> {
 
 fn build_transform(t: &TransformDesc) -> Result<DAffine3, String> {
     if !t.translate.is_finite() {
-        return Err(format!("field `transform.translate`: must be finite, got {}", t.translate));
+        return Err(format!(
+            "field `transform.translate`: must be finite, got {}",
+            t.translate
+        ));
     }
     if !t.scale.is_finite() || t.scale.x * t.scale.y * t.scale.z == 0.0 {
-        return Err(format!("field `transform.scale`: must be finite and non-zero, got {}", t.scale));
+        return Err(format!(
+            "field `transform.scale`: must be finite and non-zero, got {}",
+            t.scale
+        ));
     }
     let rotation = match &t.rotate {
         None => DQuat::IDENTITY,
-        Some(r) => {
-            if !r.axis.is_finite() || r.axis.length() == 0.0 || !r.degrees.is_finite() {
-                return Err("field `transform.rotate`: axis must be finite and non-zero, degrees finite".into());
-            }
-            DQuat::from_axis_angle(r.axis.normalize(), r.degrees.to_radians())
-        }
+        Some(r) => r
+            .quat()
+            .map_err(|problem| format!("field `transform.rotate`: {problem}"))?,
     };
-    Ok(DAffine3::from_scale_rotation_translation(t.scale, rotation, t.translate))
+    Ok(DAffine3::from_scale_rotation_translation(
+        t.scale,
+        rotation,
+        t.translate,
+    ))
 }

@@ -5,15 +5,20 @@
 //! field; see `scenes/README.md` for one example per primitive.
 
 use crate::registry::{parser_for, SceneShape};
+use crate::scene::RotationDesc;
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
-use zeroset_primitives::{Plane, Primitive, PrimitiveError, Sphere};
+use zeroset_primitives::{Cone, Cuboid, Cylinder, Ellipsoid, Plane, Primitive, PrimitiveError, Sphere};
 
 /// Calls `add(name, parser)` for every built-in primitive.
 pub(crate) fn register_builtins(add: &mut dyn FnMut(&str, crate::registry::ShapeParserFn)) {
     add("Sphere", parser_for::<SphereDesc>());
     add("Plane", parser_for::<PlaneDesc>());
+    add("Box", parser_for::<BoxDesc>());
+    add("Cylinder", parser_for::<CylinderDesc>());
+    add("Cone", parser_for::<ConeDesc>());
+    add("Ellipsoid", parser_for::<EllipsoidDesc>());
 }
 
 fn origin() -> DVec3 {
@@ -24,6 +29,9 @@ fn unit_y() -> DVec3 {
 }
 fn one() -> f64 {
     1.0
+}
+fn yes() -> bool {
+    true
 }
 
 /// `Sphere(center: (0, 0, 0), radius: 1)`.
@@ -63,9 +71,128 @@ pub struct PlaneDesc {
 impl SceneShape for PlaneDesc {
     fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         Ok(Arc::new(match (self.offset, self.point) {
-            (Some(_), Some(_)) => return Err(PrimitiveError::new("Plane", "point", "give either `offset` or `point`, not both")),
+            (Some(_), Some(_)) => {
+                return Err(PrimitiveError::new(
+                    "Plane",
+                    "point",
+                    "give either `offset` or `point`, not both",
+                ))
+            }
             (_, Some(p)) => Plane::through(p, self.normal)?,
             (offset, None) => Plane::new(self.normal, offset.unwrap_or(0.0))?,
         }))
+    }
+}
+
+/// `Box(min: (-1, -1, -1), max: (1, 1, 1))`: the axis-aligned box (use a transform to rotate it).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Box")]
+pub struct BoxDesc {
+    /// Lower corner.
+    pub min: DVec3,
+    /// Upper corner (greater than `min` on every axis).
+    pub max: DVec3,
+}
+
+impl SceneShape for BoxDesc {
+    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        Ok(Arc::new(Cuboid::new(self.min, self.max)?))
+    }
+}
+
+/// `Cylinder(base: (0, 0, 0), axis: (0, 1, 0), radius: 1, height: 1, capped: true)`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Cylinder")]
+pub struct CylinderDesc {
+    /// Centre of the bottom cap; default the origin.
+    #[serde(default = "origin")]
+    pub base: DVec3,
+    /// Axis direction from the bottom cap to the top; default +Y.
+    #[serde(default = "unit_y")]
+    pub axis: DVec3,
+    /// Radius; default 1.
+    #[serde(default = "one")]
+    pub radius: f64,
+    /// Height along the axis; default 1.
+    #[serde(default = "one")]
+    pub height: f64,
+    /// Closed by two disks (default) or an open tube.
+    #[serde(default = "yes")]
+    pub capped: bool,
+}
+
+impl SceneShape for CylinderDesc {
+    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        Ok(Arc::new(Cylinder::new(
+            self.base,
+            self.axis,
+            self.radius,
+            self.height,
+            self.capped,
+        )?))
+    }
+}
+
+/// `Cone(base: (0, 0, 0), axis: (0, 1, 0), base_radius: 1, top_radius: 0, height: 1, capped: true)`:
+/// a pointed cone (`top_radius: 0`, the default) or a frustum.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Cone")]
+pub struct ConeDesc {
+    /// Centre of the base; default the origin.
+    #[serde(default = "origin")]
+    pub base: DVec3,
+    /// Axis direction from the base to the top; default +Y.
+    #[serde(default = "unit_y")]
+    pub axis: DVec3,
+    /// Radius at the base; default 1.
+    #[serde(default = "one")]
+    pub base_radius: f64,
+    /// Radius at the top; default 0 (a pointed cone).
+    #[serde(default)]
+    pub top_radius: f64,
+    /// Height along the axis; default 1.
+    #[serde(default = "one")]
+    pub height: f64,
+    /// Closed by disks (default) or open.
+    #[serde(default = "yes")]
+    pub capped: bool,
+}
+
+impl SceneShape for ConeDesc {
+    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        Ok(Arc::new(Cone::new(
+            self.base,
+            self.axis,
+            self.base_radius,
+            self.top_radius,
+            self.height,
+            self.capped,
+        )?))
+    }
+}
+
+/// `Ellipsoid(center: (0, 0, 0), radii: (1, 0.6, 0.4), rotate: (axis: (0, 1, 0), degrees: 30))`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Ellipsoid")]
+pub struct EllipsoidDesc {
+    /// Centre; default the origin.
+    #[serde(default = "origin")]
+    pub center: DVec3,
+    /// Semi-axis lengths along the (rotated) x, y, z axes.
+    pub radii: DVec3,
+    /// Orientation; default none.
+    #[serde(default)]
+    pub rotate: Option<RotationDesc>,
+}
+
+impl SceneShape for EllipsoidDesc {
+    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        let orientation = match &self.rotate {
+            None => glam::DQuat::IDENTITY,
+            Some(r) => r
+                .quat()
+                .map_err(|problem| PrimitiveError::new("Ellipsoid", "rotate", problem))?,
+        };
+        Ok(Arc::new(Ellipsoid::new(self.center, self.radii, orientation)?))
     }
 }

@@ -15,9 +15,15 @@ pub struct Aabb {
 
 impl Aabb {
     /// The box containing nothing; the identity of [`Aabb::union`].
-    pub const EMPTY: Self = Self { min: DVec3::INFINITY, max: DVec3::NEG_INFINITY };
+    pub const EMPTY: Self = Self {
+        min: DVec3::INFINITY,
+        max: DVec3::NEG_INFINITY,
+    };
     /// The whole space.
-    pub const EVERYTHING: Self = Self { min: DVec3::NEG_INFINITY, max: DVec3::INFINITY };
+    pub const EVERYTHING: Self = Self {
+        min: DVec3::NEG_INFINITY,
+        max: DVec3::INFINITY,
+    };
 
     /// The box with the given corners (no reordering).
     #[must_use]
@@ -34,19 +40,28 @@ impl Aabb {
     /// The smallest box containing `self` and `p`.
     #[must_use]
     pub fn including(self, p: DVec3) -> Self {
-        Self { min: self.min.min(p), max: self.max.max(p) }
+        Self {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
     }
 
     /// The smallest box containing both.
     #[must_use]
     pub fn union(self, other: Self) -> Self {
-        Self { min: self.min.min(other.min), max: self.max.max(other.max) }
+        Self {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
     }
 
     /// The box grown by `margin` on every side.
     #[must_use]
     pub fn expanded(self, margin: f64) -> Self {
-        Self { min: self.min - DVec3::splat(margin), max: self.max + DVec3::splat(margin) }
+        Self {
+            min: self.min - DVec3::splat(margin),
+            max: self.max + DVec3::splat(margin),
+        }
     }
 
     /// Whether the box contains nothing.

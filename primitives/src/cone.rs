@@ -115,25 +115,11 @@ impl Cone {
             ));
         }
         let height = require_positive("Cone", "height", height)?;
-        Ok(Self::from_valid(
-            base,
-            axis,
-            base_radius,
-            top_radius,
-            height,
-            capped,
-        ))
+        Ok(Self::from_valid(base, axis, base_radius, top_radius, height, capped))
     }
 
     /// Builds from parameters already validated (`axis` unit length).
-    pub(crate) fn from_valid(
-        base: DVec3,
-        axis: DVec3,
-        r0: f64,
-        r1: f64,
-        height: f64,
-        capped: bool,
-    ) -> Self {
+    pub(crate) fn from_valid(base: DVec3, axis: DVec3, r0: f64, r1: f64, height: f64, capped: bool) -> Self {
         let (e1, e2) = orthonormal_basis(axis);
         let side_normal = DVec2::new(height, r0 - r1) / height.hypot(r0 - r1);
         Self {
@@ -209,12 +195,7 @@ impl Cone {
         let (r0, r1, big_h) = (self.r0, self.r1, self.height);
         let m = DVec2::new(rho, h);
         let segments = [
-            (
-                SIDE,
-                DVec2::new(r0, 0.0),
-                DVec2::new(r1 - r0, big_h),
-                self.side_normal,
-            ),
+            (SIDE, DVec2::new(r0, 0.0), DVec2::new(r1 - r0, big_h), self.side_normal),
             (BOTTOM, DVec2::ZERO, DVec2::new(r0, 0.0), DVec2::NEG_Y),
             (TOP, DVec2::new(0.0, big_h), DVec2::new(r1, 0.0), DVec2::Y),
         ];
@@ -287,9 +268,8 @@ impl Implicit for Cone {
         let reach = (DVec3::ONE - self.axis * self.axis).max(DVec3::ZERO);
         let reach = DVec3::new(reach.x.sqrt(), reach.y.sqrt(), reach.z.sqrt());
         let top = self.base + self.height * self.axis;
-        Aabb::from_points([self.base - self.r0 * reach, self.base + self.r0 * reach]).union(
-            Aabb::from_points([top - self.r1 * reach, top + self.r1 * reach]),
-        )
+        Aabb::from_points([self.base - self.r0 * reach, self.base + self.r0 * reach])
+            .union(Aabb::from_points([top - self.r1 * reach, top + self.r1 * reach]))
     }
 
     fn lipschitz(&self) -> Option<f64> {
@@ -370,16 +350,8 @@ impl Intersect for Cone {
 
 impl Parametric for Cone {
     fn domain(&self) -> UvDomain {
-        let bottom = if self.capped && self.r0 > 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
-        let top = if self.capped && self.r1 > 0.0 {
-            2.0
-        } else {
-            1.0
-        };
+        let bottom = if self.capped && self.r0 > 0.0 { -1.0 } else { 0.0 };
+        let top = if self.capped && self.r1 > 0.0 { 2.0 } else { 1.0 };
         UvDomain {
             u: (0.0, 1.0),
             v: (bottom, top),
@@ -446,9 +418,7 @@ mod tests {
     #[test]
     fn rejects_bad_parameters() {
         let ok = |r0, r1, h| Cone::new(DVec3::ZERO, DVec3::Z, r0, r1, h, true);
-        assert!(
-            ok(1.0, 0.0, 1.0).is_ok() && ok(0.0, 1.0, 1.0).is_ok() && ok(1.0, 1.0, 1.0).is_ok()
-        );
+        assert!(ok(1.0, 0.0, 1.0).is_ok() && ok(0.0, 1.0, 1.0).is_ok() && ok(1.0, 1.0, 1.0).is_ok());
         assert!(ok(-1.0, 0.5, 1.0).is_err());
         assert!(ok(1.0, -0.5, 1.0).is_err());
         assert!(ok(0.0, 0.0, 1.0).is_err(), "both radii zero");
@@ -462,11 +432,7 @@ mod tests {
     #[test]
     fn side_hit_and_normal_are_exact() {
         for capped in [true, false] {
-            let (t, feature, n) = hit(
-                &pointed(capped),
-                Ray::new(DVec3::new(-2.0, 0.0, 0.5), DVec3::X),
-            )
-            .unwrap();
+            let (t, feature, n) = hit(&pointed(capped), Ray::new(DVec3::new(-2.0, 0.0, 0.5), DVec3::X)).unwrap();
             assert_eq!((t, feature), (1.5, SIDE));
             assert!(close(n, DVec3::new(-1.0, 0.0, 1.0) / SQRT_2), "{n}");
         }
@@ -492,11 +458,7 @@ mod tests {
             "above the apex: distance to it"
         );
         assert_eq!(solid.gradient(DVec3::new(0.0, 0.0, 3.0)), DVec3::Z);
-        assert_eq!(
-            solid.phi(DVec3::new(0.0, 0.0, 0.25)),
-            -0.25,
-            "nearest: the base"
-        );
+        assert_eq!(solid.phi(DVec3::new(0.0, 0.0, 0.25)), -0.25, "nearest: the base");
         assert_eq!(solid.phi(DVec3::new(2.0, 0.0, 0.0)), 1.0, "beyond the rim");
         assert_eq!(solid.gradient(DVec3::new(2.0, 0.0, 0.0)), DVec3::X);
         let p = DVec3::new(0.0, 1.0, 1.0);
@@ -529,16 +491,9 @@ mod tests {
                 }
             );
             // parallel to the axis, off it: side (open) or base (capped)
-            let (t, feature, _) =
-                hit(&cone, Ray::new(DVec3::new(0.5, 0.0, -1.0), DVec3::Z)).unwrap();
-            assert_eq!(
-                (t, feature),
-                if capped { (1.0, BOTTOM) } else { (1.5, SIDE) }
-            );
-            assert_eq!(
-                hit(&cone, Ray::new(DVec3::new(1.5, 0.0, -1.0), DVec3::Z)),
-                None
-            );
+            let (t, feature, _) = hit(&cone, Ray::new(DVec3::new(0.5, 0.0, -1.0), DVec3::Z)).unwrap();
+            assert_eq!((t, feature), if capped { (1.0, BOTTOM) } else { (1.5, SIDE) });
+            assert_eq!(hit(&cone, Ray::new(DVec3::new(1.5, 0.0, -1.0), DVec3::Z)), None);
         }
     }
 

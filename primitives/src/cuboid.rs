@@ -114,8 +114,7 @@ impl Cuboid {
     /// `(u, v)` of `p` on face `face`.
     fn uv_on(&self, face: u32, p: DVec3) -> DVec2 {
         let (_, ju, jv) = Self::face_axes(face);
-        let fraction =
-            |a: usize| ((p[a] - self.min[a]) / (self.max[a] - self.min[a])).clamp(0.0, 1.0);
+        let fraction = |a: usize| ((p[a] - self.min[a]) / (self.max[a] - self.min[a])).clamp(0.0, 1.0);
         DVec2::new(f64::from(face) + fraction(ju), fraction(jv))
     }
 }
@@ -225,11 +224,7 @@ impl Parametric for Cuboid {
         let (i, ju, jv) = Self::face_axes(face as u32);
         let lerp = |a: usize, f: f64| (1.0 - f) * self.min[a] + f * self.max[a];
         let mut p = DVec3::ZERO;
-        p[i] = if face as u32 % 2 == 1 {
-            self.max[i]
-        } else {
-            self.min[i]
-        };
+        p[i] = if face as u32 % 2 == 1 { self.max[i] } else { self.min[i] };
         p[ju] = lerp(ju, uv.x - face);
         p[jv] = lerp(jv, uv.y);
         p
@@ -284,9 +279,7 @@ mod tests {
         assert_eq!(b.phi(DVec3::new(3.0, 3.0, 5.0)), 1.0);
         assert_eq!(b.gradient(DVec3::new(3.0, 3.0, 5.0)), DVec3::X);
         assert_eq!(b.phi(DVec3::new(3.0, 5.0, 8.0)), 3f64.sqrt());
-        assert!(
-            (b.gradient(DVec3::new(3.0, 5.0, 8.0)) - DVec3::ONE / 3f64.sqrt()).length() < 1e-15
-        );
+        assert!((b.gradient(DVec3::new(3.0, 5.0, 8.0)) - DVec3::ONE / 3f64.sqrt()).length() < 1e-15);
         // inside: the nearest face's normal (+X at distance 0.25, the others ≥ 0.75)
         assert_eq!(b.phi(DVec3::new(1.75, 3.0, 5.0)), -0.25);
         assert_eq!(b.gradient(DVec3::new(1.75, 3.0, 5.0)), DVec3::X);
@@ -319,15 +312,9 @@ mod tests {
     fn signed_zero_direction_components_give_no_nan() {
         for (y, z) in [(0.0, 0.0), (-0.0, 0.0), (0.0, -0.0), (-0.0, -0.0)] {
             let dir = DVec3::new(1.0, y, z);
-            assert_eq!(
-                hit(Ray::new(DVec3::new(0.0, 3.0, 5.0), dir)),
-                Some((1.0, 0, -DVec3::X))
-            );
+            assert_eq!(hit(Ray::new(DVec3::new(0.0, 3.0, 5.0), dir)), Some((1.0, 0, -DVec3::X)));
             // origin exactly on the lower/upper slab planes of y and z: lies in a face plane
-            assert_eq!(
-                hit(Ray::new(DVec3::new(0.0, 2.0, 7.0), dir)),
-                Some((1.0, 0, -DVec3::X))
-            );
+            assert_eq!(hit(Ray::new(DVec3::new(0.0, 2.0, 7.0), dir)), Some((1.0, 0, -DVec3::X)));
             // outside the y slab: a miss, not a NaN comparison accident
             assert_eq!(hit(Ray::new(DVec3::new(0.0, 4.5, 5.0), dir)), None);
             assert_eq!(hit(Ray::new(DVec3::new(0.0, 1.5, 5.0), -dir)), None);
@@ -355,10 +342,7 @@ mod tests {
         assert!(b.intersect(&ray, Interval::new(0.75, 10.0)).is_none());
         // in the face plane but beside the face
         assert!(b
-            .intersect(
-                &Ray::new(DVec3::new(0.0, 4.0, 8.0), DVec3::X),
-                Interval::POSITIVE
-            )
+            .intersect(&Ray::new(DVec3::new(0.0, 4.0, 8.0), DVec3::X), Interval::POSITIVE)
             .is_none());
     }
 
@@ -366,10 +350,7 @@ mod tests {
     fn edge_and_corner_hits_get_an_exact_face_normal() {
         // through the edge x = 1, y = 2 at t = 1; ties go to the lower axis (face 0, −X)
         assert_eq!(
-            hit(Ray::new(
-                DVec3::new(0.0, 1.0, 5.0),
-                DVec3::new(1.0, 1.0, 0.0)
-            )),
+            hit(Ray::new(DVec3::new(0.0, 1.0, 5.0), DVec3::new(1.0, 1.0, 0.0))),
             Some((1.0, 0, -DVec3::X))
         );
         // through the corner (1, 2, 3) at t = 1

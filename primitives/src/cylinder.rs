@@ -48,13 +48,7 @@ pub struct Cylinder {
 impl Cylinder {
     /// A cylinder; errors on a non-finite base, a zero axis, or a radius or height that is not
     /// finite and positive.
-    pub fn new(
-        base: DVec3,
-        axis: DVec3,
-        radius: f64,
-        height: f64,
-        capped: bool,
-    ) -> Result<Self, PrimitiveError> {
+    pub fn new(base: DVec3, axis: DVec3, radius: f64, height: f64, capped: bool) -> Result<Self, PrimitiveError> {
         let base = require_finite("Cylinder", "base", base)?;
         let axis = require_direction("Cylinder", "axis", axis)?;
         let radius = require_positive("Cylinder", "radius", radius)?;
@@ -170,14 +164,8 @@ mod tests {
     fn rejects_bad_parameters() {
         let make = |r, h| Cylinder::new(DVec3::ZERO, DVec3::Z, r, h, true);
         assert!(make(1.0, 1.0).is_ok());
-        assert!(
-            make(0.0, 1.0).is_err() && make(-1.0, 1.0).is_err() && make(f64::NAN, 1.0).is_err()
-        );
-        assert!(
-            make(1.0, 0.0).is_err()
-                && make(1.0, -2.0).is_err()
-                && make(1.0, f64::INFINITY).is_err()
-        );
+        assert!(make(0.0, 1.0).is_err() && make(-1.0, 1.0).is_err() && make(f64::NAN, 1.0).is_err());
+        assert!(make(1.0, 0.0).is_err() && make(1.0, -2.0).is_err() && make(1.0, f64::INFINITY).is_err());
         assert!(Cylinder::new(DVec3::ZERO, DVec3::ZERO, 1.0, 1.0, true).is_err());
         assert!(Cylinder::new(DVec3::new(0.0, f64::NAN, 0.0), DVec3::Z, 1.0, 1.0, true).is_err());
     }
@@ -227,10 +215,7 @@ mod tests {
             let c = cylinder(capped);
             let inside = hit(&c, Ray::new(DVec3::new(0.5, 0.0, -5.0), DVec3::Z));
             assert_eq!(inside, capped.then_some((5.0, BOTTOM, -DVec3::Z)));
-            assert_eq!(
-                hit(&c, Ray::new(DVec3::new(1.5, 0.0, -5.0), DVec3::Z)),
-                None
-            );
+            assert_eq!(hit(&c, Ray::new(DVec3::new(1.5, 0.0, -5.0), DVec3::Z)), None);
             let from_within = hit(&c, Ray::new(DVec3::new(0.5, 0.0, 1.0), -DVec3::Z));
             assert_eq!(from_within, capped.then_some((1.0, BOTTOM, -DVec3::Z)));
         }
@@ -269,17 +254,10 @@ mod tests {
         assert_eq!(solid.gradient(DVec3::new(0.0, 0.5, 1.75)), DVec3::Z);
         assert_eq!(solid.phi(DVec3::new(0.0, 0.0, 2.5)), 0.5);
         assert_eq!(solid.phi(DVec3::new(2.0, 0.0, 3.0)), 2f64.sqrt());
-        assert!(
-            (solid.gradient(DVec3::new(2.0, 0.0, 3.0)) - DVec3::new(1.0, 0.0, 1.0) / 2f64.sqrt())
-                .length()
-                < 1e-15
-        );
+        assert!((solid.gradient(DVec3::new(2.0, 0.0, 3.0)) - DVec3::new(1.0, 0.0, 1.0) / 2f64.sqrt()).length() < 1e-15);
         assert_eq!(tube.phi(DVec3::new(0.0, 0.0, 5.0)), -1.0);
         assert_eq!(tube.phi(DVec3::new(3.0, 0.0, 1.0)), 2.0);
-        assert!(
-            !tube.within_boundary(DVec3::new(1.0, 0.0, 2.5))
-                && tube.within_boundary(DVec3::new(1.0, 0.0, 2.0))
-        );
+        assert!(!tube.within_boundary(DVec3::new(1.0, 0.0, 2.5)) && tube.within_boundary(DVec3::new(1.0, 0.0, 2.0)));
     }
 
     #[test]

@@ -122,9 +122,7 @@ impl Implicit for Ellipsoid {
         // world component i of R(r ⊙ s) over |s| = 1 reaches |(R_i0 r_x, R_i1 r_y, R_i2 r_z)|
         let m = self.world_from_local;
         let square = |v: DVec3| v * v;
-        let reach = square(m.x_axis * self.radii.x)
-            + square(m.y_axis * self.radii.y)
-            + square(m.z_axis * self.radii.z);
+        let reach = square(m.x_axis * self.radii.x) + square(m.y_axis * self.radii.y) + square(m.z_axis * self.radii.z);
         let reach = DVec3::new(reach.x.sqrt(), reach.y.sqrt(), reach.z.sqrt());
         Aabb::new(self.center - reach, self.center + reach)
     }
@@ -145,8 +143,7 @@ impl Intersect for Ellipsoid {
     }
 
     fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 {
-        let s =
-            self.unit_space(ray.origin) + raw.t * (self.local_from_world * ray.dir / self.radii);
+        let s = self.unit_space(ray.origin) + raw.t * (self.local_from_world * ray.dir / self.radii);
         self.normal_direction(s).normalize_or_zero()
     }
 
@@ -203,12 +200,7 @@ mod tests {
 
     #[test]
     fn axis_hits_are_exact() {
-        let e = Ellipsoid::new(
-            DVec3::new(1.0, 0.0, 0.0),
-            DVec3::new(3.0, 2.0, 1.0),
-            DQuat::IDENTITY,
-        )
-        .unwrap();
+        let e = Ellipsoid::new(DVec3::new(1.0, 0.0, 0.0), DVec3::new(3.0, 2.0, 1.0), DQuat::IDENTITY).unwrap();
         assert_eq!(
             hit(&e, Ray::new(DVec3::new(-5.0, 0.0, 0.0), DVec3::X)),
             Some((3.0, -DVec3::X))
@@ -221,20 +213,13 @@ mod tests {
             hit(&e, Ray::new(DVec3::new(1.0, 0.0, 0.0), DVec3::Y)),
             Some((2.0, DVec3::Y))
         );
-        assert_eq!(
-            e.phi(DVec3::new(7.0, 0.0, 0.0)),
-            1.0,
-            "(|s| − 1)·min r = (2 − 1)·1"
-        );
+        assert_eq!(e.phi(DVec3::new(7.0, 0.0, 0.0)), 1.0, "(|s| − 1)·min r = (2 − 1)·1");
         // rotated a quarter turn about Z: the long local X axis lies along world Y
         let q = DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2);
         let e = Ellipsoid::new(DVec3::ZERO, DVec3::new(3.0, 1.0, 1.0), q).unwrap();
         let (t, n) = hit(&e, Ray::new(DVec3::new(0.0, -10.0, 0.0), DVec3::Y)).unwrap();
         // (the quarter-turn quaternion is itself rounded, so allow a few ulp)
-        assert!(
-            (t - 7.0).abs() < 1e-14 && (n + DVec3::Y).length() < 1e-14,
-            "{t} {n}"
-        );
+        assert!((t - 7.0).abs() < 1e-14 && (n + DVec3::Y).length() < 1e-14, "{t} {n}");
     }
 
     #[test]
@@ -246,11 +231,7 @@ mod tests {
         // across the thin axis at x = 5000: y = −√(1 − 1/4), t = 10⁵ − √0.75
         let (t, n) = hit(&e, Ray::new(DVec3::new(5e3, -1e5, 0.0), DVec3::Y)).unwrap();
         let expect = 1e5 - 0.75f64.sqrt();
-        assert!(
-            (t - expect).abs() <= 2e-11,
-            "t − expected = {:e}",
-            t - expect
-        );
+        assert!((t - expect).abs() <= 2e-11, "t − expected = {:e}", t - expect);
         // the normal ∝ (x/a², y/b², z/c²) = (5·10⁻⁵, −√0.75, 0)
         let exact = DVec3::new(5e3 / 1e8, -(0.75f64.sqrt()), 0.0).normalize();
         assert!((n - exact).length() < 1e-15, "{n}");
@@ -269,11 +250,7 @@ mod tests {
         let (mut worst_t, mut worst_n) = (0.0f64, 0.0f64);
         for i in 0..40 {
             let (theta, phi) = (0.1 + 0.075 * f64::from(i), 0.9 * f64::from(i));
-            let s = DVec3::new(
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                theta.sin() * phi.sin(),
-            );
+            let s = DVec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
             let p = c + rot * (r * s);
             let n = (rot * (s / r)).normalize();
             let dir = (0.5 * n.any_orthonormal_vector() - n).normalize();
@@ -304,10 +281,7 @@ mod tests {
             let (a, b, cc) = (dir.dot(m * dir), dir.dot(m * f), f.dot(m * f) - 1.0);
             let reference = (-b - (b * b - a * cc).sqrt()) / a;
             let (t, _) = hit(&e, Ray::new(origin, dir)).unwrap();
-            assert!(
-                (t - reference).abs() < 1e-12 * reference,
-                "t {t} reference {reference}"
-            );
+            assert!((t - reference).abs() < 1e-12 * reference, "t {t} reference {reference}");
         }
     }
 

@@ -18,7 +18,11 @@ impl PrimitiveError {
     /// An error about `field` of a `primitive`.
     #[must_use]
     pub fn new(primitive: &'static str, field: impl Into<String>, problem: impl Into<String>) -> Self {
-        Self { primitive, field: field.into(), problem: problem.into() }
+        Self {
+            primitive,
+            field: field.into(),
+            problem: problem.into(),
+        }
     }
 }
 
@@ -35,7 +39,11 @@ pub fn require_positive(primitive: &'static str, field: &str, x: f64) -> Result<
     if x.is_finite() && x > 0.0 {
         Ok(x)
     } else {
-        Err(PrimitiveError::new(primitive, field, format!("must be positive and finite, got {x}")))
+        Err(PrimitiveError::new(
+            primitive,
+            field,
+            format!("must be positive and finite, got {x}"),
+        ))
     }
 }
 
@@ -44,7 +52,11 @@ pub fn require_finite(primitive: &'static str, field: &str, v: DVec3) -> Result<
     if v.is_finite() {
         Ok(v)
     } else {
-        Err(PrimitiveError::new(primitive, field, format!("must be finite, got {v}")))
+        Err(PrimitiveError::new(
+            primitive,
+            field,
+            format!("must be finite, got {v}"),
+        ))
     }
 }
 

@@ -35,14 +35,22 @@ impl RawHit {
     #[inline]
     #[must_use]
     pub const fn at(t: f64) -> Self {
-        Self { t, feature: 0, local: DVec2::ZERO }
+        Self {
+            t,
+            feature: 0,
+            local: DVec2::ZERO,
+        }
     }
 
     /// A hit at `t` on part `feature`.
     #[inline]
     #[must_use]
     pub const fn on_feature(t: f64, feature: u32) -> Self {
-        Self { t, feature, local: DVec2::ZERO }
+        Self {
+            t,
+            feature,
+            local: DVec2::ZERO,
+        }
     }
 }
 
@@ -59,7 +67,10 @@ impl HitRequest {
     /// Everything.
     pub const ALL: Self = Self { normal: true, uv: true };
     /// Only `t` and the point.
-    pub const NONE: Self = Self { normal: false, uv: false };
+    pub const NONE: Self = Self {
+        normal: false,
+        uv: false,
+    };
 }
 
 /// The full record of a hit, built once for the closest hit.

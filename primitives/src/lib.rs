@@ -32,12 +32,12 @@ pub mod root;
 pub mod traits;
 pub mod transformed;
 
-pub mod plane;
-pub mod sphere;
+pub mod cone;
 pub mod cuboid;
 pub mod cylinder;
-pub mod cone;
 pub mod ellipsoid;
+pub mod plane;
+pub mod sphere;
 
 #[cfg(feature = "testing")]
 pub mod testing;
@@ -50,11 +50,11 @@ pub use root::{first_root, RootOptions, RootReport};
 pub use traits::{Implicit, Intersect, Parametric, Primitive, UvDomain};
 pub use transformed::Transformed;
 
-pub use plane::Plane;
-pub use sphere::Sphere;
+pub use cone::Cone;
 pub use cuboid::Cuboid;
 pub use cylinder::Cylinder;
-pub use cone::Cone;
 pub use ellipsoid::Ellipsoid;
+pub use plane::Plane;
+pub use sphere::Sphere;
 
 pub use glam;

@@ -33,12 +33,21 @@ impl Plane {
     /// The plane `⟨p, normal⟩ = offset`; errors on a zero or non-finite normal or offset.
     pub fn new(normal: DVec3, offset: f64) -> Result<Self, PrimitiveError> {
         if !offset.is_finite() {
-            return Err(PrimitiveError::new("Plane", "offset", format!("must be finite, got {offset}")));
+            return Err(PrimitiveError::new(
+                "Plane",
+                "offset",
+                format!("must be finite, got {offset}"),
+            ));
         }
         let length = normal.length();
         let n = require_direction("Plane", "normal", normal)?;
         let (e1, e2) = orthonormal_basis(n);
-        Ok(Self { normal: n, offset: offset / length, e1, e2 })
+        Ok(Self {
+            normal: n,
+            offset: offset / length,
+            e1,
+            e2,
+        })
     }
 
     /// The plane through `point` with normal `normal`.
@@ -100,7 +109,10 @@ impl Intersect for Plane {
 
 impl Parametric for Plane {
     fn domain(&self) -> UvDomain {
-        UvDomain { u: (f64::NEG_INFINITY, f64::INFINITY), v: (f64::NEG_INFINITY, f64::INFINITY) }
+        UvDomain {
+            u: (f64::NEG_INFINITY, f64::INFINITY),
+            v: (f64::NEG_INFINITY, f64::INFINITY),
+        }
     }
 
     fn point(&self, uv: DVec2) -> DVec3 {
@@ -125,8 +137,12 @@ mod tests {
     fn parallel_ray_misses_and_non_unit_normal_is_normalised() {
         let p = Plane::new(DVec3::new(0.0, 2.0, 0.0), 2.0).unwrap();
         assert_eq!(p.offset(), 1.0);
-        assert!(p.intersect(&Ray::new(DVec3::new(0.0, 1.0, 0.0), DVec3::X), Interval::POSITIVE).is_none());
-        let hit = p.intersect(&Ray::new(DVec3::new(0.0, 3.0, 0.0), -DVec3::Y), Interval::POSITIVE).unwrap();
+        assert!(p
+            .intersect(&Ray::new(DVec3::new(0.0, 1.0, 0.0), DVec3::X), Interval::POSITIVE)
+            .is_none());
+        let hit = p
+            .intersect(&Ray::new(DVec3::new(0.0, 3.0, 0.0), -DVec3::Y), Interval::POSITIVE)
+            .unwrap();
         assert_eq!(hit.t, 2.0);
         assert!(Plane::new(DVec3::ZERO, 1.0).is_err());
     }

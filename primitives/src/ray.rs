@@ -29,7 +29,10 @@ impl Ray {
     /// A ray whose direction is normalised, so that `t` is metric distance from `origin`.
     #[must_use]
     pub fn new_normalized(origin: DVec3, dir: DVec3) -> Self {
-        Self { origin, dir: dir.normalize() }
+        Self {
+            origin,
+            dir: dir.normalize(),
+        }
     }
 
     /// The point at parameter `t`: `origin + t·dir`.
@@ -57,7 +60,10 @@ pub struct Interval {
 
 impl Interval {
     /// `[0, +∞]`.
-    pub const POSITIVE: Self = Self { min: 0.0, max: f64::INFINITY };
+    pub const POSITIVE: Self = Self {
+        min: 0.0,
+        max: f64::INFINITY,
+    };
 
     /// `[min, max]`.
     #[must_use]

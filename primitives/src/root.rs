@@ -46,7 +46,11 @@ pub struct RootOptions {
 
 impl Default for RootOptions {
     fn default() -> Self {
-        Self { tolerance: 1e-7, samples: 512, max_evaluations: 100_000 }
+        Self {
+            tolerance: 1e-7,
+            samples: 512,
+            max_evaluations: 100_000,
+        }
     }
 }
 
@@ -54,7 +58,10 @@ impl RootOptions {
     /// The defaults with another tolerance.
     #[must_use]
     pub fn with_tolerance(tolerance: f64) -> Self {
-        Self { tolerance, ..Self::default() }
+        Self {
+            tolerance,
+            ..Self::default()
+        }
     }
 }
 
@@ -139,17 +146,27 @@ impl<I: Implicit + ?Sized> Marcher<'_, I> {
 
 /// The first point in `range` where Φ crosses zero along `ray` (see the module docs).
 pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval, options: &RootOptions) -> RootReport {
-    let mut report = RootReport { hit: None, lipschitz_violated: false, evaluations: 0 };
+    let mut report = RootReport {
+        hit: None,
+        lipschitz_violated: false,
+        evaluations: 0,
+    };
     // grow the bounds by the tolerance, so that the march starts strictly outside a surface
     // that touches its bounds (a box), not on it with a Φ of either sign from rounding
     let margin = options.tolerance * ray.dir.length();
-    let Some(clipped) = surface.bounds().expanded(margin).clip(ray, range) else { return report };
+    let Some(clipped) = surface.bounds().expanded(margin).clip(ray, range) else {
+        return report;
+    };
     if !(clipped.min.is_finite() && clipped.max.is_finite()) || !ray.is_valid() {
         return report;
     }
     let dir_len = ray.dir.length();
     let tolerance = options.tolerance.max(f64::MIN_POSITIVE);
-    let mut m = Marcher { surface, ray, evaluations: 0 };
+    let mut m = Marcher {
+        surface,
+        ray,
+        evaluations: 0,
+    };
     let (t_start, t_end) = (clipped.min, clipped.max);
 
     let mut t0 = t_start;
@@ -183,7 +200,11 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
             }
         }
         if (g0 < 0.0) != (g1 < 0.0) || g1 == 0.0 {
-            let t = if g1 == 0.0 { t1 } else { m.refine(t0, g0, t1, g1, tolerance) };
+            let t = if g1 == 0.0 {
+                t1
+            } else {
+                m.refine(t0, g0, t1, g1, tolerance)
+            };
             if surface.within_boundary(ray.at(t)) {
                 report.hit = Some(RawHit::at(t));
                 break;

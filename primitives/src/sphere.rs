@@ -34,7 +34,10 @@ pub struct Sphere {
 impl Sphere {
     /// A sphere; errors on a non-finite centre or a radius that is not finite and positive.
     pub fn new(center: DVec3, radius: f64) -> Result<Self, PrimitiveError> {
-        Ok(Self { center: require_finite("Sphere", "center", center)?, radius: require_positive("Sphere", "radius", radius)? })
+        Ok(Self {
+            center: require_finite("Sphere", "center", center)?,
+            radius: require_positive("Sphere", "radius", radius)?,
+        })
     }
 
     /// Centre.
@@ -82,7 +85,10 @@ impl Implicit for Sphere {
     }
 
     fn bounds(&self) -> Aabb {
-        Aabb::new(self.center - DVec3::splat(self.radius), self.center + DVec3::splat(self.radius))
+        Aabb::new(
+            self.center - DVec3::splat(self.radius),
+            self.center + DVec3::splat(self.radius),
+        )
     }
 
     fn lipschitz(&self) -> Option<f64> {
@@ -167,7 +173,10 @@ mod tests {
     fn tiny_far_sphere_keeps_precision() {
         // r = 1e-3 at distance 1e4: t = 1e4 − 1e-3 exactly representable to ~1e-12
         let s = Sphere::new(DVec3::new(0.0, 0.0, 1e4), 1e-3).unwrap();
-        let t = s.intersect(&Ray::new(DVec3::ZERO, DVec3::Z), Interval::POSITIVE).unwrap().t;
+        let t = s
+            .intersect(&Ray::new(DVec3::ZERO, DVec3::Z), Interval::POSITIVE)
+            .unwrap()
+            .t;
         assert!((t - (1e4 - 1e-3)).abs() < 1e-11, "t = {t}");
     }
 }

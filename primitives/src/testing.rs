@@ -80,7 +80,11 @@ fn sample_domain(rng: &mut StdRng, (lo, hi): (f64, f64), window: f64) -> f64 {
 
 fn random_unit(rng: &mut StdRng) -> DVec3 {
     loop {
-        let v = DVec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        let v = DVec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
         let l = v.length();
         if l > 1e-3 && l <= 1.0 {
             return v / l;
@@ -92,7 +96,11 @@ fn random_unit(rng: &mut StdRng) -> DVec3 {
 pub fn random_transform(rng: &mut StdRng) -> DAffine3 {
     let axis = random_unit(rng);
     let angle = rng.random_range(0.0..std::f64::consts::TAU);
-    let scale = DVec3::new(rng.random_range(0.3..3.0), rng.random_range(0.3..3.0), rng.random_range(0.3..3.0));
+    let scale = DVec3::new(
+        rng.random_range(0.3..3.0),
+        rng.random_range(0.3..3.0),
+        rng.random_range(0.3..3.0),
+    );
     let translation = 10.0 * random_unit(rng) * rng.random::<f64>();
     DAffine3::from_scale_rotation_translation(scale, DQuat::from_axis_angle(axis, angle), translation)
 }
@@ -124,7 +132,13 @@ where
         let prim = make(&mut rng);
         check_instance(&format!("{name} #{instance}"), &prim, &expect, &mut rng, &mut report);
         let moved = Transformed::new(prim, random_transform(&mut rng)).expect("random transforms are invertible");
-        check_instance(&format!("{name} #{instance} transformed"), &moved, &expect, &mut rng, &mut report);
+        check_instance(
+            &format!("{name} #{instance} transformed"),
+            &moved,
+            &expect,
+            &mut rng,
+            &mut report,
+        );
     }
     let fraction = report.disagreements as f64 / report.rays.max(1) as f64;
     assert!(
@@ -152,7 +166,10 @@ fn check_instance<P: Primitive + Parametric>(
 
     let mut surface_points = 0;
     for _ in 0..200 {
-        let uv = DVec2::new(sample_domain(rng, domain.u, window), sample_domain(rng, domain.v, window));
+        let uv = DVec2::new(
+            sample_domain(rng, domain.u, window),
+            sample_domain(rng, domain.v, window),
+        );
         let p = prim.point(uv);
         if !prim.within_boundary(p) {
             continue;
@@ -176,15 +193,24 @@ fn check_instance<P: Primitive + Parametric>(
         let halved = crate::math::central_difference(|q| prim.phi(q), p, 0.5 * h);
         if numeric.length() > 1e-3 * g.length() && angle_deg(numeric, halved) < 1e-3 {
             let a = angle_deg(g, numeric);
-            assert!(a < 1e-2, "{label}: analytic ∇Φ differs from central differences by {a}° at {p}");
+            assert!(
+                a < 1e-2,
+                "{label}: analytic ∇Φ differs from central differences by {a}° at {p}"
+            );
         }
         // 3. nudge in and out
         let n = g.normalize();
         let eps = 1e-6 * scale;
-        assert!(prim.phi(p - eps * n) < 0.0 && prim.phi(p + eps * n) > 0.0, "{label}: Φ does not change sign across {p}");
+        assert!(
+            prim.phi(p - eps * n) < 0.0 && prim.phi(p + eps * n) > 0.0,
+            "{label}: Φ does not change sign across {p}"
+        );
         // 4. uv round trip
         let back = prim.point(prim.uv(p));
-        assert!((back - p).length() <= 1e-8 * scale, "{label}: point(uv(p)) = {back}, p = {p}");
+        assert!(
+            (back - p).length() <= 1e-8 * scale,
+            "{label}: point(uv(p)) = {back}, p = {p}"
+        );
         // 5. aimed ray from the outward side
         let w = loop {
             let w = random_unit(rng);
@@ -204,7 +230,11 @@ fn check_instance<P: Primitive + Parametric>(
                     assert!(a <= expect.max_normal_error_deg, "{label}: normal off by {a}° at {p}");
                     assert!((normal.length() - 1.0).abs() < 1e-12, "{label}: normal not unit at {p}");
                 } else {
-                    assert!(!expect.convex, "{label}: aimed ray hit at t = {} instead of {distance}", hit.t);
+                    assert!(
+                        !expect.convex,
+                        "{label}: aimed ray hit at t = {} instead of {distance}",
+                        hit.t
+                    );
                     assert!(hit.t < distance, "{label}: aimed ray passed through its target {p}");
                 }
             }
@@ -213,24 +243,39 @@ fn check_instance<P: Primitive + Parametric>(
         // 7. interval ends just before / starts just after the hit
         if let Some(hit) = prim.intersect(&ray, Interval::POSITIVE) {
             let before = Interval::new(0.0, hit.t - 1e-6 * scale);
-            assert!(prim.intersect(&ray, before).is_none(), "{label}: hit at {} returned for t_max {}", hit.t, before.max);
+            assert!(
+                prim.intersect(&ray, before).is_none(),
+                "{label}: hit at {} returned for t_max {}",
+                hit.t,
+                before.max
+            );
             if let Some(later) = prim.intersect(&ray, Interval::new(hit.t + 1e-6 * scale, f64::INFINITY)) {
                 assert!(later.t > hit.t, "{label}: t_min not respected");
             }
         }
     }
-    assert!(surface_points >= 20, "{label}: only {surface_points} of 200 parameter samples lie on the surface");
+    assert!(
+        surface_points >= 20,
+        "{label}: only {surface_points} of 200 parameter samples lie on the surface"
+    );
 
     // 6. rays leaving the bounds miss
     let centre = bounds.center();
     for _ in 0..50 {
         let w = random_unit(rng);
         let ray = Ray::new(centre + 1.01 * scale * w, w);
-        assert!(prim.intersect(&ray, Interval::POSITIVE).is_none() || !prim.bounds().is_finite(), "{label}: ray leaving the bounds hit");
+        assert!(
+            prim.intersect(&ray, Interval::POSITIVE).is_none() || !prim.bounds().is_finite(),
+            "{label}: ray leaving the bounds hit"
+        );
     }
 
     // 8. closed form against the generic root finder
-    let options = RootOptions { tolerance: 1e-10 * scale, samples: 4096, max_evaluations: 1_000_000 };
+    let options = RootOptions {
+        tolerance: 1e-10 * scale,
+        samples: 4096,
+        max_evaluations: 1_000_000,
+    };
     for _ in 0..expect.rays_per_instance {
         let origin = centre + 1.5 * scale * random_unit(rng);
         let target = bounds.min + bounds.extent() * DVec3::new(rng.random(), rng.random(), rng.random());

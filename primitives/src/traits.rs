@@ -29,7 +29,11 @@ pub trait Implicit {
     /// surfaces. Built-ins override it with the analytic gradient.
     fn gradient(&self, p: DVec3) -> DVec3 {
         let scale = self.bounds().diagonal_length();
-        let scale = if scale.is_finite() && scale > 0.0 { scale } else { p.length().max(1.0) };
+        let scale = if scale.is_finite() && scale > 0.0 {
+            scale
+        } else {
+            p.length().max(1.0)
+        };
         central_difference(|q| self.phi(q), p, 6e-6 * scale)
     }
 
@@ -64,7 +68,10 @@ pub struct UvDomain {
 
 impl UvDomain {
     /// `[0, 1] × [0, 1]`.
-    pub const UNIT: Self = Self { u: (0.0, 1.0), v: (0.0, 1.0) };
+    pub const UNIT: Self = Self {
+        u: (0.0, 1.0),
+        v: (0.0, 1.0),
+    };
 }
 
 /// A surface given as a map from a parameter rectangle `(u, v)` to points.

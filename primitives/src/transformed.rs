@@ -42,10 +42,19 @@ impl<P> Transformed<P> {
         let det = m.determinant();
         let scale = frobenius(&m);
         if !(det.abs() > 1e-12 * scale * scale * scale) {
-            return Err(PrimitiveError::new("Transform", "matrix", format!("is singular (determinant {det:e})")));
+            return Err(PrimitiveError::new(
+                "Transform",
+                "matrix",
+                format!("is singular (determinant {det:e})"),
+            ));
         }
         let local_from_world = world_from_local.inverse();
-        Ok(Self { inner, world_from_local, local_from_world, normal_from_local: local_from_world.matrix3.transpose() })
+        Ok(Self {
+            inner,
+            world_from_local,
+            local_from_world,
+            normal_from_local: local_from_world.matrix3.transpose(),
+        })
     }
 
     /// The untransformed primitive.
@@ -70,7 +79,10 @@ impl<P> Transformed<P> {
     #[inline]
     #[must_use]
     pub fn local_ray(&self, ray: &Ray) -> Ray {
-        Ray::new(self.local_from_world.transform_point3(ray.origin), self.local_from_world.transform_vector3(ray.dir))
+        Ray::new(
+            self.local_from_world.transform_point3(ray.origin),
+            self.local_from_world.transform_vector3(ray.dir),
+        )
     }
 }
 
@@ -88,7 +100,9 @@ impl<P: Implicit> Implicit for Transformed<P> {
     }
 
     fn lipschitz(&self) -> Option<f64> {
-        self.inner.lipschitz().map(|l| l * frobenius(&self.local_from_world.matrix3))
+        self.inner
+            .lipschitz()
+            .map(|l| l * frobenius(&self.local_from_world.matrix3))
     }
 
     fn within_boundary(&self, p: DVec3) -> bool {

@@ -7,7 +7,11 @@ use zeroset_primitives::testing::{check_primitive, Expectations};
 use zeroset_primitives::*;
 
 fn random_point(rng: &mut StdRng, half: f64) -> DVec3 {
-    DVec3::new(rng.random_range(-half..half), rng.random_range(-half..half), rng.random_range(-half..half))
+    DVec3::new(
+        rng.random_range(-half..half),
+        rng.random_range(-half..half),
+        rng.random_range(-half..half),
+    )
 }
 
 #[test]

@@ -105,11 +105,7 @@ fn random_cone(rng: &mut StdRng, pointed: bool, capped: bool) -> Cone {
     let base = random_point(rng, 5.0);
     let axis = random_axis(rng);
     let r0 = rng.random_range(0.1..3.0);
-    let r1 = if pointed {
-        0.0
-    } else {
-        rng.random_range(0.05..3.0)
-    };
+    let r1 = if pointed { 0.0 } else { rng.random_range(0.05..3.0) };
     Cone::new(base, axis, r0, r1, rng.random_range(0.1..5.0), capped).unwrap()
 }
 

@@ -37,7 +37,10 @@ pub fn write_exr(frame: &Frame, path: &Path, header: &ExrHeader) -> std::result:
     let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     for aov in &frame.aovs {
         for (component, name) in aov.channels().iter().enumerate() {
-            list.push(AnyChannel::new(*name, FlatSamples::F32(frame.planar_channel(*aov, component))));
+            list.push(AnyChannel::new(
+                *name,
+                FlatSamples::F32(frame.planar_channel(*aov, component)),
+            ));
         }
     }
     let window = frame.window;
@@ -45,16 +48,26 @@ pub fn write_exr(frame: &Frame, path: &Path, header: &ExrHeader) -> std::result:
     attributes.layer_position = Vec2(window.x0 as i32, window.y0 as i32);
     attributes.world_to_camera = Some(imath_matrix(&header.world_to_camera));
     attributes.world_to_normalized_device = Some(imath_matrix(&header.world_to_ndc));
-    let encoding = Encoding { compression: Compression::ZIP16, blocks: Blocks::ScanLines, line_order: LineOrder::Increasing };
+    let encoding = Encoding {
+        compression: Compression::ZIP16,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    };
     let layer = Layer::new(
         Vec2(window.width() as usize, window.height() as usize),
         attributes,
         encoding,
         AnyChannels::sort(list),
     );
-    let mut image_attributes = ImageAttributes::new(IntegerBounds::new(Vec2(0, 0), Vec2(frame.width as usize, frame.height as usize)));
+    let mut image_attributes = ImageAttributes::new(IntegerBounds::new(
+        Vec2(0, 0),
+        Vec2(frame.width as usize, frame.height as usize),
+    ));
     let other = &mut image_attributes.other;
-    other.insert(Text::from("zeroset/scene"), AttributeValue::Text(Text::from(header.scene_file.as_str())));
+    other.insert(
+        Text::from("zeroset/scene"),
+        AttributeValue::Text(Text::from(header.scene_file.as_str())),
+    );
     other.insert(
         Text::from("zeroset/depth"),
         AttributeValue::Text(Text::from(

@@ -9,7 +9,11 @@ use std::path::Path;
 
 fn srgb_encode(linear: f32) -> u8 {
     let c = linear.clamp(0.0, 1.0);
-    let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
     (s * 255.0 + 0.5) as u8
 }
 
@@ -19,11 +23,19 @@ fn unit_to_byte(x: f32) -> u8 {
 
 /// Colour ramp for depth: near = yellow, far = dark blue (piecewise linear through five stops).
 fn depth_ramp(s: f32) -> Rgb<u8> {
-    const STOPS: [[f32; 3]; 5] = [[0.99, 0.91, 0.15], [0.55, 0.82, 0.25], [0.13, 0.57, 0.55], [0.23, 0.32, 0.55], [0.27, 0.0, 0.33]];
+    const STOPS: [[f32; 3]; 5] = [
+        [0.99, 0.91, 0.15],
+        [0.55, 0.82, 0.25],
+        [0.13, 0.57, 0.55],
+        [0.23, 0.32, 0.55],
+        [0.27, 0.0, 0.33],
+    ];
     let x = s.clamp(0.0, 1.0) * 4.0;
     let i = (x as usize).min(3);
     let f = x - i as f32;
-    let c: Vec<u8> = (0..3).map(|k| unit_to_byte(STOPS[i][k] * (1.0 - f) + STOPS[i + 1][k] * f)).collect();
+    let c: Vec<u8> = (0..3)
+        .map(|k| unit_to_byte(STOPS[i][k] * (1.0 - f) + STOPS[i + 1][k] * f))
+        .collect();
     Rgb([c[0], c[1], c[2]])
 }
 
@@ -53,7 +65,14 @@ pub fn write_previews(frame: &Frame, dir: &Path, stem: &str) -> image::ImageResu
         written.push(path);
     }
     if let Some(o) = frame.channel_offset(Aov::Depth) {
-        let mut depths: Vec<f32> = frame.samples.iter().skip(o).step_by(stride).copied().filter(|z| z.is_finite() && *z > 0.0).collect();
+        let mut depths: Vec<f32> = frame
+            .samples
+            .iter()
+            .skip(o)
+            .step_by(stride)
+            .copied()
+            .filter(|z| z.is_finite() && *z > 0.0)
+            .collect();
         depths.sort_unstable_by(f32::total_cmp);
         // log depth between the nearest hit and the 98th percentile, so a far horizon does not
         // flatten the foreground
@@ -79,7 +98,11 @@ pub fn write_previews(frame: &Frame, dir: &Path, stem: &str) -> image::ImageResu
             if n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0 {
                 Rgb([0, 0, 0])
             } else {
-                Rgb([unit_to_byte((n[0] + 1.0) * 0.5), unit_to_byte((n[1] + 1.0) * 0.5), unit_to_byte((n[2] + 1.0) * 0.5)])
+                Rgb([
+                    unit_to_byte((n[0] + 1.0) * 0.5),
+                    unit_to_byte((n[1] + 1.0) * 0.5),
+                    unit_to_byte((n[2] + 1.0) * 0.5),
+                ])
             }
         })?;
         written.push(path);

@@ -16,10 +16,7 @@
 /// A non-finite candidate is never returned.
 #[inline]
 #[must_use]
-#[allow(
-    clippy::neg_cmp_op_on_partial_ord,
-    reason = "`!(disc >= 0)` rejects NaN as well"
-)]
+#[allow(clippy::neg_cmp_op_on_partial_ord, reason = "`!(disc >= 0)` rejects NaN as well")]
 pub fn solve_quadratic(a: f64, b: f64, c: f64, disc: f64) -> Option<(f64, f64)> {
     if !(disc >= 0.0) {
         return None;
