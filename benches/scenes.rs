@@ -64,11 +64,16 @@ fn main() {
             }
         };
         let load_ms = start.elapsed().as_secs_f64() * 1e3;
-        let options = RenderOptions { aovs: scene.outputs.aovs.clone(), ..RenderOptions::default() };
+        let options = RenderOptions {
+            aovs: scene.outputs.aovs.clone(),
+            ..RenderOptions::default()
+        };
         let rays = f64::from(scene.camera.width) * f64::from(scene.camera.height);
         for threads in [1, 2] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            let times: Vec<f64> = (0..RUNS).map(|_| pool.install(|| render(&scene, &options)).elapsed.as_secs_f64()).collect();
+            let times: Vec<f64> = (0..RUNS)
+                .map(|_| pool.install(|| render(&scene, &options)).elapsed.as_secs_f64())
+                .collect();
             let t = median(times);
             let (pov, mitsuba, scalar) = match (threads, reference(&stem)) {
                 (2, Some((a, b, c))) => (format!("{a}"), format!("{b}"), format!("{c}")),

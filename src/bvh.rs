@@ -6,23 +6,57 @@
 //! or at most 2 items remain. Nodes are stored depth-first: an interior node's first child follows
 //! it, the second is at `second_child`.
 //!
-//! Traversal: a slab test per child with precomputed reciprocal directions, the nearer child
-//! first, farther ones skipped once the closest hit so far is nearer than their entry. Exit
-//! distances are enlarged by `1 + 2γ₃` (pbrt-v4) so rounding never culls a true hit.
+//! Traversal: nodes hold f32 bounds (32 bytes a node) rounded outward; a slab test per child
+//! with precomputed reciprocal directions, conservative against the f64 ray (see `SlabRay`), the
+//! nearer child first, farther ones skipped once the closest hit so far is nearer than their
+//! entry. Primitives are then tested in f64, so the f32 traversal never changes a hit.
 
-use zeroset_primitives::math::gamma;
 use zeroset_primitives::{Aabb, Interval, Ray};
 
+/// A node: bounds in f32, rounded outward from the f64 bounds so they still contain them.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
 struct Node {
-    bounds: Aabb,
+    /// `[min, max]`.
+    bounds: [[f32; 3]; 2],
     /// Leaf: first index into `items`; interior: index of the second child.
     offset: u32,
     /// Items in a leaf; 0 for an interior node.
     count: u32,
 }
 
-/// A BVH over items identified by `u32` indices.
+fn round_down(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) > x {
+        y.next_down()
+    } else {
+        y
+    }
+}
+
+fn round_up(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) < x {
+        y.next_up()
+    } else {
+        y
+    }
+}
+
+impl Node {
+    fn new(b: &Aabb) -> Self {
+        Self {
+            bounds: [
+                [round_down(b.min.x), round_down(b.min.y), round_down(b.min.z)],
+                [round_up(b.max.x), round_up(b.max.y), round_up(b.max.z)],
+            ],
+            offset: 0,
+            count: 0,
+        }
+    }
+}
+
+/// A BVH over items identified by `u32` ids.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
     nodes: Vec<Node>,
@@ -35,25 +69,82 @@ const MAX_LEAF: usize = 2;
 struct BuildItem {
     bounds: Aabb,
     centroid: glam::DVec3,
-    index: u32,
+    id: u32,
+}
+
+/// Per-ray data for the f32 slab tests, conservative with respect to the f64 ray.
+///
+/// The origin is rounded to f32 with error `e ≤ ½ ulp` per component; the entry distance uses
+/// the origin moved by `+e` towards the far side and the exit the origin moved by `−e`, so the
+/// f32 interval contains the f64 ray's. Rounding of the subtraction, the reciprocal, the
+/// direction and the product is covered by enlarging exits by `1 + 2γ₅` (f32).
+struct SlabRay {
+    near_origin: [f32; 3],
+    far_origin: [f32; 3],
+    inv: [f32; 3],
+    /// Per axis: 0 if the near plane is `min` (positive direction), 1 if it is `max`.
+    near_side: [usize; 3],
+}
+
+const EXIT_PAD: f32 = 1.0 + 2.0 * (5.0 * f32::EPSILON * 0.5) / (1.0 - 5.0 * f32::EPSILON * 0.5);
+
+impl SlabRay {
+    fn new(ray: &Ray) -> Self {
+        let mut r = Self {
+            near_origin: [0.0; 3],
+            far_origin: [0.0; 3],
+            inv: [0.0; 3],
+            near_side: [0; 3],
+        };
+        for axis in 0..3 {
+            let o = ray.origin[axis];
+            let (lo, hi) = (round_down(o), round_up(o));
+            let d = ray.dir[axis];
+            let inv = (1.0 / d) as f32;
+            r.inv[axis] = inv;
+            if d.is_sign_negative() {
+                r.near_side[axis] = 1;
+                r.near_origin[axis] = lo;
+                r.far_origin[axis] = hi;
+            } else {
+                r.near_origin[axis] = hi;
+                r.far_origin[axis] = lo;
+            }
+        }
+        r
+    }
+
+    /// Entry distance into the node within `[t0, t1]`, or `None`.
+    #[inline(always)]
+    fn entry(&self, node: &Node, t0: f32, t1: f32) -> Option<f32> {
+        let mut near = t0;
+        let mut far = t1;
+        for axis in 0..3 {
+            let n = (node.bounds[self.near_side[axis]][axis] - self.near_origin[axis]) * self.inv[axis];
+            let f = (node.bounds[1 - self.near_side[axis]][axis] - self.far_origin[axis]) * self.inv[axis] * EXIT_PAD;
+            // `max`/`min` drop a NaN (0·∞ for an origin on a slab plane of a zero direction component)
+            near = near.max(n);
+            far = far.min(f);
+        }
+        (near <= far).then_some(near)
+    }
 }
 
 impl Bvh {
-    /// Builds over `bounds[i]` for each item `i` (all must be finite).
+    /// Builds over items `(bounds, id)` (all bounds finite); traversal reports the ids.
     #[must_use]
-    pub fn build(bounds: &[Aabb]) -> Self {
-        let mut work: Vec<BuildItem> = bounds
+    pub fn build(items: &[(Aabb, u32)]) -> Self {
+        let mut work: Vec<BuildItem> = items
             .iter()
-            .enumerate()
-            .map(|(i, b)| BuildItem {
+            .map(|(b, id)| BuildItem {
                 bounds: *b,
                 centroid: b.center(),
-                index: i as u32,
+                id: *id,
             })
             .collect();
         let mut bvh = Self {
-            nodes: Vec::with_capacity(2 * bounds.len()),
-            items: Vec::with_capacity(bounds.len()),
+            nodes: Vec::with_capacity(2 * items.len()),
+            items: Vec::with_capacity(items.len()),
         };
         if !work.is_empty() {
             bvh.build_node(&mut work);
@@ -70,11 +161,7 @@ impl Bvh {
     fn build_node(&mut self, work: &mut [BuildItem]) -> usize {
         let bounds = work.iter().fold(Aabb::EMPTY, |b, w| b.union(w.bounds));
         let node_index = self.nodes.len();
-        self.nodes.push(Node {
-            bounds,
-            offset: 0,
-            count: 0,
-        });
+        self.nodes.push(Node::new(&bounds));
         let split = if work.len() > MAX_LEAF {
             best_split(work, &bounds)
         } else {
@@ -84,7 +171,7 @@ impl Bvh {
             None => {
                 self.nodes[node_index].offset = self.items.len() as u32;
                 self.nodes[node_index].count = work.len() as u32;
-                self.items.extend(work.iter().map(|w| w.index));
+                self.items.extend(work.iter().map(|w| w.id));
             }
             Some(mid) => {
                 let (left, right) = work.split_at_mut(mid);
@@ -96,9 +183,9 @@ impl Bvh {
         node_index
     }
 
-    /// Closest-hit traversal: calls `test(item, range)` for items whose node the ray enters
-    /// within `range`; `test` returns the hit parameter if it found one inside the range, which
-    /// then becomes the new `range.max`. Returns the final range's `max`-setting item, if any.
+    /// Closest-hit traversal: calls `test(id, range)` for items whose node the ray enters within
+    /// `range`; `test` returns the hit parameter if it found one inside the range, which then
+    /// becomes the new `range.max`. Returns the id of the item that set the final `range.max`.
     #[inline]
     pub fn closest(
         &self,
@@ -109,32 +196,33 @@ impl Bvh {
         if self.nodes.is_empty() {
             return None;
         }
-        let inv = ray.dir.recip();
+        let slab = SlabRay::new(ray);
+        let t0 = round_down(range.min);
+        let mut t1 = round_up(range.max);
         let mut best = None;
-        let mut stack = [0u32; 64];
+        let mut stack = [(0u32, 0f32); 64];
         let mut top = 0usize;
         let mut current = 0usize;
-        if slab_entry(&self.nodes[0].bounds, ray, inv, range).is_none() {
-            return None;
-        }
+        slab.entry(&self.nodes[0], t0, t1)?;
         loop {
             let node = &self.nodes[current];
             if node.count > 0 {
                 let start = node.offset as usize;
-                for &item in &self.items[start..start + node.count as usize] {
-                    if let Some(t) = test(item, range) {
+                for &id in &self.items[start..start + node.count as usize] {
+                    if let Some(t) = test(id, range) {
                         range.max = t;
-                        best = Some(item);
+                        t1 = round_up(t);
+                        best = Some(id);
                     }
                 }
             } else {
                 let (a, b) = (current + 1, node.offset as usize);
-                let ta = slab_entry(&self.nodes[a].bounds, ray, inv, range);
-                let tb = slab_entry(&self.nodes[b].bounds, ray, inv, range);
+                let ta = slab.entry(&self.nodes[a], t0, t1);
+                let tb = slab.entry(&self.nodes[b], t0, t1);
                 match (ta, tb) {
                     (Some(ta), Some(tb)) => {
-                        let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
-                        stack[top] = far as u32;
+                        let (near, far, t_far) = if ta <= tb { (a, b, tb) } else { (b, a, ta) };
+                        stack[top] = (far as u32, t_far);
                         top += 1;
                         current = near;
                         continue;
@@ -150,33 +238,20 @@ impl Bvh {
                     (None, None) => {}
                 }
             }
-            // pop the next node that the ray still enters before the closest hit
+            // pop the next node that the ray enters before the closest hit so far
             loop {
                 if top == 0 {
                     return best;
                 }
                 top -= 1;
-                let candidate = stack[top] as usize;
-                if slab_entry(&self.nodes[candidate].bounds, ray, inv, range).is_some() {
-                    current = candidate;
+                let (candidate, entry) = stack[top];
+                if entry <= t1 {
+                    current = candidate as usize;
                     break;
                 }
             }
         }
     }
-}
-
-/// Entry parameter of the ray into `b` within `range`, or `None`.
-#[inline(always)]
-fn slab_entry(b: &Aabb, ray: &Ray, inv: glam::DVec3, range: Interval) -> Option<f64> {
-    let t_lo = (b.min - ray.origin) * inv;
-    let t_hi = (b.max - ray.origin) * inv;
-    let near = t_lo.min(t_hi);
-    let far = t_lo.max(t_hi) * (1.0 + 2.0 * gamma(3));
-    // f64::max/min drop a NaN (origin on a slab plane of a zero direction component)
-    let t0 = range.min.max(near.x).max(near.y).max(near.z);
-    let t1 = range.max.min(far.x).min(far.y).min(far.z);
-    (t0 <= t1).then_some(t0)
 }
 
 /// Index at which to split `work` (sorted in place), or `None` for a leaf.
@@ -264,7 +339,8 @@ mod tests {
                 Aabb::new(c - h, c + h)
             })
             .collect();
-        let bvh = Bvh::build(&boxes);
+        let items: Vec<(Aabb, u32)> = boxes.iter().enumerate().map(|(i, b)| (*b, i as u32)).collect();
+        let bvh = Bvh::build(&items);
         let entry = |b: &Aabb, ray: &Ray, range: Interval| b.clip(ray, range).map(|r| r.min);
         for _ in 0..5000 {
             let o = DVec3::new(rng.random_range(-15.0..15.0), rng.random_range(-15.0..15.0), -20.0);

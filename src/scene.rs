@@ -292,8 +292,6 @@ pub struct Scene {
     pub outputs: Outputs,
     /// Objects with infinite bounds, tested on every ray.
     unbounded: Vec<u32>,
-    /// Objects with finite bounds, indexed by `bvh` items.
-    bounded: Vec<u32>,
     bvh: Bvh,
 }
 
@@ -418,14 +416,12 @@ impl Scene {
         background: DVec3,
         outputs: Outputs,
     ) -> Self {
-        let mut bounded = Vec::new();
         let mut unbounded = Vec::new();
         let mut boxes = Vec::new();
         for (i, o) in objects.iter().enumerate() {
             let b = o.primitive.bounds();
             if b.is_finite() {
-                bounded.push(i as u32);
-                boxes.push(b);
+                boxes.push((b, i as u32));
             } else {
                 unbounded.push(i as u32);
             }
@@ -440,7 +436,6 @@ impl Scene {
             background,
             outputs,
             unbounded,
-            bounded,
             bvh,
         }
     }
@@ -456,18 +451,14 @@ impl Scene {
             }
         }
         let mut raw = None;
-        let item = self.bvh.closest(ray, range, |item, r| {
-            let hit = self.objects[self.bounded[item as usize] as usize]
-                .primitive
-                .intersect(ray, r)?;
+        let object = self.bvh.closest(ray, range, |id, r| {
+            let hit = self.objects[id as usize].primitive.intersect(ray, r)?;
             raw = Some(hit);
             Some(hit.t)
         });
-        match (item, raw) {
-            (Some(item), Some(_)) => {
-                // `raw` holds the last hit reported, which is the closest one
-                Some((self.bounded[item as usize], raw.expect("a hit accompanies the item")))
-            }
+        // `raw` holds the last hit reported, which is the closest one
+        match (object, raw) {
+            (Some(object), Some(raw)) => Some((object, raw)),
             _ => best,
         }
     }

@@ -63,7 +63,12 @@ fn file_names(dir: &Path) -> BTreeSet<String> {
 
 fn channel_names(path: &Path) -> BTreeSet<String> {
     let meta = MetaData::read_from_file(path, true).expect("valid EXR");
-    meta.headers[0].channels.list.iter().map(|c| c.name.to_string()).collect()
+    meta.headers[0]
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect()
 }
 
 fn set(names: &[&str]) -> BTreeSet<String> {
@@ -77,18 +82,30 @@ fn render_default_scene() {
     assert_ok(&o, "render default");
     assert_eq!(
         file_names(dir.path()),
-        set(&["default.exr", "default.beauty.png", "default.depth.png", "default.normal.png"])
+        set(&[
+            "default.exr",
+            "default.beauty.png",
+            "default.depth.png",
+            "default.normal.png"
+        ])
     );
     let out = stdout(&o);
     let last = out.lines().last().expect("some output");
     assert!(last.contains("Mrays/s"), "last line: {last:?}");
     assert!(last.contains("960x540"), "last line: {last:?}");
     let exr = dir.path().join("default.exr");
-    assert_eq!(channel_names(&exr), set(&["R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z"]));
+    assert_eq!(
+        channel_names(&exr),
+        set(&["R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z"])
+    );
     let meta = MetaData::read_from_file(&exr, true).unwrap();
     assert_eq!(meta.headers[0].layer_size, Vec2(960, 540));
     for png in ["default.beauty.png", "default.depth.png", "default.normal.png"] {
-        assert_eq!(image::image_dimensions(dir.path().join(png)).unwrap(), (960, 540), "{png}");
+        assert_eq!(
+            image::image_dimensions(dir.path().join(png)).unwrap(),
+            (960, 540),
+            "{png}"
+        );
     }
 }
 
@@ -111,9 +128,16 @@ fn render_resized_with_selected_aovs_matches_library_render() {
     ]);
     assert_ok(&o, "render --aov Depth,Normal");
     let exr = dir.path().join("default.exr");
-    assert_eq!(channel_names(&exr), set(&["Z", "N.X", "N.Y", "N.Z"]), "only those channels");
+    assert_eq!(
+        channel_names(&exr),
+        set(&["Z", "N.X", "N.Y", "N.Z"]),
+        "only those channels"
+    );
     let names = file_names(dir.path());
-    assert!(!names.contains("default.beauty.png"), "no beauty preview without Beauty: {names:?}");
+    assert!(
+        !names.contains("default.beauty.png"),
+        "no beauty preview without Beauty: {names:?}"
+    );
 
     // the file holds what the library renders for the same scene at 64×36 (vfov kept)
     let image = read_all_flat_layers_from_file(&exr).unwrap();
@@ -188,7 +212,12 @@ fn render_crop_and_exr_output_path_and_depth_miss() {
     let image = read_all_flat_layers_from_file(&out).unwrap();
     let layer = &image.layer_data[0];
     let get = |n: &str| -> Vec<f32> {
-        let ch = layer.channel_data.list.iter().find(|c| c.name.to_string() == n).unwrap();
+        let ch = layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == n)
+            .unwrap();
         let FlatSamples::F32(v) = &ch.sample_data else { panic!() };
         v.clone()
     };
@@ -336,7 +365,11 @@ fn bad_ron_syntax() {
     let err = assert_fails(&o, &[], "RON syntax error");
     assert_position(&err, &path, 4);
     // unbalanced parenthesis at the end of the file
-    let (path, o) = render_bad(dir.path(), "unbalanced.ron", &format!("Scene(\n    {CAMERA},\n    objects: [\n"));
+    let (path, o) = render_bad(
+        dir.path(),
+        "unbalanced.ron",
+        &format!("Scene(\n    {CAMERA},\n    objects: [\n"),
+    );
     let err = assert_fails(&o, &[], "unbalanced");
     assert!(err.contains(&format!("{}:", p(&path))), "{err}");
 }
@@ -344,7 +377,11 @@ fn bad_ron_syntax() {
 #[test]
 fn bad_unknown_field() {
     let dir = tempfile::tempdir().unwrap();
-    let (path, o) = render_bad(dir.path(), "radus.ron", &scene_with_object("(shape: Sphere(radus: 1.0))"));
+    let (path, o) = render_bad(
+        dir.path(),
+        "radus.ron",
+        &scene_with_object("(shape: Sphere(radus: 1.0))"),
+    );
     let err = assert_fails(&o, &["radus"], "unknown field");
     assert_position(&err, &path, 4);
     // unknown camera field
@@ -360,7 +397,11 @@ fn bad_unknown_field() {
 #[test]
 fn bad_unknown_primitive() {
     let dir = tempfile::tempdir().unwrap();
-    let (path, o) = render_bad(dir.path(), "torus.ron", &scene_with_object("(shape: Torus(major: 1, minor: 0.2))"));
+    let (path, o) = render_bad(
+        dir.path(),
+        "torus.ron",
+        &scene_with_object("(shape: Torus(major: 1, minor: 0.2))"),
+    );
     let err = assert_fails(
         &o,
         &["Torus", "Sphere", "Plane", "Box", "Cylinder", "Cone", "Ellipsoid"],
@@ -377,7 +418,11 @@ fn bad_radius_values() {
             "(name: \"first\", shape: Sphere(radius: 1)),\n        (name: \"ball\", shape: Sphere(radius: {radius}))"
         );
         let (path, o) = render_bad(dir.path(), &format!("{name}.ron"), &scene_with_object(&object));
-        assert_fails(&o, &[p(&path), "objects[1]", "ball", "radius"], &format!("{name} radius"));
+        assert_fails(
+            &o,
+            &[p(&path), "objects[1]", "ball", "radius"],
+            &format!("{name} radius"),
+        );
     }
     // other primitives' radii
     for (name, object) in [
@@ -398,8 +443,16 @@ fn camera_scene(camera: &str) -> String {
 fn bad_cameras() {
     let dir = tempfile::tempdir().unwrap();
     let cases = [
-        ("up_parallel", "eye: (0, 0, -5), look_at: (0, 0, 0), up: (0, 0, 1)", "up"),
-        ("up_antiparallel", "eye: (0, 3, 0), look_at: (0, 0, 0), up: (0, 1, 0)", "up"),
+        (
+            "up_parallel",
+            "eye: (0, 0, -5), look_at: (0, 0, 0), up: (0, 0, 1)",
+            "up",
+        ),
+        (
+            "up_antiparallel",
+            "eye: (0, 3, 0), look_at: (0, 0, 0), up: (0, 1, 0)",
+            "up",
+        ),
         ("vfov0", "eye: (0, 0, -5), vfov_deg: 0", "vfov_deg"),
         ("vfov180", "eye: (0, 0, -5), vfov_deg: 180", "vfov_deg"),
         ("vfov_nan", "eye: (0, 0, -5), vfov_deg: NaN", "vfov_deg"),
@@ -414,7 +467,11 @@ fn bad_cameras() {
         ("look_at_eye", "eye: (1, 2, 3), look_at: (1, 2, 3)", "look_at"),
         ("eye_inf", "eye: (0, 0, inf)", "eye"),
         ("zero_up", "eye: (0, 0, -5), up: (0, 0, 0)", "up"),
-        ("both_targets", "eye: (0, 0, -5), look_at: (0, 0, 0), direction: (0, 0, 1)", "direction"),
+        (
+            "both_targets",
+            "eye: (0, 0, -5), look_at: (0, 0, 0), direction: (0, 0, 1)",
+            "direction",
+        ),
     ];
     for (name, camera, field) in cases {
         let (path, o) = render_bad(dir.path(), &format!("{name}.ron"), &camera_scene(camera));
@@ -427,7 +484,9 @@ fn consistent_vfov_and_hfov_are_accepted() {
     // the inverse of `inconsistent_fov`: matching values load (tan(hfov/2) = tan(vfov/2)·W/H)
     let vfov = 40.0f64;
     let hfov = 2.0 * ((vfov.to_radians() / 2.0).tan() * 64.0 / 36.0).atan().to_degrees();
-    let text = camera_scene(&format!("eye: (0, 0, -5), vfov_deg: {vfov:?}, hfov_deg: {hfov:?}, width: 64, height: 36"));
+    let text = camera_scene(&format!(
+        "eye: (0, 0, -5), vfov_deg: {vfov:?}, hfov_deg: {hfov:?}, width: 64, height: 36"
+    ));
     let scene = zeroset::scene::Scene::from_ron(&text, "fov.ron").expect("consistent fields load");
     assert!((scene.camera.tan_half_vfov - (vfov.to_radians() / 2.0).tan()).abs() < 1e-12);
 }
@@ -436,9 +495,21 @@ fn consistent_vfov_and_hfov_are_accepted() {
 fn bad_boxes_and_transforms() {
     let dir = tempfile::tempdir().unwrap();
     let cases = [
-        ("box_flat", "(name: \"slab\", shape: Box(min: (0, 0, 0), max: (1, 0, 1)))", &["slab", "max"][..]),
-        ("box_inverted", "(name: \"slab\", shape: Box(min: (0, 0, 0), max: (1, -1, 1)))", &["slab", "max"][..]),
-        ("box_nan", "(name: \"slab\", shape: Box(min: (0, NaN, 0), max: (1, 1, 1)))", &["slab", "min"][..]),
+        (
+            "box_flat",
+            "(name: \"slab\", shape: Box(min: (0, 0, 0), max: (1, 0, 1)))",
+            &["slab", "max"][..],
+        ),
+        (
+            "box_inverted",
+            "(name: \"slab\", shape: Box(min: (0, 0, 0), max: (1, -1, 1)))",
+            &["slab", "max"][..],
+        ),
+        (
+            "box_nan",
+            "(name: \"slab\", shape: Box(min: (0, NaN, 0), max: (1, 1, 1)))",
+            &["slab", "min"][..],
+        ),
         (
             "translate_inf",
             "(name: \"t\", shape: Sphere(radius: 1), transform: (translate: (inf, 0, 0)))",
@@ -464,7 +535,11 @@ fn bad_boxes_and_transforms() {
             "(name: \"t\", shape: Sphere(radius: 1), transform: (rotate: (axis: (0, 1, 0), degrees: NaN)))",
             &["\"t\"", "transform.rotate"][..],
         ),
-        ("plane_zero_normal", "(shape: Plane(normal: (0, 0, 0)))", &["objects[0]", "normal"][..]),
+        (
+            "plane_zero_normal",
+            "(shape: Plane(normal: (0, 0, 0)))",
+            &["objects[0]", "normal"][..],
+        ),
         (
             "plane_both",
             "(shape: Plane(normal: (0, 1, 0), offset: 1, point: (0, 1, 0)))",
@@ -511,7 +586,16 @@ fn bad_missing_scene_file() {
 fn bad_command_line_values() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
-    let base = ["render", "scenes/default.ron", "-o", p(&out), "--width", "64", "--height", "36"];
+    let base = [
+        "render",
+        "scenes/default.ron",
+        "-o",
+        p(&out),
+        "--width",
+        "64",
+        "--height",
+        "36",
+    ];
     let cases: [(&[&str], &[&str]); 9] = [
         (&["--crop", "10,5,5,30"], &["--crop"]),
         (&["--crop", "0,0,65,36"], &["--crop"]),

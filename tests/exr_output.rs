@@ -33,8 +33,8 @@ const ALL_AOVS: [Aov; 9] = [
 
 /// The channel names documented in `src/aov.rs`, all AOVs.
 const ALL_CHANNELS: [&str; 18] = [
-    "R", "G", "B", "A", "Z", "distance", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "Nc.X", "Nc.Y", "Nc.Z", "id",
-    "u", "v",
+    "R", "G", "B", "A", "Z", "distance", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z", "Nc.X", "Nc.Y", "Nc.Z", "id", "u",
+    "v",
 ];
 
 fn documented_channels() -> BTreeSet<String> {
@@ -161,7 +161,10 @@ fn full_render_layout_values_and_header() {
     ] {
         let c = imath_apply(&w2c, world);
         for k in 0..3 {
-            assert!((c[k] - camera[k]).abs() < 1e-5, "worldToCamera({world}) = {c:?}, expected {camera:?}");
+            assert!(
+                (c[k] - camera[k]).abs() < 1e-5,
+                "worldToCamera({world}) = {c:?}, expected {camera:?}"
+            );
         }
         assert!((c[3] - 1.0).abs() < 1e-6, "affine: w = {}", c[3]);
     }
@@ -206,7 +209,10 @@ fn full_render_layout_values_and_header() {
             infinite_z = values.iter().filter(|z| **z == f32::INFINITY).count();
         }
     }
-    assert!(infinite_z > 10, "misses must be stored as +inf depth ({infinite_z} found)");
+    assert!(
+        infinite_z > 10,
+        "misses must be stored as +inf depth ({infinite_z} found)"
+    );
     // sanity: the frame is not trivial (several ids, finite depths)
     let ids: BTreeSet<u32> = frame_channel(&frame, "id").iter().map(|x| x.to_bits()).collect();
     assert_eq!(ids.len(), 4, "background and three objects: {ids:?}");
@@ -281,7 +287,10 @@ fn subset_of_aovs_and_depth_miss_value() {
     );
     let meta = MetaData::read_from_file(&path, true).unwrap();
     assert_eq!(
-        meta.headers[0].own_attributes.other.get(&Text::from("zeroset/depthMiss")),
+        meta.headers[0]
+            .own_attributes
+            .other
+            .get(&Text::from("zeroset/depthMiss")),
         Some(&AttributeValue::F32(0.0))
     );
     for channel in &layer.channel_data.list {

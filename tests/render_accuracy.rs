@@ -307,7 +307,11 @@ fn check_scene(objects: &str, shapes: &[Shape]) -> Stats {
                     assert_eq!(alpha, 0.0, "{at}: A on a miss");
                     assert_eq!(id, -1.0, "{at}: id on a miss");
                     assert_eq!(get(&frame, Aov::Uv, i, j), [0.0; 2], "{at}: uv on a miss");
-                    assert_eq!(get(&frame, Aov::Beauty, i, j), [0.0; 3], "{at}: default background is black");
+                    assert_eq!(
+                        get(&frame, Aov::Beauty, i, j),
+                        [0.0; 3],
+                        "{at}: default background is black"
+                    );
                 }
                 Some((k, t, n)) => {
                     s.hits += 1;
@@ -350,7 +354,10 @@ fn sphere_every_pixel_matches_closed_form() {
         "(shape: Sphere(center: (0.2, 0.5, 0.5), radius: 1.3))",
         &[sphere(DVec3::new(0.2, 0.5, 0.5), 1.3)],
     );
-    assert!(s.hits > 300 && s.misses > 300, "the sphere should cover part of the image: {s:?}");
+    assert!(
+        s.hits > 300 && s.misses > 300,
+        "the sphere should cover part of the image: {s:?}"
+    );
 }
 
 #[test]
@@ -360,7 +367,10 @@ fn tilted_plane_every_pixel_matches_closed_form() {
         "(shape: Plane(normal: (0.2, 1.0, -0.3), offset: -0.4))",
         &[plane(DVec3::new(0.2, 1.0, -0.3), -0.4)],
     );
-    assert!(s.hits > 300 && s.misses > 100, "the horizon should cross the image: {s:?}");
+    assert!(
+        s.hits > 300 && s.misses > 100,
+        "the horizon should cross the image: {s:?}"
+    );
 }
 
 #[test]
@@ -368,7 +378,10 @@ fn plane_seen_from_behind_keeps_its_normal() {
     // the camera is on the back side (normal points away from the eye): N is not flipped
     let s = check_scene(
         "(shape: Plane(normal: (0.1, -1.0, 0.2), point: (0.0, -0.5, 0.0)))",
-        &[plane(DVec3::new(0.1, -1.0, 0.2), DVec3::new(0.1, -1.0, 0.2).dot(DVec3::new(0.0, -0.5, 0.0)))],
+        &[plane(
+            DVec3::new(0.1, -1.0, 0.2),
+            DVec3::new(0.1, -1.0, 0.2).dot(DVec3::new(0.0, -0.5, 0.0)),
+        )],
     );
     assert!(s.hits > 300, "{s:?}");
 }
@@ -443,7 +456,16 @@ fn chosen_pixels_of_a_sphere_straight_ahead() {
     let scene = Scene::from_ron(text, "chosen.ron").unwrap();
     let frame = render(&scene, &options(&[Aov::Depth, Aov::Distance, Aov::Normal, Aov::Alpha]));
     let tan = 20f64.to_radians().tan();
-    for (i, j) in [(31, 17), (32, 18), (0, 0), (20, 10), (40, 25), (26, 5), (45, 17), (63, 35)] {
+    for (i, j) in [
+        (31, 17),
+        (32, 18),
+        (0, 0),
+        (20, 10),
+        (40, 25),
+        (26, 5),
+        (45, 17),
+        (63, 35),
+    ] {
         // right = forward × up = (0,0,1)×(0,1,0) = (−1,0,0); true up = +y
         let x = ((f64::from(i) + 0.5) / 64.0 * 2.0 - 1.0) * tan * 64.0 / 36.0;
         let y = (1.0 - (f64::from(j) + 0.5) / 36.0 * 2.0) * tan;
@@ -493,10 +515,18 @@ fn depth_miss_option_is_honoured() {
                     let v = frame.pixel(aov, i, j).unwrap()[0];
                     let d = default.pixel(aov, i, j).unwrap()[0];
                     if hit {
-                        assert_eq!(v.to_bits(), d.to_bits(), "{aov:?} at ({i}, {j}) must not change on a hit");
+                        assert_eq!(
+                            v.to_bits(),
+                            d.to_bits(),
+                            "{aov:?} at ({i}, {j}) must not change on a hit"
+                        );
                     } else {
                         assert_eq!(d, f32::INFINITY);
-                        assert_eq!(v.to_bits(), miss.to_bits(), "{aov:?} at ({i}, {j}) with depth_miss {miss}");
+                        assert_eq!(
+                            v.to_bits(),
+                            miss.to_bits(),
+                            "{aov:?} at ({i}, {j}) with depth_miss {miss}"
+                        );
                     }
                 }
                 // only Z and distance depend on the option
@@ -541,7 +571,11 @@ fn deterministic_across_thread_counts() {
     assert!(bits(&one) == bits(&two), "1 and 2 threads differ");
     assert!(bits(&two) == bits(&two_again), "two renders on 2 threads differ");
     // not a trivially constant image
-    let ids: std::collections::BTreeSet<u32> = one.planar_channel(Aov::PrimitiveId, 0).iter().map(|x| x.to_bits()).collect();
+    let ids: std::collections::BTreeSet<u32> = one
+        .planar_channel(Aov::PrimitiveId, 0)
+        .iter()
+        .map(|x| x.to_bits())
+        .collect();
     assert!(ids.len() >= 5, "expected most objects to be visible: {ids:?}");
 }
 
