@@ -6,7 +6,6 @@
 //! requested [`aov`]s to EXR and PNG ([`output`]). [`query`] answers batches of rays.
 
 pub mod aov;
-pub mod bvh;
 pub mod camera;
 pub mod cli;
 pub mod output;

@@ -9,7 +9,7 @@
 //! ```
 //! use serde::Deserialize;
 //! use std::sync::Arc;
-//! use zeroset::registry::{register, SceneShape};
+//! use zeroset::registry::{register, BuildContext, SceneShape};
 //! use zeroset_primitives::{Primitive, PrimitiveError, Sphere};
 //!
 //! /// A unit sphere with only a centre parameter.
@@ -18,7 +18,7 @@
 //! struct UnitBall { center: (f64, f64, f64) }
 //!
 //! impl SceneShape for UnitBall {
-//!     fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+//!     fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
 //!         let (x, y, z) = self.center;
 //!         Ok(Arc::new(Sphere::new(glam::DVec3::new(x, y, z), 1.0)?))
 //!     }
@@ -35,12 +35,40 @@ use std::fmt;
 use std::sync::{Arc, LazyLock, RwLock};
 use zeroset_primitives::{Primitive, PrimitiveError};
 
+/// What a [`SceneShape`] may need from the scene being loaded.
+#[derive(Debug, Default)]
+pub struct BuildContext {
+    /// Directory of the scene file: relative paths in a description (mesh files) are resolved
+    /// against it.
+    pub scene_dir: std::path::PathBuf,
+    /// Primitives already built from files, by resolved path, so that objects naming the same file
+    /// share one copy (instancing without copying).
+    pub loaded: std::sync::Mutex<BTreeMap<std::path::PathBuf, Arc<dyn Primitive>>>,
+}
+
+impl BuildContext {
+    /// A context for a scene in `scene_dir`.
+    #[must_use]
+    pub fn new(scene_dir: impl Into<std::path::PathBuf>) -> Self {
+        Self {
+            scene_dir: scene_dir.into(),
+            loaded: std::sync::Mutex::default(),
+        }
+    }
+
+    /// `path` resolved against the scene's directory (absolute paths are kept).
+    #[must_use]
+    pub fn resolve(&self, path: &std::path::Path) -> std::path::PathBuf {
+        self.scene_dir.join(path)
+    }
+}
+
 /// A scene-file description of a primitive: parsed from RON, validated and built into a
 /// [`Primitive`] after the whole file has parsed.
 pub trait SceneShape: fmt::Debug + Send + Sync {
     /// Validates the parameters and builds the primitive (in the object's local space; the
     /// object's transform is applied by the scene).
-    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError>;
+    fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError>;
 }
 
 pub(crate) type ShapeParserFn =

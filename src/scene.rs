@@ -6,15 +6,14 @@
 //! object (index and name) and field.
 
 use crate::aov::Aov;
-use crate::bvh::Bvh;
 use crate::camera::{Camera, CameraError};
-use crate::registry::ShapeDesc;
+use crate::registry::{BuildContext, ShapeDesc};
 use glam::{DAffine3, DQuat, DVec3};
 use ron::extensions::Extensions;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use zeroset_primitives::{Interval, Primitive, RawHit, Ray, Transformed};
+use zeroset_primitives::{Bvh, Interval, Primitive, RawHit, Ray, Transformed};
 
 /// Why a scene could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -320,20 +319,27 @@ impl Scene {
             path: path.display().to_string(),
             source,
         })?;
-        let mut scene = Self::from_ron(&text, &path.display().to_string())?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut scene = Self::from_ron_in(&text, &path.display().to_string(), &BuildContext::new(dir))?;
         scene.source = Some(path.to_path_buf());
         Ok(scene)
     }
 
-    /// Parses and validates scene text; `path` is only used in messages.
+    /// Parses and validates scene text; `path` is only used in messages, and relative file paths
+    /// in the scene resolve against the current directory.
     pub fn from_ron(text: &str, path: &str) -> Result<Self, SceneError> {
+        Self::from_ron_in(text, path, &BuildContext::default())
+    }
+
+    /// Parses and validates scene text, building primitives in `context`.
+    pub fn from_ron_in(text: &str, path: &str, context: &BuildContext) -> Result<Self, SceneError> {
         let desc: SceneDesc = ron_options().from_str(text).map_err(|e| SceneError::Parse {
             path: path.to_string(),
             line: e.span.start.line,
             column: e.span.start.col,
             message: e.code.to_string(),
         })?;
-        Self::from_desc(desc).map_err(|(location, message)| SceneError::Invalid {
+        Self::from_desc(desc, context).map_err(|(location, message)| SceneError::Invalid {
             path: path.to_string(),
             location,
             message,
@@ -341,7 +347,7 @@ impl Scene {
     }
 
     /// Validates a parsed description; the error is `(location, message)`.
-    pub fn from_desc(desc: SceneDesc) -> Result<Self, (String, String)> {
+    pub fn from_desc(desc: SceneDesc, context: &BuildContext) -> Result<Self, (String, String)> {
         let camera = build_camera(&desc.camera)
             .map_err(|e| ("camera".to_string(), format!("field `{}`: {}", e.field, e.problem)))?;
         check_finite("scene", "ambient", desc.ambient)?;

@@ -4,7 +4,7 @@
 //! [`SceneShape::build`] calls the primitive's validating constructor. Defaults are stated per
 //! field; see `scenes/README.md` for one example per primitive.
 
-use crate::registry::{parser_for, SceneShape};
+use crate::registry::{parser_for, BuildContext, SceneShape};
 use crate::scene::RotationDesc;
 use glam::DVec3;
 use serde::Deserialize;
@@ -47,7 +47,7 @@ pub struct SphereDesc {
 }
 
 impl SceneShape for SphereDesc {
-    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         Ok(Arc::new(Sphere::new(self.center, self.radius)?))
     }
 }
@@ -69,7 +69,7 @@ pub struct PlaneDesc {
 }
 
 impl SceneShape for PlaneDesc {
-    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         Ok(Arc::new(match (self.offset, self.point) {
             (Some(_), Some(_)) => {
                 return Err(PrimitiveError::new(
@@ -95,7 +95,7 @@ pub struct BoxDesc {
 }
 
 impl SceneShape for BoxDesc {
-    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         Ok(Arc::new(Cuboid::new(self.min, self.max)?))
     }
 }
@@ -122,7 +122,7 @@ pub struct CylinderDesc {
 }
 
 impl SceneShape for CylinderDesc {
-    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         Ok(Arc::new(Cylinder::new(
             self.base,
             self.axis,
@@ -159,7 +159,7 @@ pub struct ConeDesc {
 }
 
 impl SceneShape for ConeDesc {
-    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         Ok(Arc::new(Cone::new(
             self.base,
             self.axis,
@@ -186,7 +186,7 @@ pub struct EllipsoidDesc {
 }
 
 impl SceneShape for EllipsoidDesc {
-    fn build(&self) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         let orientation = match &self.rotate {
             None => glam::DQuat::IDENTITY,
             Some(r) => r

@@ -24,6 +24,7 @@
 //! [`SurfaceHit::complete`], computing only what a [`HitRequest`] asks for.
 
 pub mod bounds;
+pub mod bvh;
 pub mod error;
 pub mod hit;
 pub mod math;
@@ -43,6 +44,7 @@ pub mod sphere;
 pub mod testing;
 
 pub use bounds::Aabb;
+pub use bvh::Bvh;
 pub use error::PrimitiveError;
 pub use hit::{HitRequest, RawHit, SurfaceHit};
 pub use ray::{Interval, Ray};

@@ -1,4 +1,4 @@
-//! A bounding volume hierarchy over the scene's bounded objects: binned SAH build, flattened
+//! A bounding volume hierarchy over bounded items (a scene's objects, a mesh's triangles): binned SAH build, flattened
 //! depth-first nodes, ordered closest-hit traversal.
 //!
 //! Build: each split evaluates 16 bins of centroids per axis with the surface-area heuristic
@@ -11,7 +11,7 @@
 //! nearer child first, farther ones skipped once the closest hit so far is nearer than their
 //! entry. Primitives are then tested in f64, so the f32 traversal never changes a hit.
 
-use zeroset_primitives::{Aabb, Interval, Ray};
+use crate::{Aabb, Interval, Ray};
 
 /// A node: bounds in f32, rounded outward from the f64 bounds so they still contain them.
 #[derive(Clone, Copy, Debug)]
