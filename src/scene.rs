@@ -361,7 +361,7 @@ impl Scene {
             let mut primitive = object
                 .shape
                 .shape
-                .build()
+                .build(context)
                 .map_err(|e| (location.clone(), format!("field `{}`: {}", e.field, e.problem)))?;
             if let Some(t) = &object.transform {
                 let m = build_transform(t).map_err(|m| (location.clone(), m))?;
