@@ -25,6 +25,7 @@
 
 pub mod bounds;
 pub mod bvh;
+pub mod csg;
 pub mod error;
 pub mod hit;
 pub mod math;
@@ -45,6 +46,7 @@ pub mod testing;
 
 pub use bounds::Aabb;
 pub use bvh::Bvh;
+pub use csg::{Csg, CsgOp, Function, Offset, SmoothUnion};
 pub use error::PrimitiveError;
 pub use hit::{HitRequest, RawHit, SurfaceHit};
 pub use ray::{Interval, Ray};
