@@ -33,6 +33,11 @@ pub mod traits;
 pub mod transformed;
 
 pub mod plane;
+
+pub mod disk;
+pub mod polygon;
+pub mod triangle;
+
 pub mod sphere;
 
 #[cfg(feature = "testing")]
@@ -47,6 +52,11 @@ pub use traits::{Implicit, Intersect, Parametric, Primitive, UvDomain};
 pub use transformed::Transformed;
 
 pub use plane::Plane;
+
+pub use disk::Disk;
+pub use polygon::Polygon;
+pub use triangle::Triangle;
+
 pub use sphere::Sphere;
 
 pub use glam;
