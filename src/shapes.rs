@@ -9,7 +9,9 @@ use crate::scene::RotationDesc;
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
-use zeroset_primitives::{Cone, Cuboid, Cylinder, Ellipsoid, Plane, Primitive, PrimitiveError, Sphere};
+use zeroset_primitives::{
+    Cone, Cuboid, Cylinder, Disk, Ellipsoid, Plane, Polygon, Primitive, PrimitiveError, Sphere, Triangle,
+};
 
 /// Calls `add(name, parser)` for every built-in primitive.
 pub(crate) fn register_builtins(add: &mut dyn FnMut(&str, crate::registry::ShapeParserFn)) {
@@ -19,6 +21,9 @@ pub(crate) fn register_builtins(add: &mut dyn FnMut(&str, crate::registry::Shape
     add("Cylinder", parser_for::<CylinderDesc>());
     add("Cone", parser_for::<ConeDesc>());
     add("Ellipsoid", parser_for::<EllipsoidDesc>());
+    add("Triangle", parser_for::<TriangleDesc>());
+    add("Disk", parser_for::<DiskDesc>());
+    add("Polygon", parser_for::<PolygonDesc>());
 }
 
 fn origin() -> DVec3 {
@@ -194,5 +199,63 @@ impl SceneShape for EllipsoidDesc {
                 .map_err(|problem| PrimitiveError::new("Ellipsoid", "rotate", problem))?,
         };
         Ok(Arc::new(Ellipsoid::new(self.center, self.radii, orientation)?))
+    }
+}
+
+/// `Triangle(a: (0, 0, 0), b: (1, 0, 0), c: (0, 1, 0))`: counter-clockwise `a → b → c` seen from
+/// the front (the side the normal `(b − a) × (c − a)` points to).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Triangle")]
+pub struct TriangleDesc {
+    /// First vertex.
+    pub a: DVec3,
+    /// Second vertex.
+    pub b: DVec3,
+    /// Third vertex.
+    pub c: DVec3,
+}
+
+impl SceneShape for TriangleDesc {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        Ok(Arc::new(Triangle::new(self.a, self.b, self.c)?))
+    }
+}
+
+/// `Disk(center: (0, 0, 0), normal: (0, 1, 0), radius: 1)`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Disk")]
+pub struct DiskDesc {
+    /// Centre; default the origin.
+    #[serde(default = "origin")]
+    pub center: DVec3,
+    /// Normal (front side); default +Y.
+    #[serde(default = "unit_y")]
+    pub normal: DVec3,
+    /// Radius; default 1.
+    #[serde(default = "one")]
+    pub radius: f64,
+}
+
+impl SceneShape for DiskDesc {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        Ok(Arc::new(Disk::new(self.center, self.normal, self.radius)?))
+    }
+}
+
+/// `Polygon(points: [(x, y, z), …], holes: [[…], …])`: planar, convex or concave; the outer
+/// ring counter-clockwise seen from the front; holes by the even-odd rule (either orientation).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Polygon")]
+pub struct PolygonDesc {
+    /// The outer boundary.
+    pub points: Vec<DVec3>,
+    /// Holes; default none.
+    #[serde(default)]
+    pub holes: Vec<Vec<DVec3>>,
+}
+
+impl SceneShape for PolygonDesc {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        Ok(Arc::new(Polygon::new(self.points.clone(), self.holes.clone())?))
     }
 }

@@ -39,6 +39,11 @@ pub mod cuboid;
 pub mod cylinder;
 pub mod ellipsoid;
 pub mod plane;
+
+pub mod disk;
+pub mod polygon;
+pub mod triangle;
+
 pub mod sphere;
 
 #[cfg(feature = "testing")]
@@ -59,6 +64,11 @@ pub use cuboid::Cuboid;
 pub use cylinder::Cylinder;
 pub use ellipsoid::Ellipsoid;
 pub use plane::Plane;
+
+pub use disk::Disk;
+pub use polygon::Polygon;
+pub use triangle::Triangle;
+
 pub use sphere::Sphere;
 
 pub use glam;
