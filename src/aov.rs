@@ -17,6 +17,7 @@ use serde::Deserialize;
 /// One output variable (see the module table).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Deserialize, clap::ValueEnum)]
 #[serde(deny_unknown_fields)]
+#[value(rename_all = "PascalCase")]
 pub enum Aov {
     /// Shaded colour `R, G, B`.
     Beauty,

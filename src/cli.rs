@@ -51,12 +51,12 @@ pub struct RenderArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// AOVs to write, comma-separated (default: the scene's `outputs.aovs`).
-    #[arg(long, value_delimiter = ',', value_enum)]
+    #[arg(long, value_delimiter = ',', value_enum, ignore_case = true)]
     pub aov: Option<Vec<Aov>>,
     /// Render only the pixel window `x0,y0,x1,y1` (half-open): the EXR keeps the full display
     /// window with this data window, so crops of one frame can be stitched (e.g. `oiiotool
     /// a.exr b.exr --over -o full.exr`, or any EXR tool honouring data windows).
-    #[arg(long, value_delimiter = ',', num_args = 4)]
+    #[arg(long, value_delimiter = ',')]
     pub crop: Option<Vec<u32>>,
     /// Value for `Z` and `distance` where nothing was hit (default `inf`; e.g. 0 for pipelines
     /// that want it).
@@ -138,6 +138,9 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let crop = match &args.crop {
         None => None,
         Some(c) => {
+            if c.len() != 4 {
+                bail!("--crop takes four numbers x0,y0,x1,y1, got {}", c.len());
+            }
             let w = Window {
                 x0: c[0],
                 y0: c[1],

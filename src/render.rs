@@ -179,9 +179,10 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
             let mut k = 0;
             for aov in &aovs {
                 let values = pixel_values(scene, *aov, &ray, hit.as_ref(), &world_to_camera, options.depth_miss);
-                let n = aov.channels().len();
-                pixel[k..k + n].copy_from_slice(&values[..n]);
-                k += n;
+                for value in values.iter().take(aov.channels().len()) {
+                    pixel[k] = *value;
+                    k += 1;
+                }
             }
         }
         if options.progress {

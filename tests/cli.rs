@@ -7,6 +7,9 @@ use exr::prelude::*;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use zeroset::aov::Aov;
+use zeroset::render::{render, RenderOptions};
+use zeroset::scene::Scene;
 
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_zeroset"));
@@ -109,8 +112,24 @@ fn render_default_scene() {
     }
 }
 
+/// Reads every channel of a single-layer EXR: `(name, samples)`.
+fn read_channels(path: &Path) -> Vec<(String, Vec<f32>)> {
+    let image = read_all_flat_layers_from_file(path).expect("readable EXR");
+    image.layer_data[0]
+        .channel_data
+        .list
+        .iter()
+        .map(|ch| {
+            let FlatSamples::F32(v) = &ch.sample_data else {
+                panic!("{} is not FLOAT", ch.name)
+            };
+            (ch.name.to_string(), v.clone())
+        })
+        .collect()
+}
+
 #[test]
-fn render_resized_with_selected_aovs_matches_library_render() {
+fn render_resized_matches_library_render() {
     let dir = tempfile::tempdir().unwrap();
     let o = run(&[
         "render",
@@ -121,51 +140,36 @@ fn render_resized_with_selected_aovs_matches_library_render() {
         "64",
         "--height",
         "36",
-        "--aov",
-        "Depth,Normal",
         "--threads",
         "2",
     ]);
-    assert_ok(&o, "render --aov Depth,Normal");
+    assert_ok(&o, "render --width 64 --height 36");
     let exr = dir.path().join("default.exr");
-    assert_eq!(
-        channel_names(&exr),
-        set(&["Z", "N.X", "N.Y", "N.Z"]),
-        "only those channels"
-    );
-    let names = file_names(dir.path());
-    assert!(
-        !names.contains("default.beauty.png"),
-        "no beauty preview without Beauty: {names:?}"
-    );
+    let meta = MetaData::read_from_file(&exr, true).unwrap();
+    assert_eq!(meta.headers[0].layer_size, Vec2(64, 36));
+    assert_eq!(meta.headers[0].shared_attributes.display_window.size, Vec2(64, 36));
+    for png in ["default.beauty.png", "default.depth.png", "default.normal.png"] {
+        assert_eq!(
+            image::image_dimensions(dir.path().join(png)).unwrap(),
+            (64, 36),
+            "{png}"
+        );
+    }
 
     // the file holds what the library renders for the same scene at 64×36 (vfov kept)
-    let image = read_all_flat_layers_from_file(&exr).unwrap();
-    let layer = &image.layer_data[0];
-    assert_eq!(layer.size, Vec2(64, 36));
-    assert_eq!(image.attributes.display_window.size, Vec2(64, 36));
-    let mut scene = zeroset::scene::Scene::load(Path::new("scenes/default.ron")).unwrap();
+    let mut scene = Scene::load(Path::new("scenes/default.ron")).unwrap();
     let vfov = scene.camera.tan_half_vfov;
     scene.camera = scene.camera.with_resolution(64, 36).unwrap();
     assert!((scene.camera.tan_half_vfov - vfov).abs() < 1e-12);
-    let frame = zeroset::render::render(
-        &scene,
-        &zeroset::render::RenderOptions {
-            aovs: vec![zeroset::aov::Aov::Depth, zeroset::aov::Aov::Normal],
-            ..Default::default()
-        },
-    );
+    let frame = render(&scene, &RenderOptions::default());
     let mut inf = 0;
-    for ch in &layer.channel_data.list {
-        let FlatSamples::F32(v) = &ch.sample_data else { panic!() };
-        let name = ch.name.to_string();
-        let (aov, k) = match name.as_str() {
-            "Z" => (zeroset::aov::Aov::Depth, 0),
-            "N.X" => (zeroset::aov::Aov::Normal, 0),
-            "N.Y" => (zeroset::aov::Aov::Normal, 1),
-            "N.Z" => (zeroset::aov::Aov::Normal, 2),
-            other => panic!("unexpected channel {other}"),
-        };
+    let channels = read_channels(&exr);
+    assert_eq!(channels.len(), 8);
+    for (name, v) in channels {
+        let (aov, k) = Aov::DEFAULT
+            .iter()
+            .find_map(|a| a.channels().iter().position(|c| *c == name).map(|k| (*a, k)))
+            .unwrap_or_else(|| panic!("unexpected channel {name}"));
         let expected = frame.planar_channel(aov, k);
         assert!(
             v.iter().map(|x| x.to_bits()).eq(expected.iter().map(|x| x.to_bits())),
@@ -178,8 +182,75 @@ fn render_resized_with_selected_aovs_matches_library_render() {
     assert!(inf > 0, "the sky misses: +inf depth by default");
 }
 
+/// `--aov Depth,Normal`: the AOV names as documented (and as written in scene files).
+///
+/// Fails at the time of writing: clap's `ValueEnum` derive on `Aov` (src/aov.rs) only accepts the
+/// kebab-case names `depth`, `camera-normal`, … and rejects `Depth`.
 #[test]
-fn render_crop_and_exr_output_path_and_depth_miss() {
+fn render_aov_flag_selects_channels() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = run(&[
+        "render",
+        "scenes/default.ron",
+        "-o",
+        p(dir.path()),
+        "--width",
+        "64",
+        "--height",
+        "36",
+        "--aov",
+        "Depth,Normal",
+    ]);
+    assert_ok(&o, "render --aov Depth,Normal");
+    let exr = dir.path().join("default.exr");
+    assert_eq!(
+        channel_names(&exr),
+        set(&["Z", "N.X", "N.Y", "N.Z"]),
+        "only those channels"
+    );
+    let meta = MetaData::read_from_file(&exr, true).unwrap();
+    assert_eq!(meta.headers[0].layer_size, Vec2(64, 36));
+    let names = file_names(dir.path());
+    assert!(
+        !names.contains("default.beauty.png"),
+        "no beauty preview without Beauty: {names:?}"
+    );
+}
+
+/// `--crop x0,y0,x1,y1` as documented in `zeroset render --help`.
+///
+/// Fails at the time of writing: `#[arg(long, value_delimiter = ',', num_args = 4)]` (src/cli.rs)
+/// makes clap demand four separate arguments (`--crop 10 3 50 30`) and reject `--crop 10,3,50,30`.
+#[test]
+fn render_crop_flag_sets_data_window() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = run(&[
+        "render",
+        "scenes/default.ron",
+        "-o",
+        p(dir.path()),
+        "--width",
+        "64",
+        "--height",
+        "36",
+        "--crop",
+        "10,3,50,30",
+        "--no-previews",
+    ]);
+    assert_ok(&o, "render --crop 10,3,50,30");
+    let last = stdout(&o).lines().last().unwrap_or_default().to_string();
+    assert!(last.contains("40x27") && last.contains("Mrays/s"), "{last}");
+    let exr = dir.path().join("default.exr");
+    let meta = MetaData::read_from_file(&exr, true).unwrap();
+    let h = &meta.headers[0];
+    assert_eq!(h.shared_attributes.display_window.size, Vec2(64, 36));
+    assert_eq!(h.shared_attributes.display_window.position, Vec2(0, 0));
+    assert_eq!(h.data_window().position, Vec2(10, 3));
+    assert_eq!(h.data_window().size, Vec2(40, 27));
+}
+
+#[test]
+fn render_to_exr_path_with_depth_miss() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sub").join("shot.exr");
     let o = run(&[
@@ -191,39 +262,17 @@ fn render_crop_and_exr_output_path_and_depth_miss() {
         "64",
         "--height",
         "36",
-        "--crop",
-        "10,3,50,30",
         "--depth-miss",
         "0",
         "--no-previews",
-        "--aov",
-        "Depth,Alpha",
     ]);
-    assert_ok(&o, "render --crop");
+    assert_ok(&o, "render -o shot.exr --depth-miss 0");
     assert_eq!(file_names(&dir.path().join("sub")), set(&["shot.exr"]), "no previews");
-    let last = stdout(&o).lines().last().unwrap_or_default().to_string();
-    assert!(last.contains("40x27") && last.contains("Mrays/s"), "{last}");
-    let meta = MetaData::read_from_file(&out, true).unwrap();
-    let h = &meta.headers[0];
-    assert_eq!(h.shared_attributes.display_window.size, Vec2(64, 36));
-    assert_eq!(h.shared_attributes.display_window.position, Vec2(0, 0));
-    assert_eq!(h.data_window().position, Vec2(10, 3));
-    assert_eq!(h.data_window().size, Vec2(40, 27));
-    let image = read_all_flat_layers_from_file(&out).unwrap();
-    let layer = &image.layer_data[0];
-    let get = |n: &str| -> Vec<f32> {
-        let ch = layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == n)
-            .unwrap();
-        let FlatSamples::F32(v) = &ch.sample_data else { panic!() };
-        v.clone()
-    };
+    let channels = read_channels(&out);
+    let get = |n: &str| channels.iter().find(|(name, _)| name == n).unwrap().1.clone();
     let (z, a) = (get("Z"), get("A"));
     let misses = a.iter().filter(|x| **x == 0.0).count();
-    assert!(misses > 0, "the crop includes sky");
+    assert!(misses > 0, "the image includes sky");
     for (z, a) in z.iter().zip(&a) {
         if *a == 0.0 {
             assert_eq!(*z, 0.0, "--depth-miss 0");
@@ -487,7 +536,7 @@ fn consistent_vfov_and_hfov_are_accepted() {
     let text = camera_scene(&format!(
         "eye: (0, 0, -5), vfov_deg: {vfov:?}, hfov_deg: {hfov:?}, width: 64, height: 36"
     ));
-    let scene = zeroset::scene::Scene::from_ron(&text, "fov.ron").expect("consistent fields load");
+    let scene = Scene::from_ron(&text, "fov.ron").expect("consistent fields load");
     assert!((scene.camera.tan_half_vfov - (vfov.to_radians() / 2.0).tan()).abs() < 1e-12);
 }
 
@@ -603,10 +652,12 @@ fn bad_command_line_values() {
         (&["--crop", "1,2,3"], &["crop"]),
         (&["--crop", "a,b,c,d"], &["crop"]),
         (&["--threads", "0"], &["--threads"]),
-        (&["--aov", "Depth,Bogus"], &["Bogus"]),
+        (&["--aov", "Bogus"], &["Bogus"]),
         (&["--width", "0"], &["width"]),
         (&["--depth-miss", "NaN"], &["--depth-miss"]),
     ];
+    // (while `--crop a,b,c,d` is rejected by clap itself — see `render_crop_flag_sets_data_window`
+    // — the first three crop cases fail for that reason rather than for their values)
     for (extra, needles) in cases {
         let mut args = base.to_vec();
         args.extend_from_slice(extra);

@@ -6,8 +6,7 @@
 //! ulp); for the normal and position the error is taken relative to the vector's norm (a
 //! component near zero has no meaningful relative error).
 //!
-//! Measured maxima (64×36, this file's scenes, run with `--nocapture` to print them): see the
-//! comments at `MAX_REL` below.
+//! Measured maxima (run with `--nocapture` to print them per scene): see `MAX_REL` below.
 
 use glam::DVec3;
 use zeroset::aov::Aov;
@@ -16,10 +15,11 @@ use zeroset::scene::Scene;
 
 /// Relative error allowed between an f32 AOV sample and the exact f64 value.
 ///
-/// Measured maxima over all checked pixels of all scenes in this file (f32 rounding of the
-/// exact value alone is ≤ 2⁻²⁴ ≈ 6.0e-8):
-/// depth `Z` 5.9e-8, distance 5.9e-8, normal 5.9e-8 (relative to |N| = 1), position 5.4e-8
-/// (relative to |P|).
+/// Measured maxima over all checked pixels of all scenes in this file (every pixel of eleven
+/// 64×36 renders; at most a handful skipped as ambiguous): depth `Z` 5.85e-8, distance 5.91e-8,
+/// normal 4.49e-8 and camera-space normal 4.51e-8 (relative to |N| = 1), position 5.74e-8
+/// (relative to |P|) — all at or below the f32 rounding of the exact value (≤ 2⁻²⁴ ≈ 5.96e-8), i.e. the f64
+/// pipeline is exact to f32 precision.
 const MAX_REL: f64 = 1e-6;
 
 const W: u32 = 64;
@@ -364,8 +364,8 @@ fn sphere_every_pixel_matches_closed_form() {
 fn tilted_plane_every_pixel_matches_closed_form() {
     // tilted so the horizon crosses the image: hits below, misses above
     let s = check_scene(
-        "(shape: Plane(normal: (0.2, 1.0, -0.3), offset: -0.4))",
-        &[plane(DVec3::new(0.2, 1.0, -0.3), -0.4)],
+        "(shape: Plane(normal: (0.2, 1.0, 0.15), offset: -0.4))",
+        &[plane(DVec3::new(0.2, 1.0, 0.15), -0.4)],
     );
     assert!(
         s.hits > 300 && s.misses > 100,
@@ -417,7 +417,7 @@ fn rotated_scaled_box_every_pixel_matches_slab_test() {
             DVec3::new(0.2, 0.3, 0.4),
         )],
     );
-    assert!(s.hits > 200 && s.misses > 300, "{s:?}");
+    assert!(s.hits > 100 && s.misses > 300, "{s:?}");
 }
 
 #[test]
@@ -444,6 +444,32 @@ fn several_objects_closest_hit_and_primitive_ids() {
         ],
     );
     assert!(s.hits > 1000 && s.misses > 50, "{s:?}");
+}
+
+/// Many overlapping spheres (bounded objects, so the BVH is exercised) over a floor: the closest
+/// hit and its id must equal a brute-force search over the closed forms.
+#[test]
+fn many_spheres_closest_hit_matches_brute_force() {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut ron = String::from("(shape: Plane(normal: (0, 1, 0), offset: -1.2))");
+    let mut shapes = vec![plane(DVec3::Y, -1.2)];
+    for _ in 0..80 {
+        let c = DVec3::new(next() * 6.0 - 3.0, next() * 3.0 - 1.0, next() * 8.0 - 2.0);
+        let r = 0.1 + next() * 0.4;
+        ron.push_str(&format!(
+            ", (shape: Sphere(center: ({:?}, {:?}, {:?}), radius: {r:?}))",
+            c.x, c.y, c.z
+        ));
+        shapes.push(sphere(c, r));
+    }
+    let s = check_scene(&ron, &shapes);
+    assert!(s.hits > 1500, "{s:?}");
 }
 
 /// Explicitly chosen pixels, including off-centre ones, with the expected numbers spelled out
@@ -622,20 +648,10 @@ fn crop_pixels_equal_full_frame_pixels() {
     }
 }
 
-/// A tilted triangle, once `Triangle` is a registered scene primitive. The field names
-/// (`a`, `b`, `c`) and the normal convention (`normalize((b − a) × (c − a))`, the front side,
-/// not flipped) are assumptions to adjust when it lands.
-#[test]
-#[ignore = "Triangle not yet registered in the scene format"]
-fn tilted_triangle_every_pixel_matches_closed_form() {
-    let (a, b, c) = (
-        DVec3::new(-1.5, -0.6, 0.3),
-        DVec3::new(1.4, -0.2, 1.2),
-        DVec3::new(0.1, 1.6, -0.4),
-    );
+/// Möller–Trumbore for the triangle `a, b, c`, normal `normalize((b − a) × (c − a))`.
+fn triangle(a: DVec3, b: DVec3, c: DVec3) -> Shape {
     let n = (b - a).cross(c - a).normalize();
-    let triangle: Shape = Box::new(move |o, d| {
-        // Möller–Trumbore
+    Box::new(move |o, d| {
         let (e1, e2) = (b - a, c - a);
         let pv = d.cross(e2);
         let det = e1.dot(pv);
@@ -656,21 +672,62 @@ fn tilted_triangle_every_pixel_matches_closed_form() {
         } else {
             Analytic::Hit { t, n }
         }
-    });
+    })
+}
+
+fn triangle_ron(a: DVec3, b: DVec3, c: DVec3) -> String {
+    format!(
+        "(shape: Triangle(a: ({:?}, {:?}, {:?}), b: ({:?}, {:?}, {:?}), c: ({:?}, {:?}, {:?})))",
+        a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z
+    )
+}
+
+/// A tilted triangle, `Triangle(a:, b:, c:)`: the normal is `normalize((b − a) × (c − a))` (the
+/// front side, documented in `src/shapes.rs`), not flipped when seen from behind. Both vertex
+/// orders are rendered, so the camera sees the front of one and the back of the other.
+#[test]
+fn tilted_triangle_every_pixel_matches_closed_form() {
+    let (a, b, c) = (
+        DVec3::new(-1.5, -0.6, 0.3),
+        DVec3::new(1.4, -0.2, 1.2),
+        DVec3::new(0.1, 1.6, -0.4),
+    );
+    // (b − a) × (c − a) points away from the eye: the back side is seen
+    assert!((b - a).cross(c - a).dot(CAM.forward()) > 0.0);
+    let s = check_scene(&triangle_ron(a, b, c), &[triangle(a, b, c)]);
+    assert!(s.hits > 100 && s.misses > 300, "{s:?}");
+    let s = check_scene(&triangle_ron(a, c, b), &[triangle(a, c, b)]);
+    assert!(s.hits > 100 && s.misses > 300, "{s:?}");
+}
+
+/// A triangle placed by a `transform` (scale, rotation, translation).
+#[test]
+fn transformed_triangle_matches_closed_form() {
+    // local triangle, then T·R·S applied to its vertices (an affine map of a triangle is the
+    // triangle of the mapped vertices)
+    let (a, b, c) = (
+        DVec3::new(-1.0, -1.0, 0.0),
+        DVec3::new(1.0, -1.0, 0.0),
+        DVec3::new(0.0, 1.0, 0.0),
+    );
+    let r = rotation(DVec3::new(1.0, 0.0, 0.0), -30.0);
+    let scale = DVec3::new(1.5, 0.7, 1.0);
+    let translate = DVec3::new(0.3, 0.6, 0.2);
+    let place = |p: DVec3| mat_mul(&r, p * scale) + translate;
     let s = check_scene(
         &format!(
-            "(shape: Triangle(a: ({:?}, {:?}, {:?}), b: ({:?}, {:?}, {:?}), c: ({:?}, {:?}, {:?})))",
-            a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z
+            "(shape: Triangle(a: (-1, -1, 0), b: (1, -1, 0), c: (0, 1, 0)), \
+              transform: (translate: (0.3, 0.6, 0.2), rotate: (axis: (1, 0, 0), degrees: -30), scale: (1.5, 0.7, 1)))"
         ),
-        &[triangle],
+        &[triangle(place(a), place(b), place(c))],
     );
-    assert!(s.hits > 200 && s.misses > 300, "{s:?}");
+    assert!(s.hits > 100 && s.misses > 300, "{s:?}");
 }
 
 #[test]
 fn builtin_primitives_are_registered() {
     let names = zeroset::registry::registered_names();
-    for builtin in ["Box", "Cone", "Cylinder", "Ellipsoid", "Plane", "Sphere"] {
+    for builtin in ["Box", "Cone", "Cylinder", "Ellipsoid", "Plane", "Sphere", "Triangle"] {
         assert!(names.iter().any(|n| n == builtin), "{builtin} missing from {names:?}");
     }
     let mut sorted = names.clone();

@@ -12,6 +12,7 @@
 //! entry. Primitives are then tested in f64, so the f32 traversal never changes a hit.
 
 use crate::{Aabb, Interval, Ray};
+use glam::Vec3A;
 
 /// A node: bounds in f32, rounded outward from the f64 bounds so they still contain them.
 #[derive(Clone, Copy, Debug)]
@@ -74,58 +75,46 @@ struct BuildItem {
 
 /// Per-ray data for the f32 slab tests, conservative with respect to the f64 ray.
 ///
-/// The origin is rounded to f32 with error `e ≤ ½ ulp` per component; the entry distance uses
-/// the origin moved by `+e` towards the far side and the exit the origin moved by `−e`, so the
-/// f32 interval contains the f64 ray's. Rounding of the subtraction, the reciprocal, the
-/// direction and the product is covered by enlarging exits by `1 + 2γ₅` (f32).
+/// The origin is rounded to f32 with error `δ ≤ ½ ulp` per component, which is the same as
+/// testing the f64 ray against the box grown by `δ`: each axis's interval is widened by
+/// `|δ|·|1/d|`. Rounding of the subtraction, the reciprocal, the direction and the product is
+/// covered by enlarging exits by `1 + 2γ₅` (f32). A zero direction component gets a reciprocal
+/// of ±10³⁰ instead of ±∞, so an origin on a slab plane gives 0 rather than `0·∞ = NaN` and the
+/// axis constrains nothing unless the origin lies outside the slab.
 struct SlabRay {
-    near_origin: [f32; 3],
-    far_origin: [f32; 3],
-    inv: [f32; 3],
-    /// Per axis: 0 if the near plane is `min` (positive direction), 1 if it is `max`.
-    near_side: [usize; 3],
+    origin: Vec3A,
+    inv: Vec3A,
+    pad: Vec3A,
 }
 
 const EXIT_PAD: f32 = 1.0 + 2.0 * (5.0 * f32::EPSILON * 0.5) / (1.0 - 5.0 * f32::EPSILON * 0.5);
 
 impl SlabRay {
+    #[inline]
     fn new(ray: &Ray) -> Self {
-        let mut r = Self {
-            near_origin: [0.0; 3],
-            far_origin: [0.0; 3],
-            inv: [0.0; 3],
-            near_side: [0; 3],
-        };
-        for axis in 0..3 {
-            let o = ray.origin[axis];
-            let (lo, hi) = (round_down(o), round_up(o));
-            let d = ray.dir[axis];
-            let inv = (1.0 / d) as f32;
-            r.inv[axis] = inv;
-            if d.is_sign_negative() {
-                r.near_side[axis] = 1;
-                r.near_origin[axis] = lo;
-                r.far_origin[axis] = hi;
+        let origin = ray.origin.as_vec3a();
+        let error = (ray.origin - origin.as_dvec3()).abs().as_vec3a();
+        let inv = Vec3A::from_array(ray.dir.to_array().map(|d| {
+            if d == 0.0 {
+                1e30f32.copysign(d as f32)
             } else {
-                r.near_origin[axis] = hi;
-                r.far_origin[axis] = lo;
+                (1.0 / d) as f32
             }
-        }
-        r
+        }));
+        // one more f32 ulp of the origin keeps the pad itself conservative
+        let pad = (error + origin.abs() * f32::EPSILON) * inv.abs();
+        Self { origin, inv, pad }
     }
 
     /// Entry distance into the node within `[t0, t1]`, or `None`.
     #[inline(always)]
     fn entry(&self, node: &Node, t0: f32, t1: f32) -> Option<f32> {
-        let mut near = t0;
-        let mut far = t1;
-        for axis in 0..3 {
-            let n = (node.bounds[self.near_side[axis]][axis] - self.near_origin[axis]) * self.inv[axis];
-            let f = (node.bounds[1 - self.near_side[axis]][axis] - self.far_origin[axis]) * self.inv[axis] * EXIT_PAD;
-            // `max`/`min` drop a NaN (0·∞ for an origin on a slab plane of a zero direction component)
-            near = near.max(n);
-            far = far.min(f);
-        }
+        let lo = (Vec3A::from_array(node.bounds[0]) - self.origin) * self.inv;
+        let hi = (Vec3A::from_array(node.bounds[1]) - self.origin) * self.inv;
+        let near = lo.min(hi) - self.pad;
+        let far = lo.max(hi) * EXIT_PAD + self.pad;
+        let near = near.max_element().max(t0);
+        let far = far.min_element().min(t1);
         (near <= far).then_some(near)
     }
 }
