@@ -525,6 +525,13 @@ fn build_camera(c: &CameraDesc) -> Result<Camera, CameraError> {
     Camera::new(c.eye, direction, c.up, vfov, c.width, c.height)
 }
 
+impl TransformDesc {
+    /// The affine map `T·R·S`; errors on non-finite values or a zero scale.
+    pub fn to_affine(&self) -> Result<DAffine3, String> {
+        build_transform(self)
+    }
+}
+
 fn build_transform(t: &TransformDesc) -> Result<DAffine3, String> {
     if !t.translate.is_finite() {
         return Err(format!(

@@ -24,6 +24,7 @@ pub(crate) fn register_builtins(add: &mut dyn FnMut(&str, crate::registry::Shape
     add("Triangle", parser_for::<TriangleDesc>());
     add("Disk", parser_for::<DiskDesc>());
     add("Polygon", parser_for::<PolygonDesc>());
+    crate::combinators::register(add);
 }
 
 fn origin() -> DVec3 {

@@ -1,0 +1,199 @@
+//! Scene-file descriptions of the implicit combinators (`zeroset_primitives::csg`) and of a
+//! user function Φ written as an expression.
+//!
+//! ```ron
+//! Union(children: [Sphere(radius: 1), Box(min: (0, -1, -1), max: (2, 1, 1))])
+//! Intersection(children: [...])
+//! Difference(children: [Box(...), Sphere(...)])            // first minus the others
+//! SmoothUnion(a: Sphere(...), b: Sphere(...), radius: 0.3)
+//! Offset(shape: Box(...), distance: 0.1)                    // rounded box
+//! Transformed(shape: Cylinder(), transform: (rotate: (axis: (1, 0, 0), degrees: 90)))
+//! Function(phi: "x^2 + y^2 + z^2 - 1", min: (-1, -1, -1), max: (1, 1, 1), lipschitz: 2)
+//! ```
+
+use crate::registry::{parser_for, BuildContext, SceneShape, ShapeDesc, ShapeParserFn};
+use crate::scene::TransformDesc;
+use exmex::prelude::*;
+use glam::DVec3;
+use serde::Deserialize;
+use std::sync::Arc;
+use zeroset_primitives::{Aabb, Csg, CsgOp, Function, Offset, Primitive, PrimitiveError, SmoothUnion, Transformed};
+
+/// Calls `add(name, parser)` for every combinator.
+pub(crate) fn register(add: &mut dyn FnMut(&str, ShapeParserFn)) {
+    add("Union", parser_for::<UnionDesc>());
+    add("Intersection", parser_for::<IntersectionDesc>());
+    add("Difference", parser_for::<DifferenceDesc>());
+    add("SmoothUnion", parser_for::<SmoothUnionDesc>());
+    add("Offset", parser_for::<OffsetDesc>());
+    add("Transformed", parser_for::<TransformedDesc>());
+    add("Function", parser_for::<FunctionDesc>());
+}
+
+fn build_children(children: &[ShapeDesc], context: &BuildContext) -> Result<Vec<Arc<dyn Primitive>>, PrimitiveError> {
+    children
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            c.shape.build(context).map_err(|e| {
+                PrimitiveError::new(
+                    e.primitive,
+                    format!("children[{i}] ({}).{}", c.name, e.field),
+                    e.problem,
+                )
+            })
+        })
+        .collect()
+}
+
+macro_rules! boolean_desc {
+    ($desc:ident, $name:literal, $op:expr, $doc:literal) => {
+        #[doc = $doc]
+        #[derive(Debug, Deserialize)]
+        #[serde(deny_unknown_fields, rename = $name)]
+        pub struct $desc {
+            /// The operands (any registered primitives, combinators included).
+            pub children: Vec<ShapeDesc>,
+        }
+
+        impl SceneShape for $desc {
+            fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+                Ok(Arc::new(Csg::new($op, build_children(&self.children, context)?)?))
+            }
+        }
+    };
+}
+
+boolean_desc!(
+    UnionDesc,
+    "Union",
+    CsgOp::Union,
+    "`Union(children: [...])`: inside any child."
+);
+boolean_desc!(
+    IntersectionDesc,
+    "Intersection",
+    CsgOp::Intersection,
+    "`Intersection(children: [...])`: inside every child."
+);
+boolean_desc!(
+    DifferenceDesc,
+    "Difference",
+    CsgOp::Difference,
+    "`Difference(children: [a, b, ...])`: inside `a`, outside the rest."
+);
+
+/// `SmoothUnion(a: ..., b: ..., radius: r)`: polynomial smooth minimum of radius `r`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "SmoothUnion")]
+pub struct SmoothUnionDesc {
+    /// First operand.
+    pub a: ShapeDesc,
+    /// Second operand.
+    pub b: ShapeDesc,
+    /// Blend radius (> 0).
+    pub radius: f64,
+}
+
+impl SceneShape for SmoothUnionDesc {
+    fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        Ok(Arc::new(SmoothUnion::new(
+            self.a.shape.build(context)?,
+            self.b.shape.build(context)?,
+            self.radius,
+        )?))
+    }
+}
+
+/// `Offset(shape: ..., distance: d)`: the zero set of `Φ − d` (grown for `d > 0`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Offset")]
+pub struct OffsetDesc {
+    /// The offset primitive.
+    pub shape: ShapeDesc,
+    /// Offset distance.
+    pub distance: f64,
+}
+
+impl SceneShape for OffsetDesc {
+    fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        Ok(Arc::new(Offset::new(self.shape.shape.build(context)?, self.distance)?))
+    }
+}
+
+/// `Transformed(shape: ..., transform: (...))`: a transformed operand inside a combinator.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Transformed")]
+pub struct TransformedDesc {
+    /// The primitive.
+    pub shape: ShapeDesc,
+    /// Its placement (as an object's `transform`).
+    pub transform: TransformDesc,
+}
+
+impl SceneShape for TransformedDesc {
+    fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        let m = self
+            .transform
+            .to_affine()
+            .map_err(|problem| PrimitiveError::new("Transformed", "transform", problem))?;
+        Ok(Arc::new(Transformed::new(self.shape.shape.build(context)?, m)?))
+    }
+}
+
+/// `Function(phi: "expr in x, y, z", min: (..), max: (..), lipschitz: L)`: Φ written as an
+/// expression (operators `+ - * / ^`, `sin cos tan exp ln sqrt abs …`, constants `PI`, `E`), the
+/// surface searched inside the box `[min, max]` by the generic root finder. A declared
+/// `lipschitz` bound makes the search unable to skip thin features (and is checked along every
+/// ray); without it the box is sampled uniformly. Where the expression is not finite, Φ is
+/// taken as `+∞` (outside).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Function")]
+pub struct FunctionDesc {
+    /// The expression for Φ.
+    pub phi: String,
+    /// Lower corner of the search box.
+    pub min: DVec3,
+    /// Upper corner of the search box.
+    pub max: DVec3,
+    /// A bound on |∇Φ| inside the box, if known.
+    #[serde(default)]
+    pub lipschitz: Option<f64>,
+}
+
+impl SceneShape for FunctionDesc {
+    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        let expr = exmex::parse::<f64>(&self.phi)
+            .map_err(|e| PrimitiveError::new("Function", "phi", format!("cannot parse `{}`: {e}", self.phi)))?;
+        let mut axes = Vec::new();
+        for name in expr.var_names() {
+            match name.as_str() {
+                "x" => axes.push(0),
+                "y" => axes.push(1),
+                "z" => axes.push(2),
+                other => {
+                    return Err(PrimitiveError::new(
+                        "Function",
+                        "phi",
+                        format!("unknown variable `{other}`; use x, y and z"),
+                    ))
+                }
+            }
+        }
+        let phi = move |p: DVec3| {
+            let mut values = [0.0; 3];
+            for (slot, &axis) in values.iter_mut().zip(&axes) {
+                *slot = p[axis];
+            }
+            match expr.eval(&values[..axes.len()]) {
+                Ok(v) if v.is_finite() => v,
+                _ => f64::INFINITY,
+            }
+        };
+        Ok(Arc::new(Function::new(
+            phi,
+            Aabb::new(self.min, self.max),
+            self.lipschitz,
+        )?))
+    }
+}
