@@ -242,13 +242,12 @@ fn pixel_values(
     }
 }
 
-/// Distance to move a secondary ray's origin off a surface, along the facing normal: a bound on
-/// the rounding error of the f64 hit point (`ray.at(t)` and the closed-form `t`) with a safety
-/// factor, `2⁻⁴⁰·(max|p| + t)` — about 4,000 ulp of the coordinates, still below an f32 ulp of
-/// them.
+/// Where a secondary (shadow) ray starts: the hit point moved along the facing normal by the
+/// kernel's bound on its rounding error, `SurfaceHit::error` (primitive- and transform-aware, see
+/// `zeroset_primitives::offset`), and rounded one ulp further away.
 #[must_use]
-pub fn secondary_offset(point: DVec3, t: f64) -> f64 {
-    (point.abs().max_element() + t.abs()) * (2.0f64).powi(-40)
+pub fn secondary_offset(hit: &SurfaceHit, dir: DVec3) -> DVec3 {
+    hit.secondary_origin(dir)
 }
 
 /// Local shading: ambient + Lambert (+ Blinn-Phong) per light, hard shadows by shadow rays. With
@@ -261,7 +260,7 @@ pub fn shade(scene: &Scene, object: u32, ray: &Ray, hit: &SurfaceHit) -> DVec3 {
     if scene.lights.is_empty() {
         return material.color * (scene.ambient + DVec3::splat(n.dot(view).max(0.0)));
     }
-    let origin = hit.point + n * secondary_offset(hit.point, hit.t);
+    let origin = secondary_offset(hit, ray.dir);
     let mut colour = material.color * scene.ambient;
     for light in &scene.lights {
         let (to_light, distance, intensity) = match *light {

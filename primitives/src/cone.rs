@@ -57,7 +57,7 @@
 use crate::bounds::Aabb;
 use crate::error::{require_direction, require_finite, require_positive, PrimitiveError};
 use crate::hit::RawHit;
-use crate::math::{orthonormal_basis, solve_quadratic};
+use crate::math::{difference_of_products, orthonormal_basis, solve_quadratic, sum_of_products};
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
@@ -316,11 +316,17 @@ impl Intersect for Cone {
         // solve the side quadratic
         let s0 = self.radius_at(o.z);
         let ds = -(self.r0 - self.r1) / self.height * d.z;
-        let a = d2.length_squared() - ds * ds;
-        let b = o2.dot(d2) - s0 * ds;
-        let c = o2.length_squared() - s0 * s0;
-        let cross = o2.perp_dot(d2);
-        let disc = (s0 * d2 - ds * o2).length_squared() - cross * cross;
+        // compensated sums of products (no cancellation loss for a far cone, an origin close
+        // to the side, or a ray nearly parallel to a side line)
+        let a = sum_of_products([(d2.x, d2.x), (d2.y, d2.y), (ds, -ds)]);
+        let b = sum_of_products([(o2.x, d2.x), (o2.y, d2.y), (s0, -ds)]);
+        let c = sum_of_products([(o2.x, o2.x), (o2.y, o2.y), (s0, -s0)]);
+        let cross = difference_of_products(o2.x, d2.y, o2.y, d2.x);
+        let m = DVec2::new(
+            difference_of_products(s0, d2.x, ds, o2.x),
+            difference_of_products(s0, d2.y, ds, o2.y),
+        );
+        let disc = sum_of_products([(m.x, m.x), (m.y, m.y), (cross, -cross)]);
         if let Some((t0, t1)) = solve_quadratic(a, b, c, disc) {
             for t in [t0, t1] {
                 if (0.0..=self.height).contains(&(o.z + t * d.z)) {

@@ -207,6 +207,14 @@ impl Intersect for Csg {
         self.child_hit(child, ray, raw.t)
             .and_then(|hit| self.children[child].uv_at(ray, &hit))
     }
+
+    /// The bound of the child whose crossing this is.
+    fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
+        let child = raw.feature as usize;
+        let own = RawHit::at(raw.t);
+        let hit = self.child_hit(child, ray, raw.t).unwrap_or(own);
+        self.children[child].hit_error(ray, &hit)
+    }
 }
 
 /// The polynomial smooth union of two primitives with blend radius `radius`.

@@ -19,6 +19,7 @@
 use crate::bounds::Aabb;
 use crate::error::{require_direction, require_finite, require_positive, PrimitiveError};
 use crate::hit::RawHit;
+use crate::math::dot_minus;
 use crate::math::orthonormal_basis;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
@@ -110,11 +111,11 @@ impl Implicit for Disk {
 impl Intersect for Disk {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let denom = ray.dir.dot(self.normal);
+        let denom = dot_minus(ray.dir, self.normal, 0.0);
         if denom == 0.0 {
             return None;
         }
-        let t = (self.center - ray.origin).dot(self.normal) / denom;
+        let t = -dot_minus(ray.origin, self.normal, self.center.dot(self.normal)) / denom;
         if !range.contains(t) {
             return None;
         }

@@ -86,6 +86,10 @@ pub struct SurfaceHit {
     pub uv: Option<DVec2>,
     /// Primitive-defined part index (see [`RawHit::feature`]).
     pub feature: u32,
+    /// Bound on the distance between `point` and the exact surface
+    /// ([`Intersect::hit_error`]); pass it to [`crate::offset::offset_origin`] to start
+    /// secondary rays.
+    pub error: f64,
 }
 
 impl SurfaceHit {
@@ -98,6 +102,7 @@ impl SurfaceHit {
             normal: request.normal.then(|| surface.normal_at(ray, raw)),
             uv: if request.uv { surface.uv_at(ray, raw) } else { None },
             feature: raw.feature,
+            error: surface.hit_error(ray, raw),
         }
     }
 
@@ -105,6 +110,17 @@ impl SurfaceHit {
     #[must_use]
     pub fn entered_from_outside(&self, dir: DVec3) -> Option<bool> {
         self.normal.map(|n| dir.dot(n) < 0.0)
+    }
+
+    /// Origin for a secondary ray from this hit, on the side the arriving ray (direction `dir`)
+    /// came from: the point moved by [`SurfaceHit::error`] along the facing normal and rounded
+    /// away ([`crate::offset::offset_origin`]). Without a normal, the point itself.
+    #[must_use]
+    pub fn secondary_origin(&self, dir: DVec3) -> DVec3 {
+        match self.facing_normal(dir) {
+            Some(n) => crate::offset::offset_origin(self.point, n, self.error),
+            None => self.point,
+        }
     }
 
     /// The normal flipped, if needed, to face against `dir` (towards the viewer).

@@ -29,6 +29,7 @@ pub mod csg;
 pub mod error;
 pub mod hit;
 pub mod math;
+pub mod offset;
 pub mod ray;
 pub mod root;
 pub mod traits;

@@ -9,12 +9,14 @@
 //!   A non-unit `n` given on input is normalised together with `d`, leaving the plane unchanged.
 //! - **Parametric form**: plane coordinates `p(u, v) = d·n + u·e₁ + v·e₂` with `(e₁, e₂, n)` the
 //!   right-handed basis of [`orthonormal_basis`]; `u, v ∈ (−∞, ∞)`; `e₁ × e₂ = n`.
-//! - **Intersection**: `t = (d − ⟨o, n⟩) / ⟨dir, n⟩`. A ray parallel to the plane
+//! - **Intersection**: `t = (d − ⟨o, n⟩) / ⟨dir, n⟩` with the normal and offset as given
+//!   (not normalised) and both sums of products compensated ([`crate::math::sum_of_products`]). A ray parallel to the plane
 //!   (`⟨dir, n⟩ = 0`), including one lying in it, misses.
 
 use crate::bounds::Aabb;
 use crate::error::{require_direction, PrimitiveError};
 use crate::hit::RawHit;
+use crate::math::dot_minus;
 use crate::math::orthonormal_basis;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
@@ -27,6 +29,9 @@ pub struct Plane {
     offset: f64,
     e1: DVec3,
     e2: DVec3,
+    /// The normal and offset as given (unnormalised): `t` is computed from them, so that the
+    /// rounding of the normalisation does not limit nearly parallel rays.
+    input: (DVec3, f64),
 }
 
 impl Plane {
@@ -47,6 +52,7 @@ impl Plane {
             offset: offset / length,
             e1,
             e2,
+            input: (normal, offset),
         })
     }
 
@@ -90,11 +96,14 @@ impl Implicit for Plane {
 impl Intersect for Plane {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let denom = ray.dir.dot(self.normal);
+        // both with the input normal and compensated sums: ⟨d, n⟩ keeps its relative precision
+        // for a nearly parallel ray, ⟨o, n⟩ − d for an origin close to the plane
+        let (n, offset) = self.input;
+        let denom = dot_minus(ray.dir, n, 0.0);
         if denom == 0.0 {
             return None;
         }
-        let t = (self.offset - ray.origin.dot(self.normal)) / denom;
+        let t = -dot_minus(ray.origin, n, offset) / denom;
         range.contains(t).then(|| RawHit::at(t))
     }
 

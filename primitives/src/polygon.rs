@@ -29,6 +29,7 @@
 use crate::bounds::Aabb;
 use crate::error::PrimitiveError;
 use crate::hit::RawHit;
+use crate::math::dot_minus;
 use crate::math::orthonormal_basis;
 use crate::math::polygon2d::{orient2d, point_in_convex_polygon, point_in_polygon};
 use crate::ray::{Interval, Ray};
@@ -227,11 +228,11 @@ impl Implicit for Polygon {
 impl Intersect for Polygon {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let denom = ray.dir.dot(self.normal);
+        let denom = dot_minus(ray.dir, self.normal, 0.0);
         if denom == 0.0 {
             return None;
         }
-        let t = (self.origin - ray.origin).dot(self.normal) / denom;
+        let t = -dot_minus(ray.origin, self.normal, self.origin.dot(self.normal)) / denom;
         if !range.contains(t) {
             return None;
         }

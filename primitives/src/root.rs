@@ -5,8 +5,9 @@
 //! 2. **Bracket** the first sign change of `g(t) = Φ(origin + t·dir)`:
 //!    - with a declared Lipschitz bound `L` (|∇Φ| ≤ L), step by `|g(t)| / (L·|dir|)` (sphere
 //!      tracing), never less than the tolerance: the ball of that radius holds no root, so no
-//!      surface thicker than the tolerance is skipped. A step whose slope `|Δg|/(|dir|·Δt)` exceeds
-//!      `L` proves the bound wrong: it is counted (see [`lipschitz_violations`]) and the march
+//!      surface thicker than the tolerance is skipped. Each step is also sampled at its midpoint;
+//!      a slope `|Δg|/(|dir|·Δt)` between any two of the three samples above `L` proves the bound
+//!      wrong (the midpoint catches a wrong bound that jumps over a whole thin part): it is counted (see [`lipschitz_violations`]) and the march
 //!      goes on with twice the observed slope, from the last sample;
 //!    - without one, sample `g` at [`RootOptions::samples`] evenly spaced points.
 //!    A ray that touches the surface without crossing it (exact tangency) is a miss; one that
@@ -183,10 +184,23 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
             Some(k) => (g0.abs() / k).max(tolerance),
             None => uniform_step,
         };
-        let t1 = (t0 + step).min(t_end);
-        let g1 = m.g(t1);
+        let mut t1 = (t0 + step).min(t_end);
+        let mut g1 = m.g(t1);
         if let Some(k) = slope {
-            let observed = (g1 - g0).abs() / (t1 - t0);
+            // the midpoint too: a wrong bound can step over a whole thin part between two samples
+            // of equal sign and similar value, which the end points alone cannot reveal
+            let observed = if t1 - t0 > 2.0 * tolerance {
+                let mid = 0.5 * (t0 + t1);
+                let gm = m.g(mid);
+                let observed = ((gm - g0).abs() / (mid - t0)).max((g1 - gm).abs() / (t1 - mid));
+                if (g0 < 0.0) != (gm < 0.0) || gm == 0.0 {
+                    // the crossing is in the first half: take that half as the step
+                    (t1, g1) = (mid, gm);
+                }
+                observed
+            } else {
+                (g1 - g0).abs() / (t1 - t0)
+            };
             if observed > k * (1.0 + 1e-9) + f64::MIN_POSITIVE {
                 if !report.lipschitz_violated {
                     report.lipschitz_violated = true;

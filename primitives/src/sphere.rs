@@ -14,11 +14,15 @@
 //!   Intersection" (Ray Tracing Gems, 2019): the discriminant is `a·r² − |f × d|²` (no cancellation
 //!   of two large terms for a small, distant sphere), the root away from `−b` is
 //!   `q = −(b + sign(b)·√disc)`, and the roots are `q/a` and `c₀/q` (no cancellation for the near
-//!   root of a huge sphere seen from close). All in f64.
+//!   root of a huge sphere seen from close). All in f64, with compensated sums of products
+//!   (`b`, `c₀ = |f|² − r²` and the discriminant, [`crate::math::sum_of_products`]) and an
+//!   accurate cross product, so neither a far tiny sphere, nor an origin close to a huge one, nor
+//!   a grazing ray loses more than a few f64 ulp (measured in `tests/hard_cases.rs`).
 
 use crate::bounds::Aabb;
 use crate::error::{require_finite, require_positive, PrimitiveError};
 use crate::hit::RawHit;
+use crate::math::{cross_accurate, sum_of_products, two_sum};
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric};
 use glam::{DVec2, DVec3};
@@ -56,12 +60,39 @@ impl Sphere {
     #[inline]
     #[must_use]
     pub fn roots(&self, ray: &Ray) -> Option<(f64, f64)> {
-        let f = ray.origin - self.center;
+        // f = o − c split exactly into f + f_lo (two-sum): an origin close to a huge sphere keeps
+        // its height above the surface even where o − c rounds
+        let (fx, lx) = two_sum(ray.origin.x, -self.center.x);
+        let (fy, ly) = two_sum(ray.origin.y, -self.center.y);
+        let (fz, lz) = two_sum(ray.origin.z, -self.center.z);
+        let (f, lo) = (DVec3::new(fx, fy, fz), DVec3::new(lx, ly, lz));
         let d = ray.dir;
+        let r = self.radius;
         let a = d.length_squared();
-        let b = f.dot(d);
-        let c0 = f.length_squared() - self.radius * self.radius;
-        let disc = a * self.radius * self.radius - f.cross(d).length_squared();
+        let b = sum_of_products([(f.x, d.x), (f.y, d.y), (f.z, d.z), (lo.dot(d), 1.0)]);
+        // |f|² − r² compensated: the near root c₀/q of a huge sphere seen from close keeps full
+        // precision (plain f64 loses r/(2h) ulps for an origin at height h)
+        let c0 = sum_of_products([
+            (f.x, f.x),
+            (f.y, f.y),
+            (f.z, f.z),
+            (r, -r),
+            (2.0 * f.x, lo.x),
+            (2.0 * f.y, lo.y),
+            (2.0 * f.z, lo.z),
+        ]);
+        // a·r² − |f × d|² with an accurate cross product (a tiny distant sphere's f × d nearly
+        // cancels component by component) and a compensated difference near tangency
+        let w = cross_accurate(f, d) + lo.cross(d);
+        let dr = d * r;
+        let disc = sum_of_products([
+            (dr.x, dr.x),
+            (dr.y, dr.y),
+            (dr.z, dr.z),
+            (w.x, -w.x),
+            (w.y, -w.y),
+            (w.z, -w.z),
+        ]);
         if !(disc >= 0.0) {
             return None;
         }
@@ -109,8 +140,21 @@ impl Intersect for Sphere {
         }
     }
 
+    /// From `(o − c) + t·d` with one rounding per component (exact two-sum of `o − c`, fused
+    /// multiply-add), not from the rounded hit point: a tiny sphere far from the origin keeps its
+    /// normal to ~10⁻⁹ rad instead of `ε·|p|/r`.
     fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 {
-        self.gradient(ray.at(raw.t))
+        let local = |o: f64, c: f64, d: f64| {
+            let (f, lo) = two_sum(o, -c);
+            raw.t.mul_add(d, f) + lo
+        };
+        let o = ray.origin;
+        DVec3::new(
+            local(o.x, self.center.x, ray.dir.x),
+            local(o.y, self.center.y, ray.dir.y),
+            local(o.z, self.center.z, ray.dir.z),
+        )
+        .normalize_or_zero()
     }
 
     fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> {

@@ -128,6 +128,15 @@ pub trait Intersect: Implicit {
         let _ = (ray, raw);
         None
     }
+
+    /// A bound on the distance between the computed hit point `ray.at(raw.t)` and the exact
+    /// surface, for starting secondary rays ([`crate::offset`]). The default,
+    /// [`crate::offset::point_error_bound`] with the bounds' magnitude, covers the built-in
+    /// closed forms and the root finder's points in the primitive's own space; [`crate::Transformed`]
+    /// adds the rounding of its maps.
+    fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
+        crate::offset::point_error_bound(ray, raw.t, crate::offset::magnitude(&self.bounds()))
+    }
 }
 
 /// What a scene stores: anything that intersects, is printable and can be shared across threads.
@@ -150,6 +159,7 @@ macro_rules! forward_through_pointer {
             fn root_options(&self) -> RootOptions { (**self).root_options() }
             fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 { (**self).normal_at(ray, raw) }
             fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> { (**self).uv_at(ray, raw) }
+            fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 { (**self).hit_error(ray, raw) }
         }
     };
 }

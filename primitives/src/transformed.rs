@@ -80,19 +80,29 @@ impl<P> Transformed<P> {
     #[must_use]
     pub fn local_ray(&self, ray: &Ray) -> Ray {
         Ray::new(
-            self.local_from_world.transform_point3(ray.origin),
+            self.local_point(ray.origin),
             self.local_from_world.transform_vector3(ray.dir),
         )
+    }
+
+    /// `W⁻¹(p − translation)`: the translation is removed before the linear map, so a point near
+    /// a far-translated object (`10⁵` away from the origin) keeps its offset from the object
+    /// exactly instead of rounding at the translation's magnitude (`local_from_world`'s own
+    /// translation, `−W⁻¹·translation`, can be `10⁸` for a scale of `10⁻³`).
+    #[inline]
+    #[must_use]
+    pub fn local_point(&self, p: DVec3) -> DVec3 {
+        self.local_from_world.matrix3 * (p - self.world_from_local.translation)
     }
 }
 
 impl<P: Implicit> Implicit for Transformed<P> {
     fn phi(&self, p: DVec3) -> f64 {
-        self.inner.phi(self.local_from_world.transform_point3(p))
+        self.inner.phi(self.local_point(p))
     }
 
     fn gradient(&self, p: DVec3) -> DVec3 {
-        self.normal_from_local * self.inner.gradient(self.local_from_world.transform_point3(p))
+        self.normal_from_local * self.inner.gradient(self.local_point(p))
     }
 
     fn bounds(&self) -> Aabb {
@@ -106,7 +116,7 @@ impl<P: Implicit> Implicit for Transformed<P> {
     }
 
     fn within_boundary(&self, p: DVec3) -> bool {
-        self.inner.within_boundary(self.local_from_world.transform_point3(p))
+        self.inner.within_boundary(self.local_point(p))
     }
 }
 
@@ -127,6 +137,18 @@ impl<P: Intersect> Intersect for Transformed<P> {
     fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> {
         self.inner.uv_at(&self.local_ray(ray), raw)
     }
+
+    /// The inner bound mapped to the world by `‖W‖_F`, plus the rounding of the maps themselves:
+    /// `γ₃₂·κ_F·(‖p‖∞ + ‖o‖∞ + ‖translation‖∞)`, `κ_F = ‖W‖_F·‖W⁻¹‖_F` (see [`crate::offset`]).
+    fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
+        let w = frobenius(&self.world_from_local.matrix3);
+        let kappa = w * frobenius(&self.local_from_world.matrix3);
+        let inner = self.inner.hit_error(&self.local_ray(ray), raw);
+        let magnitudes = ray.at(raw.t).abs().max_element()
+            + ray.origin.abs().max_element()
+            + self.world_from_local.translation.abs().max_element();
+        w * inner + crate::math::gamma(crate::offset::OFFSET_GAMMA) * kappa * magnitudes
+    }
 }
 
 impl<P: Parametric> Parametric for Transformed<P> {
@@ -146,6 +168,6 @@ impl<P: Parametric> Parametric for Transformed<P> {
     }
 
     fn uv(&self, p: DVec3) -> DVec2 {
-        self.inner.uv(self.local_from_world.transform_point3(p))
+        self.inner.uv(self.local_point(p))
     }
 }
