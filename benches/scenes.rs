@@ -1,4 +1,5 @@
-//! Whole-scene primary-ray benchmark: `cargo bench --bench scenes [-- SCENE.ron ...]`.
+//! Whole-scene primary-ray benchmark: `cargo bench --bench scenes [-- [--runs N] [--threads 1,2]
+//! [--size WxH] SCENE.ron ...]`.
 //!
 //! For each scene (default: `scenes/bench/*.ron`) it reports scene load + BVH build time, then
 //! renders the scene's default outputs (beauty, A, Z, N) at its own resolution `RUNS` times on 1
@@ -11,7 +12,44 @@ use std::time::Instant;
 use zeroset::render::{render, RenderOptions};
 use zeroset::scene::Scene;
 
-const RUNS: usize = 7;
+/// Command-line settings.
+struct Settings {
+    runs: usize,
+    threads: Vec<usize>,
+    size: Option<(u32, u32)>,
+    scenes: Vec<PathBuf>,
+}
+
+fn settings() -> Settings {
+    let mut s = Settings {
+        runs: 7,
+        threads: vec![1, 2],
+        size: None,
+        scenes: Vec::new(),
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--runs" => s.runs = args.next().and_then(|v| v.parse().ok()).expect("--runs N"),
+            "--threads" => {
+                s.threads = args
+                    .next()
+                    .expect("--threads 1,2")
+                    .split(',')
+                    .map(|t| t.parse().expect("thread count"))
+                    .collect()
+            }
+            "--size" => {
+                let v = args.next().expect("--size WxH");
+                let (w, h) = v.split_once('x').expect("--size WxH");
+                s.size = Some((w.parse().expect("width"), h.parse().expect("height")));
+            }
+            "--bench" => {}
+            other => s.scenes.push(PathBuf::from(other)),
+        }
+    }
+    s
+}
 
 /// Mrays/s of the reference systems on the same scenes (2 threads): POV-Ray 3.7, Mitsuba 3 LLVM
 /// AOV integrator, Mitsuba 3 scalar AOV integrator.
@@ -37,8 +75,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
-    let scenes: Vec<PathBuf> = if args.is_empty() {
+    let settings = settings();
+    let scenes: Vec<PathBuf> = if settings.scenes.is_empty() {
         let mut v: Vec<PathBuf> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/bench"))
             .expect("scenes/bench exists")
             .filter_map(|e| e.ok().map(|e| e.path()))
@@ -47,7 +85,7 @@ fn main() {
         v.sort();
         v
     } else {
-        args.iter().map(PathBuf::from).collect()
+        settings.scenes.clone()
     };
     println!(
         "| scene | objects | load+BVH ms | threads | median s | Mrays/s | POV-Ray | Mitsuba LLVM | Mitsuba scalar | peak RSS MiB |"
@@ -56,7 +94,7 @@ fn main() {
     for path in scenes {
         let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
         let start = Instant::now();
-        let scene = match Scene::load(&path) {
+        let mut scene = match Scene::load(&path) {
             Ok(s) => s,
             Err(e) => {
                 println!("| {stem} | skipped: {e} |");
@@ -64,14 +102,17 @@ fn main() {
             }
         };
         let load_ms = start.elapsed().as_secs_f64() * 1e3;
+        if let Some((w, h)) = settings.size {
+            scene.camera = scene.camera.with_resolution(w, h).expect("valid size");
+        }
         let options = RenderOptions {
             aovs: scene.outputs.aovs.clone(),
             ..RenderOptions::default()
         };
         let rays = f64::from(scene.camera.width) * f64::from(scene.camera.height);
-        for threads in [1, 2] {
+        for &threads in &settings.threads {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            let times: Vec<f64> = (0..RUNS)
+            let times: Vec<f64> = (0..settings.runs)
                 .map(|_| pool.install(|| render(&scene, &options)).elapsed.as_secs_f64())
                 .collect();
             let t = median(times);
