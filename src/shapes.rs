@@ -19,6 +19,7 @@ pub(crate) fn register_builtins(add: &mut dyn FnMut(&str, crate::registry::Shape
     add("Cylinder", parser_for::<CylinderDesc>());
     add("Cone", parser_for::<ConeDesc>());
     add("Ellipsoid", parser_for::<EllipsoidDesc>());
+    add("Mesh", parser_for::<crate::mesh_io::MeshDesc>());
 }
 
 fn origin() -> DVec3 {

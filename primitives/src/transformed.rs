@@ -127,6 +127,11 @@ impl<P: Intersect> Intersect for Transformed<P> {
     fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> {
         self.inner.uv_at(&self.local_ray(ray), raw)
     }
+
+    fn shading_normal_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec3> {
+        let n = self.inner.shading_normal_at(&self.local_ray(ray), raw)?;
+        Some((self.normal_from_local * n).normalize_or_zero())
+    }
 }
 
 impl<P: Parametric> Parametric for Transformed<P> {
