@@ -8,8 +8,8 @@
 //! child's subtree follows it.
 //!
 //! Build. Triangle boxes and centroids in f32; each split bins centroids into 32 bins per axis
-//! (binning itself in parallel for large nodes), sweeps the SAH (traversal cost 1, triangle cost
-//! 1), and partitions in place. Subtrees of more than [`PARALLEL_MIN`] triangles are built with
+//! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 2, triangle
+//! cost 1), and partitions in place. Subtrees of more than [`PARALLEL_MIN`] triangles are built with
 //! `rayon::join`. A node becomes a leaf when SAH prefers it and it holds at most [`MAX_LEAF`]
 //! triangles; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split at the
 //! median instead, which bounds the depth to `MEDIAN_DEPTH + 32` and the traversal stack.
@@ -24,7 +24,9 @@ use glam::Vec3A;
 use rayon::prelude::*;
 
 /// Largest leaf the SAH may choose.
-pub(crate) const MAX_LEAF: usize = 4;
+pub(crate) const MAX_LEAF: usize = 6;
+/// SAH cost of a traversal step (testing a pair of child boxes) relative to one triangle test.
+const TRAVERSAL_COST: f32 = 2.0;
 /// Centroid bins per axis.
 const BINS: usize = 32;
 /// Subtrees with more triangles than this are built in parallel.
@@ -424,7 +426,7 @@ fn sah_split(tris: &mut [BuildTri], bounds: Bb, centroids: Bb) -> Option<Split> 
             if count == 0 || right_count[split] == 0 {
                 continue;
             }
-            let cost = 1.0 + (acc.half_area() * count as f32 + right_area[split] * right_count[split] as f32) / parent;
+            let cost = TRAVERSAL_COST + (acc.half_area() * count as f32 + right_area[split] * right_count[split] as f32) / parent;
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, split));
             }
