@@ -85,13 +85,12 @@ fn bench_level(root: &Path, level: u32) -> Result<Ours, String> {
         aovs: scene.outputs.aovs.clone(),
         ..RenderOptions::default()
     };
-    let render2 = n
-        / median(
+    let render2 =
+        n / median(
             (0..7)
                 .map(|_| pool2.install(|| render(&scene, &options)).elapsed.as_secs_f64())
                 .collect(),
-        )
-        / 1e6;
+        ) / 1e6;
     Ok(Ours {
         level,
         triangles,
@@ -150,10 +149,7 @@ fn embree(root: &Path, levels: &[u32]) -> Result<Vec<(u32, f64, f64, f64, u64)>,
 
 fn main() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let mut levels: Vec<u32> = std::env::args()
-        .skip(1)
-        .filter_map(|a| a.parse().ok())
-        .collect();
+    let mut levels: Vec<u32> = std::env::args().skip(1).filter_map(|a| a.parse().ok()).collect();
     if levels.is_empty() {
         levels = vec![4, 6, 8];
     }

@@ -13,7 +13,7 @@ use crate::registry::{BuildContext, SceneShape};
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::{Property, PropertyAccess};
 use serde::Deserialize;
-use std::io::BufReader;
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use zeroset_primitives::{Mesh, Primitive, PrimitiveError};
@@ -96,7 +96,10 @@ pub fn read_obj(path: &Path) -> Result<MeshData, MeshIoError> {
             if let Some(&bad) = t.iter().find(|&&i| i as usize >= count) {
                 return Err(error(
                     path,
-                    format!("object {:?}, triangle {face}: vertex index {bad} out of range ({count} vertices)", model.name),
+                    format!(
+                        "object {:?}, triangle {face}: vertex index {bad} out of range ({count} vertices)",
+                        model.name
+                    ),
                 ));
             }
             data.indices.push([base + t[0], base + t[1], base + t[2]]);
@@ -199,27 +202,28 @@ pub fn read_ply(path: &Path) -> Result<MeshData, MeshIoError> {
     let mut vertices: Option<Vec<PlyVertex>> = None;
     let mut faces: Option<Vec<PlyFace>> = None;
     for (name, element) in &header.elements {
-        let context = |e: std::io::Error| error(path, format!("element `{name}` ({} expected): {e}", element.count));
-        match name.as_str() {
-            "vertex" => {
-                vertices = Some(
-                    Parser::<PlyVertex>::new()
-                        .read_payload_for_element(&mut reader, element, &header)
-                        .map_err(context)?,
-                );
-            }
-            "face" => {
-                faces = Some(
-                    Parser::<PlyFace>::new()
-                        .read_payload_for_element(&mut reader, element, &header)
-                        .map_err(context)?,
-                );
-            }
-            _ => {
-                Parser::<Ignored>::new()
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(context)?;
-            }
+        let result = match name.as_str() {
+            "vertex" => Parser::<PlyVertex>::new()
+                .read_payload_for_element(&mut reader, element, &header)
+                .map(|v| vertices = Some(v)),
+            "face" => Parser::<PlyFace>::new()
+                .read_payload_for_element(&mut reader, element, &header)
+                .map(|f| faces = Some(f)),
+            _ => Parser::<Ignored>::new()
+                .read_payload_for_element(&mut reader, element, &header)
+                .map(|_| ()),
+        };
+        if let Err(e) = result {
+            let at_end = reader.fill_buf().is_ok_and(|b| b.is_empty());
+            let truncated = if at_end {
+                "unexpected end of file (truncated?): "
+            } else {
+                ""
+            };
+            return Err(error(
+                path,
+                format!("element `{name}` ({} expected): {truncated}{e}", element.count),
+            ));
         }
     }
     let vertices = vertices.ok_or_else(|| error(path, "no `vertex` element"))?;
@@ -293,9 +297,8 @@ impl SceneShape for MeshDesc {
         if let Some(mesh) = loaded.get(&key) {
             return Ok(Arc::clone(mesh));
         }
-        let mesh: Arc<dyn Primitive> = Arc::new(
-            load_mesh(&path, self.normals).map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?,
-        );
+        let mesh: Arc<dyn Primitive> =
+            Arc::new(load_mesh(&path, self.normals).map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?);
         loaded.insert(key, Arc::clone(&mesh));
         Ok(mesh)
     }

@@ -300,10 +300,7 @@ impl Mesh {
         }
         let tris: Vec<[u32; 3]> = leaf_to_file.iter().map(|&f| indices[f as usize]).collect();
         drop(indices);
-        let bounds = Aabb::new(
-            v64(bvh.root.lo),
-            v64(bvh.root.hi),
-        );
+        let bounds = Aabb::new(v64(bvh.root.lo), v64(bvh.root.hi));
         Ok(Self {
             center: bounds.center(),
             radius: 0.5 * bounds.diagonal_length(),
@@ -390,7 +387,8 @@ impl Mesh {
         let normals = self.normals.as_ref()?;
         let [a, b, c] = self.tris.get(*self.file_to_leaf.get(raw.feature as usize)? as usize)?;
         let (u, v) = (raw.local.x, raw.local.y);
-        let n = (1.0 - u - v) * v64(normals[*a as usize]) + u * v64(normals[*b as usize]) + v * v64(normals[*c as usize]);
+        let n =
+            (1.0 - u - v) * v64(normals[*a as usize]) + u * v64(normals[*b as usize]) + v * v64(normals[*c as usize]);
         let n = n.normalize_or_zero();
         (n != DVec3::ZERO).then_some(n)
     }
@@ -522,10 +520,7 @@ impl Intersect for Mesh {
             found
         });
         let (k, t32, u, v) = best?;
-        let t = self
-            .plane_t(ray, k)
-            .unwrap_or(f64::from(t32) / len)
-            .max(range.min);
+        let t = self.plane_t(ray, k).unwrap_or(f64::from(t32) / len).max(range.min);
         if t > range.max {
             return None;
         }
@@ -584,7 +579,10 @@ mod tests {
         assert!(m.phi(DVec3::new(-0.2, -0.2, -0.2)) > 0.0);
         // the far side of the range
         assert!(m.intersect(&ray, Interval::new(0.0, 0.999)).is_none());
-        assert_eq!(m.intersect(&ray, Interval::new(1.001, 10.0)).map(|h| h.feature), Some(3));
+        assert_eq!(
+            m.intersect(&ray, Interval::new(1.001, 10.0)).map(|h| h.feature),
+            Some(3)
+        );
     }
 
     #[test]
@@ -592,8 +590,12 @@ mod tests {
         let v = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
         let e = Mesh::new(v.clone(), vec![[0, 1, 3]], None).unwrap_err();
         assert_eq!(e.field, "indices[0]");
-        let e = Mesh::new(vec![[0.0, f32::NAN, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]], None)
-            .unwrap_err();
+        let e = Mesh::new(
+            vec![[0.0, f32::NAN, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            vec![[0, 1, 2]],
+            None,
+        )
+        .unwrap_err();
         assert_eq!(e.field, "vertices[0]");
         assert!(Mesh::new(v.clone(), vec![], None).is_err());
         let e = Mesh::new(v.clone(), vec![[0, 1, 2]], Some(vec![[0.0, 0.0, 1.0]])).unwrap_err();

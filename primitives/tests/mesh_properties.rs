@@ -102,7 +102,10 @@ fn watertight_rays_at_edges_and_vertices_never_leak() {
     let (v, f) = icosphere(4);
     let mesh = Mesh::new(v.clone(), f.clone(), None).unwrap();
     let p = |i: u32| glam::Vec3::from_array(v[i as usize]).as_dvec3();
-    let normals: Vec<DVec3> = f.iter().map(|t| (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).normalize()).collect();
+    let normals: Vec<DVec3> = f
+        .iter()
+        .map(|t| (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).normalize())
+        .collect();
     let mut around: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
     for (i, t) in f.iter().enumerate() {
         for k in 0..3 {
@@ -157,7 +160,10 @@ fn watertight_rays_at_edges_and_vertices_never_leak() {
         .collect();
     let rays: usize = results.iter().map(|r| r.0).sum();
     let leaks: usize = results.iter().map(|r| r.1).sum();
-    eprintln!("watertight: {rays} rays at edges/vertices of {} triangles, {leaks} leaks", f.len());
+    eprintln!(
+        "watertight: {rays} rays at edges/vertices of {} triangles, {leaks} leaks",
+        f.len()
+    );
     assert!(rays >= 1_000_000);
     assert_eq!(leaks, 0);
 }
@@ -285,7 +291,9 @@ fn shading_normal_interpolates_vertex_normals() {
     let expect = DVec3::new(0.25, 0.25, -1.0).normalize();
     assert!((s - expect).length() < 1e-6, "{s} vs {expect}");
     let bare = Mesh::new(v, vec![[0, 1, 2]], None).unwrap();
-    assert!(bare.shading_normal_at(&ray, &bare.intersect(&ray, Interval::POSITIVE).unwrap()).is_none());
+    assert!(bare
+        .shading_normal_at(&ray, &bare.intersect(&ray, Interval::POSITIVE).unwrap())
+        .is_none());
     // through a transform the shading normal maps like the geometric one
     let m = DAffine3::from_scale_rotation_translation(DVec3::new(2.0, 1.0, 1.0), DQuat::from_rotation_y(0.3), DVec3::X);
     let placed = Transformed::new(Arc::new(mesh), m).unwrap();
@@ -312,7 +320,11 @@ fn instances_share_one_mesh_and_match_transformed_copies() {
         let instance = Transformed::new(Arc::clone(&shared), m).unwrap();
         let copy = Mesh::new(
             v.iter()
-                .map(|p| m.transform_point3(glam::Vec3::from_array(*p).as_dvec3()).as_vec3().to_array())
+                .map(|p| {
+                    m.transform_point3(glam::Vec3::from_array(*p).as_dvec3())
+                        .as_vec3()
+                        .to_array()
+                })
                 .collect(),
             f.clone(),
             None,
@@ -320,8 +332,14 @@ fn instances_share_one_mesh_and_match_transformed_copies() {
         .unwrap();
         for _ in 0..2000 {
             let origin = m.translation + random_unit(&mut rng) * 5.0;
-            let ray = Ray::new(origin, (m.translation + random_unit(&mut rng) * 0.5 - origin).normalize());
-            match (instance.intersect(&ray, Interval::POSITIVE), copy.intersect(&ray, Interval::POSITIVE)) {
+            let ray = Ray::new(
+                origin,
+                (m.translation + random_unit(&mut rng) * 0.5 - origin).normalize(),
+            );
+            match (
+                instance.intersect(&ray, Interval::POSITIVE),
+                copy.intersect(&ray, Interval::POSITIVE),
+            ) {
                 (Some(a), Some(b)) => max_rel = max_rel.max((a.t - b.t).abs() / b.t),
                 (None, None) => {}
                 (a, b) => {

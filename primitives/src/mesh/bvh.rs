@@ -202,7 +202,13 @@ impl MeshBvh {
     /// Closest-hit traversal: `leaf(first, count, t_max)` tests a leaf's triangles and returns
     /// the new, smaller `t_max` if it found a hit. `t_min`/`t_max` bound the search.
     #[inline]
-    pub fn traverse(&self, ray: &SlabRay, t_min: f32, mut t_max: f32, mut leaf: impl FnMut(u32, u32, f32) -> Option<f32>) {
+    pub fn traverse(
+        &self,
+        ray: &SlabRay,
+        t_min: f32,
+        mut t_max: f32,
+        mut leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
+    ) {
         if ray.entry(&self.root, t_min, t_max).is_none() {
             return;
         }
@@ -426,7 +432,8 @@ fn sah_split(tris: &mut [BuildTri], bounds: Bb, centroids: Bb) -> Option<Split> 
             if count == 0 || right_count[split] == 0 {
                 continue;
             }
-            let cost = TRAVERSAL_COST + (acc.half_area() * count as f32 + right_area[split] * right_count[split] as f32) / parent;
+            let cost = TRAVERSAL_COST
+                + (acc.half_area() * count as f32 + right_area[split] * right_count[split] as f32) / parent;
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, split));
             }
