@@ -102,8 +102,11 @@ fn bench_level(root: &Path, level: u32) -> Result<Ours, String> {
     })
 }
 
-/// Embree's figures per level: (build s, 1-thread Mrays/s, 2-thread Mrays/s, hits).
-fn embree(root: &Path, levels: &[u32]) -> Result<Vec<(u32, f64, f64, f64, u64)>, String> {
+/// Embree's figures for one level: (level, build s, 1-thread Mrays/s, 2-thread Mrays/s, hits).
+type EmbreeRow = (u32, f64, f64, f64, u64);
+
+/// Embree's figures per level.
+fn embree(root: &Path, levels: &[u32]) -> Result<Vec<EmbreeRow>, String> {
     let ok = Command::new("python3")
         .args(["-c", "import embreex, numpy"])
         .status()

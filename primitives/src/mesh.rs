@@ -148,11 +148,22 @@ impl MeshRay {
     }
 }
 
+/// The next f32 towards −∞ from a finite `y` (`f32::next_down`, stable only since Rust 1.86).
+fn step_down(y: f32) -> f32 {
+    if y == 0.0 {
+        -f32::from_bits(1)
+    } else if y > 0.0 {
+        f32::from_bits(y.to_bits() - 1)
+    } else {
+        f32::from_bits(y.to_bits() + 1)
+    }
+}
+
 /// Rounds an f64 to an f32 not above it.
 fn down(x: f64) -> f32 {
     let y = x as f32;
     if f64::from(y) > x {
-        y.next_down()
+        step_down(y)
     } else {
         y
     }
@@ -162,7 +173,7 @@ fn down(x: f64) -> f32 {
 fn up(x: f64) -> f32 {
     let y = x as f32;
     if f64::from(y) < x {
-        y.next_up()
+        -step_down(-y)
     } else {
         y
     }
@@ -500,7 +511,7 @@ impl Intersect for Mesh {
         let dir = (ray.dir / len).as_vec3a();
         let r = MeshRay::new(ray.origin.as_vec3a(), dir);
         // t along the unit f32 direction
-        let t_min = down(range.min * len).max(0.0).min(f32::MAX);
+        let t_min = down(range.min * len).clamp(0.0, f32::MAX);
         let t_max = up(range.max * len);
         let band = t_min + (1e-5 * (self.radius + (ray.origin - self.center).length())) as f32;
         let mut best: Option<(usize, f32, f32, f32)> = None;
