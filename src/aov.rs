@@ -6,7 +6,8 @@
 //! | `Alpha`        | `A`                   | 1                                                   | 0 |
 //! | `Depth`        | `Z`                   | camera-space planar depth along the view axis       | +∞ (or `--depth-miss`) |
 //! | `Distance`     | `distance`            | ray distance `t` from the eye (unit-length rays)     | +∞ (or `--depth-miss`) |
-//! | `Normal`       | `N.X, N.Y, N.Z`       | world-space unit ∇Φ normal, outward, not flipped    | 0 |
+//! | `Normal`       | `N.X, N.Y, N.Z`       | world-space unit ∇Φ normal, outward, not flipped: the **geometric** normal (a mesh's face normal) | 0 |
+//! | `ShadingNormal` | `Ns.X, Ns.Y, Ns.Z`   | world-space **shading** normal (a mesh's interpolated vertex normals); equals `N` where a primitive has none | 0 |
 //! | `Position`     | `P.X, P.Y, P.Z`       | world-space hit point                               | 0 |
 //! | `CameraNormal` | `Nc.X, Nc.Y, Nc.Z`    | the normal in camera space (+x right, +y up, −z view) | 0 |
 //! | `PrimitiveId`  | `id`                  | index of the object in the scene's `objects` list   | −1 |
@@ -37,6 +38,8 @@ pub enum Aov {
     PrimitiveId,
     /// Surface parameters `u, v`.
     Uv,
+    /// World shading normal `Ns.X, Ns.Y, Ns.Z` (the geometric normal where there is none).
+    ShadingNormal,
 }
 
 impl Aov {
@@ -56,6 +59,7 @@ impl Aov {
             Aov::CameraNormal => &["Nc.X", "Nc.Y", "Nc.Z"],
             Aov::PrimitiveId => &["id"],
             Aov::Uv => &["u", "v"],
+            Aov::ShadingNormal => &["Ns.X", "Ns.Y", "Ns.Z"],
         }
     }
 }

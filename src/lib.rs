@@ -9,6 +9,7 @@ pub mod aov;
 pub mod camera;
 pub mod cli;
 pub mod combinators;
+pub mod mesh_io;
 pub mod output;
 pub mod query;
 pub mod registry;

@@ -149,9 +149,10 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
     let request = HitRequest {
         normal: aovs
             .iter()
-            .any(|a| matches!(a, Aov::Beauty | Aov::Normal | Aov::CameraNormal)),
+            .any(|a| matches!(a, Aov::Beauty | Aov::Normal | Aov::CameraNormal | Aov::ShadingNormal)),
         uv: aovs.contains(&Aov::Uv),
     };
+    let shading = aovs.contains(&Aov::ShadingNormal);
     let channels: usize = aovs.iter().map(|a| a.channels().len()).sum();
     let row_len = window.width() as usize * channels;
     let mut samples = vec![0.0f32; row_len * window.height() as usize];
@@ -171,10 +172,14 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
             let x = window.x0 + column as u32;
             let ray = camera.pixel_ray(x, y);
             let hit = scene.intersect(&ray, Interval::POSITIVE).map(|(object, raw)| {
-                (
-                    object,
-                    SurfaceHit::complete(&*scene.objects[object as usize].primitive, &ray, &raw, request),
-                )
+                let primitive = &*scene.objects[object as usize].primitive;
+                let hit = SurfaceHit::complete(primitive, &ray, &raw, request);
+                let shading_normal = if shading {
+                    primitive.shading_normal_at(&ray, &raw).or(hit.normal)
+                } else {
+                    None
+                };
+                (object, hit, shading_normal)
             });
             let mut k = 0;
             for aov in &aovs {
@@ -212,12 +217,12 @@ fn pixel_values(
     scene: &Scene,
     aov: Aov,
     ray: &Ray,
-    hit: Option<&(u32, SurfaceHit)>,
+    hit: Option<&(u32, SurfaceHit, Option<DVec3>)>,
     world_to_camera: &glam::DMat4,
     depth_miss: f32,
 ) -> [f32; 3] {
     let v3 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
-    let Some((object, hit)) = hit else {
+    let Some((object, hit, shading_normal)) = hit else {
         return match aov {
             Aov::Beauty => v3(scene.background),
             Aov::Depth | Aov::Distance => [depth_miss; 3],
@@ -239,6 +244,7 @@ fn pixel_values(
             let uv = hit.uv.unwrap_or_default();
             [uv.x as f32, uv.y as f32, 0.0]
         }
+        Aov::ShadingNormal => v3(shading_normal.unwrap_or(normal)),
     }
 }
 

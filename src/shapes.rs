@@ -25,6 +25,7 @@ pub(crate) fn register_builtins(add: &mut dyn FnMut(&str, crate::registry::Shape
     add("Disk", parser_for::<DiskDesc>());
     add("Polygon", parser_for::<PolygonDesc>());
     crate::combinators::register(add);
+    add("Mesh", parser_for::<crate::mesh_io::MeshDesc>());
 }
 
 fn origin() -> DVec3 {

@@ -137,6 +137,14 @@ pub trait Intersect: Implicit {
     fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
         crate::offset::point_error_bound(ray, raw.t, crate::offset::magnitude(&self.bounds()))
     }
+
+    /// Unit shading normal at the hit where the type has one distinct from the geometric normal
+    /// (a mesh's interpolated per-vertex normals), on the same side as
+    /// [`Intersect::normal_at`] up to interpolation. The default has none.
+    fn shading_normal_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec3> {
+        let _ = (ray, raw);
+        None
+    }
 }
 
 /// What a scene stores: anything that intersects, is printable and can be shared across threads.
@@ -160,6 +168,7 @@ macro_rules! forward_through_pointer {
             fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 { (**self).normal_at(ray, raw) }
             fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> { (**self).uv_at(ray, raw) }
             fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 { (**self).hit_error(ray, raw) }
+            fn shading_normal_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec3> { (**self).shading_normal_at(ray, raw) }
         }
     };
 }

@@ -149,6 +149,11 @@ impl<P: Intersect> Intersect for Transformed<P> {
             + self.world_from_local.translation.abs().max_element();
         w * inner + crate::math::gamma(crate::offset::OFFSET_GAMMA) * kappa * magnitudes
     }
+
+    fn shading_normal_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec3> {
+        let n = self.inner.shading_normal_at(&self.local_ray(ray), raw)?;
+        Some((self.normal_from_local * n).normalize_or_zero())
+    }
 }
 
 impl<P: Parametric> Parametric for Transformed<P> {

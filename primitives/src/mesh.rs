@@ -1,0 +1,619 @@
+//! Triangle meshes: a shared f32 vertex buffer, 32-bit index triples, optional per-vertex
+//! normals, a per-mesh BVH and a watertight ray/triangle test.
+//!
+//! # Conventions
+//! - **Orientation.** A triangle `(a, b, c)` faces the side from which it is seen
+//!   counter-clockwise; its geometric normal is `(b − a) × (c − a)` normalised. A closed mesh
+//!   wound consistently counter-clockwise seen from outside has outward normals.
+//! - **Hits.** [`RawHit::feature`] is the triangle's index in the order given to [`Mesh::new`]
+//!   (the file's face order), [`RawHit::local`] its barycentrics `(u, v)`: the hit point is
+//!   `(1 − u − v)·a + u·b + v·c`. [`Intersect::uv_at`] returns the same `(u, v)`.
+//! - **Normals.** [`Intersect::normal_at`] is the hit triangle's geometric normal (never
+//!   interpolated); [`Mesh::shading_normal`] / [`Intersect::shading_normal_at`] interpolate the
+//!   per-vertex normals with the barycentrics, where the mesh has them.
+//! - **Φ.** The exact unsigned distance to the nearest triangle, signed by that triangle's face
+//!   normal: `Φ(p) = ±|p − q|` with `q` the nearest surface point, `+` on the side the normal points
+//!   to. Where several triangles are (nearly) equally near (`q` on an edge or vertex), the one
+//!   whose plane is most nearly perpendicular to `p − q` decides, which gives the right sign for a
+//!   closed, consistently oriented mesh. Near the surface this is the signed distance; far from a
+//!   mesh that is not closed the sign is only "which side of the nearest face". Φ costs a BVH
+//!   nearest-point query (it is not on the hot path: intersection never evaluates it).
+//! - **Precision.** Storage is f32. Each query converts the f64 ray once to an f32 ray with unit
+//!   direction and precomputes the data of the watertight test of Woop, Benthin and Wald (2013,
+//!   "Watertight Ray/Triangle Intersection", JCGT 2(1)): the axis `k_z` of the largest direction
+//!   component, the permuted axes and the shear constants. Edge functions that evaluate to exactly
+//!   zero are recomputed in f64, and a ray through a shared edge or vertex hits at least one of
+//!   the triangles sharing it: closed meshes do not leak. The reported `t` is recomputed in f64
+//!   from the hit triangle's plane (exact f32 vertices, f64 ray), so depth is accurate to f64
+//!   rounding rather than f32; hits within `10⁻⁵` of the scene scale of `t_min` are re-decided
+//!   with that f64 `t` so that rays leaving the surface do not re-hit it.
+//! - **Degenerate triangles** (zero area, exactly) are **skipped**: they keep their index (so
+//!   `feature` still matches the file) but are left out of the BVH, so they are never hit and do
+//!   not take part in Φ. [`Mesh::skipped_triangles`] counts them.
+//!
+//! # Storage
+//! Vertices `12 B` each (plus `12 B` with normals), triangles `12 B` (index triple, kept in BVH
+//! leaf order) plus `8 B` (leaf ↔ file order maps), BVH nodes `32 B` each, about `N/2` of them
+//! for `N` triangles (see [`Mesh::memory_bytes`]). The BVH is described in `mesh/bvh.rs`.
+//!
+//! One mesh can be placed many times without copying: wrap an `Arc<Mesh>` in
+//! [`crate::Transformed`] per instance; the scene BVH holds the instances, each instance's mesh
+//! its own BVH (two levels).
+
+mod bvh;
+
+use crate::bounds::Aabb;
+use crate::error::PrimitiveError;
+use crate::hit::RawHit;
+use crate::ray::{Interval, Ray};
+use crate::traits::{Implicit, Intersect};
+use bvh::{Bb, BuildTri, MeshBvh, Node, SlabRay};
+use glam::{DVec2, DVec3, Vec3A};
+use rayon::prelude::*;
+use std::fmt;
+
+/// A triangle mesh (see the module docs for its conventions).
+#[derive(Clone)]
+pub struct Mesh {
+    vertices: Vec<[f32; 3]>,
+    normals: Option<Vec<[f32; 3]>>,
+    /// Index triples in BVH leaf order; the skipped (degenerate) ones after the first `in_bvh`.
+    tris: Vec<[u32; 3]>,
+    leaf_to_file: Vec<u32>,
+    file_to_leaf: Vec<u32>,
+    in_bvh: usize,
+    bvh: MeshBvh,
+    bounds: Aabb,
+    center: DVec3,
+    radius: f64,
+}
+
+impl fmt::Debug for Mesh {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Mesh")
+            .field("triangles", &self.tris.len())
+            .field("vertices", &self.vertices.len())
+            .field("normals", &self.normals.is_some())
+            .field("skipped", &self.skipped_triangles())
+            .field("bounds", &self.bounds)
+            .finish()
+    }
+}
+
+fn v64(v: [f32; 3]) -> DVec3 {
+    DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))
+}
+
+/// Per-query f32 ray data (see the module docs).
+struct MeshRay {
+    slab: SlabRay,
+    origin: [f32; 3],
+    k: [usize; 3],
+    shear: [f32; 3],
+}
+
+impl MeshRay {
+    /// `dir` must be unit length and finite.
+    fn new(origin: Vec3A, dir: Vec3A) -> Self {
+        let kz = dir.abs().max_position();
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        Self {
+            slab: SlabRay::new(origin, dir),
+            origin: origin.to_array(),
+            k: [kx, ky, kz],
+            shear: [dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]],
+        }
+    }
+
+    /// The watertight test against `(a, b, c)`: `(t, u, v)` with `t` in `[t_min, t_max]`.
+    #[inline(always)]
+    fn triangle(&self, a: [f32; 3], b: [f32; 3], c: [f32; 3], t_min: f32, t_max: f32) -> Option<(f32, f32, f32)> {
+        let [kx, ky, kz] = self.k;
+        let [sx, sy, sz] = self.shear;
+        let o = self.origin;
+        // vertices relative to the origin, then sheared so the ray is the +z axis
+        let (az, bz, cz) = (a[kz] - o[kz], b[kz] - o[kz], c[kz] - o[kz]);
+        let ax = (a[kx] - o[kx]) - sx * az;
+        let ay = (a[ky] - o[ky]) - sy * az;
+        let bx = (b[kx] - o[kx]) - sx * bz;
+        let by = (b[ky] - o[ky]) - sy * bz;
+        let cx = (c[kx] - o[kx]) - sx * cz;
+        let cy = (c[ky] - o[ky]) - sy * cz;
+        // scaled barycentrics (edge functions)
+        let mut e0 = cx * by - cy * bx;
+        let mut e1 = ax * cy - ay * cx;
+        let mut e2 = bx * ay - by * ax;
+        if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+            let f = f64::from;
+            e0 = (f(cx) * f(by) - f(cy) * f(bx)) as f32;
+            e1 = (f(ax) * f(cy) - f(ay) * f(cx)) as f32;
+            e2 = (f(bx) * f(ay) - f(by) * f(ax)) as f32;
+        }
+        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+            return None;
+        }
+        let det = e0 + e1 + e2;
+        if det == 0.0 {
+            return None;
+        }
+        let t = (e0 * (sz * az) + e1 * (sz * bz) + e2 * (sz * cz)) / det;
+        if !(t >= t_min && t <= t_max) {
+            return None;
+        }
+        Some((t, e1 / det, e2 / det))
+    }
+}
+
+/// The next f32 towards −∞ from a finite `y` (`f32::next_down`, stable only since Rust 1.86).
+fn step_down(y: f32) -> f32 {
+    if y == 0.0 {
+        -f32::from_bits(1)
+    } else if y > 0.0 {
+        f32::from_bits(y.to_bits() - 1)
+    } else {
+        f32::from_bits(y.to_bits() + 1)
+    }
+}
+
+/// Rounds an f64 to an f32 not above it.
+fn down(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) > x {
+        step_down(y)
+    } else {
+        y
+    }
+}
+
+/// Rounds an f64 to an f32 not below it.
+fn up(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) < x {
+        -step_down(-y)
+    } else {
+        y
+    }
+}
+
+/// The point of triangle `(a, b, c)` nearest to `p` (Ericson, "Real-Time Collision Detection",
+/// §5.1.5, by Voronoi regions).
+fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+impl Mesh {
+    /// A mesh of `indices` (counter-clockwise triples into `vertices`) with optional per-vertex
+    /// `normals` (one per vertex, any non-zero length). Builds the BVH (in parallel on the
+    /// current rayon pool).
+    ///
+    /// # Errors
+    /// No triangles; a non-finite vertex or normal (`vertices[i]`, `normals[i]`); an index out of
+    /// range (`indices[t]`); a normal count different from the vertex count. Degenerate
+    /// triangles are not an error (they are skipped, see the module docs).
+    pub fn new(
+        vertices: Vec<[f32; 3]>,
+        indices: Vec<[u32; 3]>,
+        normals: Option<Vec<[f32; 3]>>,
+    ) -> Result<Self, PrimitiveError> {
+        if indices.is_empty() {
+            return Err(PrimitiveError::new("Mesh", "indices", "the mesh has no triangles"));
+        }
+        if let Some(i) = vertices.iter().position(|v| !v.iter().all(|x| x.is_finite())) {
+            return Err(PrimitiveError::new(
+                "Mesh",
+                format!("vertices[{i}]"),
+                format!("must be finite, got {:?}", vertices[i]),
+            ));
+        }
+        let nv = vertices.len();
+        if let Some(t) = indices.iter().position(|t| t.iter().any(|&i| i as usize >= nv)) {
+            return Err(PrimitiveError::new(
+                "Mesh",
+                format!("indices[{t}]"),
+                format!("{:?} refers past the last vertex ({nv} vertices)", indices[t]),
+            ));
+        }
+        if let Some(n) = &normals {
+            if n.len() != nv {
+                return Err(PrimitiveError::new(
+                    "Mesh",
+                    "normals",
+                    format!("{} normals for {nv} vertices", n.len()),
+                ));
+            }
+            if let Some(i) = n.iter().position(|v| !v.iter().all(|x| x.is_finite())) {
+                return Err(PrimitiveError::new(
+                    "Mesh",
+                    format!("normals[{i}]"),
+                    format!("must be finite, got {:?}", n[i]),
+                ));
+            }
+        }
+        // triangle boxes; degenerate triangles are left out
+        let mut build: Vec<BuildTri> = indices
+            .par_iter()
+            .enumerate()
+            .filter_map(|(id, t)| {
+                let [a, b, c] = t.map(|i| vertices[i as usize]);
+                let area = (v64(b) - v64(a)).cross(v64(c) - v64(a));
+                if area == DVec3::ZERO {
+                    return None;
+                }
+                let (a, b, c) = (Vec3A::from_array(a), Vec3A::from_array(b), Vec3A::from_array(c));
+                let bounds = Bb {
+                    lo: a.min(b).min(c),
+                    hi: a.max(b).max(c),
+                };
+                Some(BuildTri {
+                    bounds,
+                    centroid: (bounds.lo + bounds.hi) * 0.5,
+                    id: id as u32,
+                })
+            })
+            .collect();
+        if build.is_empty() {
+            return Err(PrimitiveError::new(
+                "Mesh",
+                "indices",
+                "every triangle is degenerate (zero area)",
+            ));
+        }
+        let bvh = MeshBvh::build(&mut build);
+        let in_bvh = build.len();
+        let mut leaf_to_file: Vec<u32> = build.iter().map(|b| b.id).collect();
+        drop(build);
+        let mut file_to_leaf = vec![u32::MAX; indices.len()];
+        for (leaf, &file) in leaf_to_file.iter().enumerate() {
+            file_to_leaf[file as usize] = leaf as u32;
+        }
+        for (file, slot) in file_to_leaf.iter_mut().enumerate() {
+            if *slot == u32::MAX {
+                *slot = leaf_to_file.len() as u32;
+                leaf_to_file.push(file as u32);
+            }
+        }
+        let tris: Vec<[u32; 3]> = leaf_to_file.iter().map(|&f| indices[f as usize]).collect();
+        drop(indices);
+        let bounds = Aabb::new(v64(bvh.root.lo), v64(bvh.root.hi));
+        Ok(Self {
+            center: bounds.center(),
+            radius: 0.5 * bounds.diagonal_length(),
+            vertices,
+            normals,
+            tris,
+            leaf_to_file,
+            file_to_leaf,
+            in_bvh,
+            bvh,
+            bounds,
+        })
+    }
+
+    /// Number of triangles (including skipped degenerate ones).
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// Number of vertices.
+    #[must_use]
+    pub fn vertex_count(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// Degenerate (zero-area) triangles left out of the BVH.
+    #[must_use]
+    pub fn skipped_triangles(&self) -> usize {
+        self.tris.len() - self.in_bvh
+    }
+
+    /// Whether per-vertex normals were given.
+    #[must_use]
+    pub fn has_normals(&self) -> bool {
+        self.normals.is_some()
+    }
+
+    /// The vertex buffer.
+    #[must_use]
+    pub fn vertices(&self) -> &[[f32; 3]] {
+        &self.vertices
+    }
+
+    /// Vertex indices of triangle `i` (in the order given to [`Mesh::new`]).
+    ///
+    /// # Panics
+    /// If `i` is not below [`Mesh::triangle_count`].
+    #[must_use]
+    pub fn triangle_indices(&self, i: usize) -> [u32; 3] {
+        self.tris[self.file_to_leaf[i] as usize]
+    }
+
+    /// Corners of triangle `i`, in f64.
+    ///
+    /// # Panics
+    /// If `i` is not below [`Mesh::triangle_count`].
+    #[must_use]
+    pub fn triangle(&self, i: usize) -> [DVec3; 3] {
+        self.triangle_indices(i).map(|v| v64(self.vertices[v as usize]))
+    }
+
+    /// Bytes of heap memory held (vertices, normals, triangles, order maps, BVH nodes).
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        self.vertices.capacity() * 12
+            + self.normals.as_ref().map_or(0, |n| n.capacity() * 12)
+            + self.tris.capacity() * 12
+            + (self.leaf_to_file.capacity() + self.file_to_leaf.capacity()) * 4
+            + self.bvh.memory_bytes()
+    }
+
+    /// Number of BVH nodes (interior and leaves, root included).
+    #[must_use]
+    pub fn node_count(&self) -> usize {
+        1 + 2 * self.bvh.pairs.len()
+    }
+
+    /// The interpolated, normalised per-vertex normal at a hit of this mesh (`raw.feature` the
+    /// triangle, `raw.local` the barycentrics); `None` without per-vertex normals, or where the
+    /// interpolation vanishes.
+    #[must_use]
+    pub fn shading_normal(&self, raw: &RawHit) -> Option<DVec3> {
+        let normals = self.normals.as_ref()?;
+        let [a, b, c] = self.tris.get(*self.file_to_leaf.get(raw.feature as usize)? as usize)?;
+        let (u, v) = (raw.local.x, raw.local.y);
+        let n =
+            (1.0 - u - v) * v64(normals[*a as usize]) + u * v64(normals[*b as usize]) + v * v64(normals[*c as usize]);
+        let n = n.normalize_or_zero();
+        (n != DVec3::ZERO).then_some(n)
+    }
+
+    /// Unnormalised geometric normal of the triangle at leaf position `k`, and its first corner.
+    fn plane(&self, k: usize) -> (DVec3, DVec3) {
+        let [a, b, c] = self.tris[k].map(|i| v64(self.vertices[i as usize]));
+        ((b - a).cross(c - a), a)
+    }
+
+    /// `t` of `ray` on the plane of the triangle at leaf position `k` (f64).
+    fn plane_t(&self, ray: &Ray, k: usize) -> Option<f64> {
+        let (n, a) = self.plane(k);
+        let t = n.dot(a - ray.origin) / n.dot(ray.dir);
+        t.is_finite().then_some(t)
+    }
+
+    /// The closest hit found by running the watertight test on every triangle, without the BVH
+    /// (a reference for tests): `(file index, f32 t along the unit direction)`.
+    #[doc(hidden)]
+    #[must_use]
+    pub fn intersect_brute_force(&self, ray: &Ray) -> Option<(u32, f32)> {
+        let len = ray.dir.length();
+        let r = MeshRay::new(ray.origin.as_vec3a(), (ray.dir / len).as_vec3a());
+        let mut best = None;
+        let mut t_max = f32::INFINITY;
+        for k in 0..self.in_bvh {
+            let [a, b, c] = self.tris[k].map(|i| self.vertices[i as usize]);
+            if let Some((t, _, _)) = r.triangle(a, b, c, 0.0, t_max) {
+                t_max = t;
+                best = Some((self.leaf_to_file[k], t));
+            }
+        }
+        best
+    }
+
+    /// Nearest surface point to `p`: `(q, leaf position of its triangle)`.
+    fn nearest(&self, p: DVec3) -> (DVec3, usize) {
+        let best_d2 = std::cell::Cell::new(f64::INFINITY);
+        let mut best = (p, 0usize, -1.0f64); // (q, k, |cos| tie-break key)
+        let tol = 1e-10;
+        self.bvh.nearest(
+            |node: &Node| {
+                let d = (v64(node.lo) - p).max(p - v64(node.hi)).max(DVec3::ZERO);
+                let d2 = d.length_squared();
+                (d2 <= best_d2.get() * (1.0 + tol)).then_some(d2)
+            },
+            |first, count| {
+                for k in first as usize..(first + count) as usize {
+                    let [a, b, c] = self.tris[k].map(|i| v64(self.vertices[i as usize]));
+                    let q = closest_on_triangle(p, a, b, c);
+                    let d2 = (p - q).length_squared();
+                    if d2 > best_d2.get() * (1.0 + tol) {
+                        continue;
+                    }
+                    let n = (b - a).cross(c - a).normalize_or_zero();
+                    let len = d2.sqrt();
+                    let key = if len > 0.0 { (n.dot(p - q) / len).abs() } else { 1.0 };
+                    if d2 < best_d2.get() * (1.0 - tol) || key > best.2 {
+                        best = (q, k, key);
+                    }
+                    best_d2.set(best_d2.get().min(d2));
+                }
+            },
+        );
+        (best.0, best.1)
+    }
+}
+
+impl Implicit for Mesh {
+    /// Distance to the nearest triangle, signed by its face normal (see the module docs).
+    fn phi(&self, p: DVec3) -> f64 {
+        let (q, k) = self.nearest(p);
+        let d = (p - q).length();
+        let (n, _) = self.plane(k);
+        if n.dot(p - q) < 0.0 {
+            -d
+        } else {
+            d
+        }
+    }
+
+    fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// `±(p − q)/|p − q|` towards `Φ > 0`, or the nearest triangle's normal on the surface.
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        let (q, k) = self.nearest(p);
+        let n = self.plane(k).0.normalize_or_zero();
+        let d = p - q;
+        let len = d.length();
+        if len <= 1e-12 * self.radius.max(f64::MIN_POSITIVE) {
+            n
+        } else if n.dot(d) < 0.0 {
+            -d / len
+        } else {
+            d / len
+        }
+    }
+}
+
+impl Intersect for Mesh {
+    fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        let len = ray.dir.length();
+        if !(len > 0.0 && len.is_finite() && ray.origin.is_finite()) || range.is_empty() {
+            return None;
+        }
+        let dir = (ray.dir / len).as_vec3a();
+        let r = MeshRay::new(ray.origin.as_vec3a(), dir);
+        // t along the unit f32 direction
+        let t_min = down(range.min * len).clamp(0.0, f32::MAX);
+        let t_max = up(range.max * len);
+        let band = t_min + (1e-5 * (self.radius + (ray.origin - self.center).length())) as f32;
+        let mut best: Option<(usize, f32, f32, f32)> = None;
+        self.bvh.traverse(&r.slab, t_min, t_max, |first, count, mut t_far| {
+            let mut found = None;
+            for k in first as usize..(first + count) as usize {
+                let [a, b, c] = self.tris[k].map(|i| self.vertices[i as usize]);
+                if let Some((t, u, v)) = r.triangle(a, b, c, t_min, t_far) {
+                    if t <= band && !self.plane_t(ray, k).is_some_and(|t| range.contains(t)) {
+                        continue;
+                    }
+                    t_far = t;
+                    found = Some(t);
+                    best = Some((k, t, u, v));
+                }
+            }
+            found
+        });
+        let (k, t32, u, v) = best?;
+        let t = self.plane_t(ray, k).unwrap_or(f64::from(t32) / len).max(range.min);
+        if t > range.max {
+            return None;
+        }
+        Some(RawHit {
+            t,
+            feature: self.leaf_to_file[k],
+            local: DVec2::new(f64::from(u), f64::from(v)),
+        })
+    }
+
+    /// The hit triangle's geometric normal, `(b − a) × (c − a)` normalised.
+    fn normal_at(&self, _ray: &Ray, raw: &RawHit) -> DVec3 {
+        match self.file_to_leaf.get(raw.feature as usize) {
+            Some(&k) => self.plane(k as usize).0.normalize_or_zero(),
+            None => DVec3::ZERO,
+        }
+    }
+
+    /// The barycentrics `(u, v)` of the hit (see the module docs).
+    fn uv_at(&self, _ray: &Ray, raw: &RawHit) -> Option<DVec2> {
+        Some(raw.local)
+    }
+
+    fn shading_normal_at(&self, _ray: &Ray, raw: &RawHit) -> Option<DVec3> {
+        self.shading_normal(raw)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tetra() -> Mesh {
+        let v = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        // counter-clockwise seen from outside
+        let i = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        Mesh::new(v, i, None).unwrap()
+    }
+
+    #[test]
+    fn tetrahedron_hit_normal_and_phi() {
+        let m = tetra();
+        let ray = Ray::new(DVec3::new(0.2, 0.2, -1.0), DVec3::Z);
+        let hit = m.intersect(&ray, Interval::POSITIVE).unwrap();
+        assert!((hit.t - 1.0).abs() < 1e-12);
+        assert_eq!(hit.feature, 0);
+        assert!((m.normal_at(&ray, &hit) - DVec3::NEG_Z).length() < 1e-12);
+        let p = ray.at(hit.t);
+        let [a, b, c] = m.triangle(0);
+        let q = (1.0 - hit.local.x - hit.local.y) * a + hit.local.x * b + hit.local.y * c;
+        assert!((p - q).length() < 1e-6);
+        assert!((m.phi(DVec3::new(0.2, 0.2, -0.5)) - 0.5).abs() < 1e-12);
+        assert!(m.phi(DVec3::splat(0.1)) < 0.0);
+        // an outside point nearest to an edge and to a vertex
+        assert!(m.phi(DVec3::new(0.5, -0.3, -0.3)) > 0.0);
+        assert!(m.phi(DVec3::new(-0.2, -0.2, -0.2)) > 0.0);
+        // the far side of the range
+        assert!(m.intersect(&ray, Interval::new(0.0, 0.999)).is_none());
+        assert_eq!(
+            m.intersect(&ray, Interval::new(1.001, 10.0)).map(|h| h.feature),
+            Some(3)
+        );
+    }
+
+    #[test]
+    fn constructor_errors() {
+        let v = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let e = Mesh::new(v.clone(), vec![[0, 1, 3]], None).unwrap_err();
+        assert_eq!(e.field, "indices[0]");
+        let e = Mesh::new(
+            vec![[0.0, f32::NAN, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            vec![[0, 1, 2]],
+            None,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "vertices[0]");
+        assert!(Mesh::new(v.clone(), vec![], None).is_err());
+        let e = Mesh::new(v.clone(), vec![[0, 1, 2]], Some(vec![[0.0, 0.0, 1.0]])).unwrap_err();
+        assert_eq!(e.field, "normals");
+        // a degenerate triangle is skipped, not an error
+        let m = Mesh::new(v, vec![[0, 1, 2], [0, 0, 1]], None).unwrap();
+        assert_eq!(m.skipped_triangles(), 1);
+        assert_eq!(m.triangle_indices(1), [0, 0, 1]);
+    }
+}

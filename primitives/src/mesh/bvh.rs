@@ -1,0 +1,456 @@
+//! The per-mesh BVH: parallel binned-SAH build, 32-byte f32 nodes stored in sibling pairs (one
+//! 64-byte cache line holds both children a traversal step tests), ordered closest-hit traversal.
+//!
+//! Layout. Every interior node refers to a [`Pair`] holding its two children; a node is
+//! `lo[3], first, hi[3], count` (32 bytes): a leaf has `count > 0` triangles starting at `first`
+//! in the leaf-ordered triangle array, an interior node has `count = 0` and its children in
+//! `pairs[first]`. The root is kept apart. Pairs are laid out depth-first, so a pair's first
+//! child's subtree follows it.
+//!
+//! Build. Triangle boxes and centroids in f32; each split bins centroids into 32 bins per axis
+//! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 2, triangle
+//! cost 1), and partitions in place. Subtrees of more than [`PARALLEL_MIN`] triangles are built with
+//! `rayon::join`. A node becomes a leaf when SAH prefers it and it holds at most [`MAX_LEAF`]
+//! triangles; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split at the
+//! median instead, which bounds the depth to `MEDIAN_DEPTH + 32` and the traversal stack.
+//!
+//! Traversal. Slab tests in f32 against the mesh's own f32 ray (the one the triangle test uses),
+//! with exits enlarged by `1 + 2γ₃` as in Woop, Benthin and Wald (2013), so that the box test
+//! never rejects a ray the watertight triangle test would hit. The nearer child is visited
+//! first; the farther one is pushed with its entry distance and skipped when popped if the
+//! closest hit found meanwhile is nearer.
+
+use glam::Vec3A;
+use rayon::prelude::*;
+
+/// Largest leaf the SAH may choose.
+pub(crate) const MAX_LEAF: usize = 6;
+/// SAH cost of a traversal step (testing a pair of child boxes) relative to one triangle test.
+const TRAVERSAL_COST: f32 = 2.0;
+/// Centroid bins per axis.
+const BINS: usize = 32;
+/// Subtrees with more triangles than this are built in parallel.
+const PARALLEL_MIN: usize = 4096;
+/// Nodes with more triangles than this bin in parallel.
+const PARALLEL_BINNING_MIN: usize = 65536;
+/// From this depth on, nodes are split at the median.
+const MEDIAN_DEPTH: usize = 64;
+/// Traversal stack capacity (`MEDIAN_DEPTH` + log₂ of `u32::MAX` + margin).
+pub(crate) const STACK: usize = 128;
+
+/// `1 + 2γ₃` in f32 (γₙ = nε/(1 − nε), ε = 2⁻²⁴).
+const EXIT_PAD: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// A node (see the module docs).
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(32))]
+pub(crate) struct Node {
+    pub lo: [f32; 3],
+    pub first: u32,
+    pub hi: [f32; 3],
+    pub count: u32,
+}
+
+/// The two children of an interior node, in one cache line.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+pub(crate) struct Pair(pub [Node; 2]);
+
+/// An f32 box.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Bb {
+    pub lo: Vec3A,
+    pub hi: Vec3A,
+}
+
+impl Bb {
+    pub const EMPTY: Self = Self {
+        lo: Vec3A::splat(f32::INFINITY),
+        hi: Vec3A::splat(f32::NEG_INFINITY),
+    };
+
+    #[inline]
+    fn union(self, o: Self) -> Self {
+        Self {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+        }
+    }
+
+    #[inline]
+    fn include(self, p: Vec3A) -> Self {
+        Self {
+            lo: self.lo.min(p),
+            hi: self.hi.max(p),
+        }
+    }
+
+    /// Half the surface area (enough for SAH ratios); 0 for an empty box.
+    #[inline]
+    fn half_area(self) -> f32 {
+        let e = (self.hi - self.lo).max(Vec3A::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+
+    fn node(self, first: u32, count: u32) -> Node {
+        Node {
+            lo: self.lo.to_array(),
+            first,
+            hi: self.hi.to_array(),
+            count,
+        }
+    }
+}
+
+/// One triangle during the build: its box, its box's centre and its file index.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BuildTri {
+    pub bounds: Bb,
+    pub centroid: Vec3A,
+    pub id: u32,
+}
+
+enum BuildNode {
+    Leaf { bounds: Bb, start: u32, count: u32 },
+    Inner { bounds: Bb, children: Box<[BuildNode; 2]> },
+}
+
+/// The hierarchy; triangles are referred to by their position in leaf order.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct MeshBvh {
+    pub root: Node,
+    pub pairs: Vec<Pair>,
+}
+
+#[derive(Clone, Copy)]
+struct Bins {
+    bounds: [[Bb; BINS]; 3],
+    counts: [[u32; BINS]; 3],
+}
+
+impl Bins {
+    fn empty() -> Self {
+        Self {
+            bounds: [[Bb::EMPTY; BINS]; 3],
+            counts: [[0; BINS]; 3],
+        }
+    }
+
+    fn add(&mut self, tris: &[BuildTri], lo: Vec3A, scale: Vec3A) {
+        for t in tris {
+            let b = ((t.centroid - lo) * scale).min(Vec3A::splat((BINS - 1) as f32));
+            for axis in 0..3 {
+                let i = b[axis] as usize;
+                self.counts[axis][i] += 1;
+                self.bounds[axis][i] = self.bounds[axis][i].union(t.bounds);
+            }
+        }
+    }
+
+    fn merge(mut self, o: Self) -> Self {
+        for axis in 0..3 {
+            for i in 0..BINS {
+                self.counts[axis][i] += o.counts[axis][i];
+                self.bounds[axis][i] = self.bounds[axis][i].union(o.bounds[axis][i]);
+            }
+        }
+        self
+    }
+}
+
+impl MeshBvh {
+    /// Builds over `tris` (reordered in place into leaf order); `tris` must not be empty.
+    pub fn build(tris: &mut [BuildTri]) -> Self {
+        let bounds = tris.par_iter().map(|t| t.bounds).reduce(|| Bb::EMPTY, Bb::union);
+        let tree = build_node(tris, 0, bounds, 0);
+        let mut bvh = Self {
+            root: Node::default(),
+            pairs: Vec::with_capacity(tris.len() / 2 + 1),
+        };
+        bvh.root = match &tree {
+            BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
+            BuildNode::Inner { bounds, children } => {
+                let first = bvh.flatten(children);
+                bounds.node(first, 0)
+            }
+        };
+        bvh.pairs.shrink_to_fit();
+        bvh
+    }
+
+    fn flatten(&mut self, children: &[BuildNode; 2]) -> u32 {
+        let index = self.pairs.len();
+        self.pairs.push(Pair::default());
+        for (slot, child) in children.iter().enumerate() {
+            let node = match child {
+                BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
+                BuildNode::Inner { bounds, children } => {
+                    let first = self.flatten(children);
+                    bounds.node(first, 0)
+                }
+            };
+            self.pairs[index].0[slot] = node;
+        }
+        index as u32
+    }
+
+    /// Bytes held by the nodes.
+    pub fn memory_bytes(&self) -> usize {
+        self.pairs.capacity() * std::mem::size_of::<Pair>() + std::mem::size_of::<Node>()
+    }
+
+    /// Closest-hit traversal: `leaf(first, count, t_max)` tests a leaf's triangles and returns
+    /// the new, smaller `t_max` if it found a hit. `t_min`/`t_max` bound the search.
+    #[inline]
+    pub fn traverse(
+        &self,
+        ray: &SlabRay,
+        t_min: f32,
+        mut t_max: f32,
+        mut leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
+    ) {
+        if ray.entry(&self.root, t_min, t_max).is_none() {
+            return;
+        }
+        let mut stack = [(0u32, 0u32, 0f32); STACK];
+        let mut top = 0usize;
+        let mut node = &self.root;
+        loop {
+            if node.count > 0 {
+                if let Some(t) = leaf(node.first, node.count, t_max) {
+                    t_max = t;
+                }
+            } else {
+                let pair = &self.pairs[node.first as usize].0;
+                let ea = ray.entry(&pair[0], t_min, t_max);
+                let eb = ray.entry(&pair[1], t_min, t_max);
+                match (ea, eb) {
+                    (Some(a), Some(b)) => {
+                        let (near, far, t_far) = if a <= b { (0, 1, b) } else { (1, 0, a) };
+                        stack[top] = (node.first, far, t_far);
+                        top += 1;
+                        node = &pair[near];
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = &pair[0];
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = &pair[1];
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            // pop the next node the ray enters before the closest hit so far
+            loop {
+                if top == 0 {
+                    return;
+                }
+                top -= 1;
+                let (pair, slot, entry) = stack[top];
+                if entry <= t_max {
+                    node = &self.pairs[pair as usize].0[slot as usize];
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Depth-first visit for nearest-point queries: `visit_box(node) -> lower bound` (or `None` to
+    /// prune), `leaf(first, count)`. Children are visited nearer bound first.
+    pub fn nearest(&self, mut lower_bound: impl FnMut(&Node) -> Option<f64>, mut leaf: impl FnMut(u32, u32)) {
+        if lower_bound(&self.root).is_none() {
+            return;
+        }
+        let mut stack: Vec<(&Node, f64)> = vec![(&self.root, 0.0)];
+        while let Some((node, _)) = stack.pop() {
+            if lower_bound(node).is_none() {
+                continue;
+            }
+            if node.count > 0 {
+                leaf(node.first, node.count);
+                continue;
+            }
+            let pair = &self.pairs[node.first as usize].0;
+            let a = lower_bound(&pair[0]).map(|d| (&pair[0], d));
+            let b = lower_bound(&pair[1]).map(|d| (&pair[1], d));
+            match (a, b) {
+                (Some(a), Some(b)) => {
+                    if a.1 <= b.1 {
+                        stack.push(b);
+                        stack.push(a);
+                    } else {
+                        stack.push(a);
+                        stack.push(b);
+                    }
+                }
+                (Some(x), None) | (None, Some(x)) => stack.push(x),
+                (None, None) => {}
+            }
+        }
+    }
+}
+
+/// Per-ray data for the slab tests: the f32 origin and clamped reciprocal direction.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SlabRay {
+    pub origin: Vec3A,
+    pub inv: Vec3A,
+}
+
+impl SlabRay {
+    /// From the f32 ray. Reciprocals are clamped to ±`f32::MAX`, so a zero direction component
+    /// gives `0·MAX = 0` rather than `0·∞ = NaN` on a slab plane through the origin.
+    #[inline]
+    pub fn new(origin: Vec3A, dir: Vec3A) -> Self {
+        let inv = Vec3A::ONE / dir;
+        Self {
+            origin,
+            inv: inv.clamp(Vec3A::splat(-f32::MAX), Vec3A::splat(f32::MAX)),
+        }
+    }
+
+    /// Entry distance into `node` within `[t0, t1]`, or `None`.
+    #[inline(always)]
+    pub fn entry(&self, node: &Node, t0: f32, t1: f32) -> Option<f32> {
+        let a = (Vec3A::from_array(node.lo) - self.origin) * self.inv;
+        let b = (Vec3A::from_array(node.hi) - self.origin) * self.inv;
+        let near = a.min(b).max_element().max(t0);
+        let far = (a.max(b).min_element() * EXIT_PAD).min(t1);
+        (near <= far).then_some(near)
+    }
+}
+
+fn build_node(tris: &mut [BuildTri], start: u32, bounds: Bb, depth: usize) -> BuildNode {
+    let n = tris.len();
+    if n == 1 {
+        return BuildNode::Leaf {
+            bounds,
+            start,
+            count: 1,
+        };
+    }
+    let centroids = if n > PARALLEL_BINNING_MIN {
+        tris.par_chunks(16384)
+            .map(|c| c.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid)))
+            .reduce(|| Bb::EMPTY, Bb::union)
+    } else {
+        tris.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid))
+    };
+    let extent = centroids.hi - centroids.lo;
+    let split = if depth >= MEDIAN_DEPTH || extent.max_element() <= 0.0 {
+        None
+    } else {
+        sah_split(tris, bounds, centroids)
+    };
+    let mid = match split {
+        Some(Split::Leaf) => {
+            return BuildNode::Leaf {
+                bounds,
+                start,
+                count: n as u32,
+            }
+        }
+        Some(Split::At(mid)) => mid,
+        None => {
+            // median along the widest centroid axis (any order when all centroids coincide)
+            let axis = extent.max_position();
+            let mid = n / 2;
+            tris.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+            mid
+        }
+    };
+    let (left, right) = tris.split_at_mut(mid);
+    let lb = left.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds));
+    let rb = right.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds));
+    let rstart = start + mid as u32;
+    let (l, r) = if n > PARALLEL_MIN {
+        rayon::join(
+            || build_node(left, start, lb, depth + 1),
+            || build_node(right, rstart, rb, depth + 1),
+        )
+    } else {
+        (
+            build_node(left, start, lb, depth + 1),
+            build_node(right, rstart, rb, depth + 1),
+        )
+    };
+    BuildNode::Inner {
+        bounds,
+        children: Box::new([l, r]),
+    }
+}
+
+enum Split {
+    Leaf,
+    At(usize),
+}
+
+fn sah_split(tris: &mut [BuildTri], bounds: Bb, centroids: Bb) -> Option<Split> {
+    let n = tris.len();
+    let extent = centroids.hi - centroids.lo;
+    // axes with zero extent get scale 0: everything in bin 0, never a valid split there
+    let scale = Vec3A::select(
+        extent.cmpgt(Vec3A::ZERO),
+        Vec3A::splat(BINS as f32 * (1.0 - 1e-6)) / extent,
+        Vec3A::ZERO,
+    );
+    let bins = if n > PARALLEL_BINNING_MIN {
+        tris.par_chunks(16384)
+            .map(|c| {
+                let mut b = Bins::empty();
+                b.add(c, centroids.lo, scale);
+                b
+            })
+            .reduce(Bins::empty, Bins::merge)
+    } else {
+        let mut b = Bins::empty();
+        b.add(tris, centroids.lo, scale);
+        b
+    };
+    let parent = bounds.half_area().max(f32::MIN_POSITIVE);
+    let mut best: Option<(f32, usize, usize)> = None;
+    for axis in 0..3 {
+        if scale[axis] == 0.0 {
+            continue;
+        }
+        let mut right_area = [0f32; BINS];
+        let mut right_count = [0u32; BINS];
+        let (mut acc, mut count) = (Bb::EMPTY, 0);
+        for i in (1..BINS).rev() {
+            acc = acc.union(bins.bounds[axis][i]);
+            count += bins.counts[axis][i];
+            right_area[i] = acc.half_area();
+            right_count[i] = count;
+        }
+        let (mut acc, mut count) = (Bb::EMPTY, 0);
+        for split in 1..BINS {
+            acc = acc.union(bins.bounds[axis][split - 1]);
+            count += bins.counts[axis][split - 1];
+            if count == 0 || right_count[split] == 0 {
+                continue;
+            }
+            let cost = TRAVERSAL_COST
+                + (acc.half_area() * count as f32 + right_area[split] * right_count[split] as f32) / parent;
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, split));
+            }
+        }
+    }
+    let (cost, axis, split) = best?;
+    if n <= MAX_LEAF && cost >= n as f32 {
+        return Some(Split::Leaf);
+    }
+    let (lo, s) = (centroids.lo[axis], scale[axis]);
+    let bin_of = |t: &BuildTri| (((t.centroid[axis] - lo) * s) as usize).min(BINS - 1);
+    let mut mid = 0;
+    for i in 0..n {
+        if bin_of(&tris[i]) < split {
+            tris.swap(i, mid);
+            mid += 1;
+        }
+    }
+    (mid > 0 && mid < n).then_some(Split::At(mid))
+}

@@ -1,0 +1,305 @@
+//! Mesh files: OBJ (via `tobj`) and PLY (ASCII, binary little- and big-endian, via `ply-rs-bw`),
+//! and the scene description `Mesh(path: "meshes/x.ply", normals: true)`.
+//!
+//! Polygons are fanned into triangles (`tobj` triangulates OBJ faces; PLY faces of `n > 3`
+//! vertices become `n − 2` triangles `(0, i, i + 1)`), so a triangle's index (the `feature` of a
+//! hit) is its position in the file's faces after fanning. OBJ files are loaded with one index per
+//! vertex (`tobj`'s `single_index`), all objects of the file merged into one mesh. Per-vertex
+//! normals are read from OBJ `vn` records and from PLY `nx, ny, nz` vertex properties.
+//!
+//! Every error names the file, and the element, line or face where the format gives one.
+
+use crate::registry::{BuildContext, SceneShape};
+use ply_rs_bw::parser::Parser;
+use ply_rs_bw::ply::{Property, PropertyAccess};
+use serde::Deserialize;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use zeroset_primitives::{Mesh, Primitive, PrimitiveError};
+
+/// A mesh file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct MeshIoError {
+    /// The file.
+    pub path: PathBuf,
+    /// What went wrong, with the element, line or face where known.
+    pub message: String,
+}
+
+fn error(path: &Path, message: impl Into<String>) -> MeshIoError {
+    MeshIoError {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+/// The arrays of a mesh file, before validation.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MeshData {
+    /// Positions.
+    pub vertices: Vec<[f32; 3]>,
+    /// Triangles (counter-clockwise index triples).
+    pub indices: Vec<[u32; 3]>,
+    /// Per-vertex normals, if the file has them.
+    pub normals: Option<Vec<[f32; 3]>>,
+}
+
+impl MeshData {
+    /// Validates and builds the [`Mesh`] (BVH included); errors name `path`.
+    pub fn into_mesh(self, path: &Path, normals: bool) -> Result<Mesh, MeshIoError> {
+        let n = if normals { self.normals } else { None };
+        Mesh::new(self.vertices, self.indices, n).map_err(|e| error(path, format!("{}: {}", e.field, e.problem)))
+    }
+}
+
+/// Reads `path` by its extension (`.obj` or `.ply`, any case).
+pub fn read_mesh(path: &Path) -> Result<MeshData, MeshIoError> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "obj" => read_obj(path),
+        "ply" => read_ply(path),
+        _ => Err(error(path, "unknown mesh format (expected a .obj or .ply file)")),
+    }
+}
+
+/// Reads and builds a mesh file (see [`read_mesh`], [`MeshData::into_mesh`]).
+pub fn load_mesh(path: &Path, normals: bool) -> Result<Mesh, MeshIoError> {
+    read_mesh(path)?.into_mesh(path, normals)
+}
+
+/// Reads an OBJ file (all objects merged; faces triangulated).
+pub fn read_obj(path: &Path) -> Result<MeshData, MeshIoError> {
+    if let Err(e) = std::fs::metadata(path) {
+        return Err(error(path, e.to_string()));
+    }
+    let (models, _) = tobj::load_obj(path, &tobj::GPU_LOAD_OPTIONS).map_err(|e| error(path, e.to_string()))?;
+    let mut data = MeshData::default();
+    let mut normals = Vec::new();
+    let mut all_have_normals = true;
+    for model in &models {
+        let m = &model.mesh;
+        let base = data.vertices.len() as u32;
+        let count = m.positions.len() / 3;
+        data.vertices
+            .extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        if m.normals.len() == m.positions.len() {
+            normals.extend(m.normals.chunks_exact(3).map(|n| [n[0], n[1], n[2]]));
+        } else {
+            all_have_normals = false;
+        }
+        for (face, t) in m.indices.chunks_exact(3).enumerate() {
+            if let Some(&bad) = t.iter().find(|&&i| i as usize >= count) {
+                return Err(error(
+                    path,
+                    format!(
+                        "object {:?}, triangle {face}: vertex index {bad} out of range ({count} vertices)",
+                        model.name
+                    ),
+                ));
+            }
+            data.indices.push([base + t[0], base + t[1], base + t[2]]);
+        }
+    }
+    if all_have_normals && !normals.is_empty() {
+        data.normals = Some(normals);
+    }
+    Ok(data)
+}
+
+/// A PLY vertex: position and optional normal (float or double).
+struct PlyVertex {
+    p: [f32; 3],
+    n: [f32; 3],
+    has_normal: u8,
+}
+
+fn scalar(p: &Property) -> Option<f32> {
+    Some(match *p {
+        Property::Float(x) => x,
+        Property::Double(x) => x as f32,
+        Property::Char(x) => f32::from(x),
+        Property::UChar(x) => f32::from(x),
+        Property::Short(x) => f32::from(x),
+        Property::UShort(x) => f32::from(x),
+        Property::Int(x) => x as f32,
+        Property::UInt(x) => x as f32,
+        _ => return None,
+    })
+}
+
+impl PropertyAccess for PlyVertex {
+    fn new() -> Self {
+        Self {
+            p: [f32::NAN; 3],
+            n: [0.0; 3],
+            has_normal: 0,
+        }
+    }
+
+    fn set_property(&mut self, name: &str, property: Property) {
+        let Some(x) = scalar(&property) else { return };
+        match name {
+            "x" => self.p[0] = x,
+            "y" => self.p[1] = x,
+            "z" => self.p[2] = x,
+            "nx" => (self.n[0], self.has_normal) = (x, self.has_normal | 1),
+            "ny" => (self.n[1], self.has_normal) = (x, self.has_normal | 2),
+            "nz" => (self.n[2], self.has_normal) = (x, self.has_normal | 4),
+            _ => {}
+        }
+    }
+}
+
+/// A PLY face: its vertex index list (any integer type), `None` entries negative.
+#[derive(Default)]
+struct PlyFace {
+    indices: Vec<i64>,
+}
+
+impl PropertyAccess for PlyFace {
+    fn new() -> Self {
+        Self::default()
+    }
+
+    fn set_property(&mut self, name: &str, property: Property) {
+        if name != "vertex_indices" && name != "vertex_index" {
+            return;
+        }
+        self.indices = match property {
+            Property::ListInt(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUInt(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListChar(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUChar(v) => v.into_iter().map(i64::from).collect(),
+            _ => return,
+        };
+    }
+}
+
+/// Any other element, read and dropped.
+struct Ignored;
+
+impl PropertyAccess for Ignored {
+    fn new() -> Self {
+        Self
+    }
+}
+
+/// Reads a PLY file: `vertex` (`x, y, z`, optional `nx, ny, nz`) and `face` (`vertex_indices`)
+/// elements; other elements and properties are skipped.
+pub fn read_ply(path: &Path) -> Result<MeshData, MeshIoError> {
+    let file = std::fs::File::open(path).map_err(|e| error(path, e.to_string()))?;
+    let mut reader = BufReader::with_capacity(1 << 20, file);
+    let header = Parser::<Ignored>::new()
+        .read_header(&mut reader)
+        .map_err(|e| error(path, format!("header: {e}")))?;
+    let mut vertices: Option<Vec<PlyVertex>> = None;
+    let mut faces: Option<Vec<PlyFace>> = None;
+    for (name, element) in &header.elements {
+        let result = match name.as_str() {
+            "vertex" => Parser::<PlyVertex>::new()
+                .read_payload_for_element(&mut reader, element, &header)
+                .map(|v| vertices = Some(v)),
+            "face" => Parser::<PlyFace>::new()
+                .read_payload_for_element(&mut reader, element, &header)
+                .map(|f| faces = Some(f)),
+            _ => Parser::<Ignored>::new()
+                .read_payload_for_element(&mut reader, element, &header)
+                .map(|_| ()),
+        };
+        if let Err(e) = result {
+            let at_end = reader.fill_buf().is_ok_and(|b| b.is_empty());
+            let truncated = if at_end {
+                "unexpected end of file (truncated?): "
+            } else {
+                ""
+            };
+            return Err(error(
+                path,
+                format!("element `{name}` ({} expected): {truncated}{e}", element.count),
+            ));
+        }
+    }
+    let vertices = vertices.ok_or_else(|| error(path, "no `vertex` element"))?;
+    let faces = faces.ok_or_else(|| error(path, "no `face` element"))?;
+    let nv = vertices.len();
+    let mut data = MeshData {
+        vertices: Vec::with_capacity(nv),
+        indices: Vec::with_capacity(faces.len()),
+        normals: None,
+    };
+    for (i, v) in vertices.iter().enumerate() {
+        if !v.p.iter().all(|x| x.is_finite()) {
+            return Err(error(
+                path,
+                format!("vertex {i}: position {:?} is not finite (or x, y, z missing)", v.p),
+            ));
+        }
+        data.vertices.push(v.p);
+    }
+    if vertices.iter().all(|v| v.has_normal == 7) {
+        data.normals = Some(vertices.iter().map(|v| v.n).collect());
+    }
+    for (f, face) in faces.iter().enumerate() {
+        if face.indices.len() < 3 {
+            return Err(error(
+                path,
+                format!("face {f}: {} vertex indices (at least 3 needed)", face.indices.len()),
+            ));
+        }
+        if let Some(&bad) = face.indices.iter().find(|&&i| i < 0 || i as usize >= nv) {
+            return Err(error(
+                path,
+                format!("face {f}: vertex index {bad} out of range ({nv} vertices)"),
+            ));
+        }
+        let idx = |k: usize| face.indices[k] as u32;
+        for k in 1..face.indices.len() - 1 {
+            data.indices.push([idx(0), idx(k), idx(k + 1)]);
+        }
+    }
+    Ok(data)
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// `Mesh(path: "meshes/bunny.ply", normals: true)`: a triangle mesh from an OBJ or PLY file, the
+/// path relative to the scene file. Objects naming the same file (and `normals` setting) share
+/// one loaded mesh; place copies with each object's `transform`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Mesh")]
+pub struct MeshDesc {
+    /// The mesh file (`.obj` or `.ply`), relative to the scene file's directory.
+    pub path: PathBuf,
+    /// Use the file's per-vertex normals as shading normals (the `ShadingNormal` AOV); default
+    /// true. The `Normal` AOV is always the geometric normal.
+    #[serde(default = "yes")]
+    pub normals: bool,
+}
+
+impl SceneShape for MeshDesc {
+    fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        let path = context.resolve(&self.path);
+        let key = if self.normals {
+            path.clone()
+        } else {
+            PathBuf::from(format!("{}#no-normals", path.display()))
+        };
+        let mut loaded = context.loaded.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(mesh) = loaded.get(&key) {
+            return Ok(Arc::clone(mesh));
+        }
+        let mesh: Arc<dyn Primitive> =
+            Arc::new(load_mesh(&path, self.normals).map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?);
+        loaded.insert(key, Arc::clone(&mesh));
+        Ok(mesh)
+    }
+}
