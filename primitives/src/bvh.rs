@@ -189,7 +189,7 @@ impl Bvh {
         let t0 = round_down(range.min);
         let mut t1 = round_up(range.max);
         let mut best = None;
-        let mut stack = [(0u32, 0f32); 64];
+        let mut stack = [(0u32, 0f32); 48];
         let mut top = 0usize;
         let mut current = 0usize;
         slab.entry(&self.nodes[0], t0, t1)?;
