@@ -6,12 +6,10 @@ use crate::baselines::{self as bl, RayR, V};
 use crate::measure::{measure, Measured, Ref};
 use crate::reference::{reference, Shape};
 use glam::DVec3;
-use parry3d::query::RayCast as _;
-use parry3d_f64::query::RayCast as _;
 use rayon::prelude::*;
 use zeroset_primitives::{
-    first_root, Cone, Cuboid, Cylinder, Disk, Ellipsoid, Implicit, Intersect, Interval, Plane, Polygon, Ray,
-    RootOptions, Sphere, Triangle,
+    first_root, Cone, Cuboid, Cylinder, Disk, Ellipsoid, Intersect, Interval, Plane, Polygon, Ray, RootOptions, Sphere,
+    Triangle,
 };
 
 /// Every query asks for the first hit in `[0, T_MAX]` (finite, so the root finder can march
@@ -133,7 +131,8 @@ fn make_rays(
     for i in 0..n {
         if i % 10 < 7 {
             let o = origin_for(rng, None);
-            let target = centre + 1.2 * radius * DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+            let target =
+                centre + 1.2 * radius * DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
             rays.push(ray_between(o, target));
         } else {
             match hard(rng) {
@@ -168,14 +167,23 @@ struct Bench {
     passes: usize,
     rows: Vec<Row>,
     progress: bool,
+    /// Open surfaces: normals compared up to sign.
+    unsigned_normals: bool,
 }
 
 impl Bench {
-    fn run<R, F>(&mut self, rays: &[R], method: &str, family: &'static str, precision: &'static str, default: bool, f: F)
-    where
+    fn run<R, F>(
+        &mut self,
+        rays: &[R],
+        method: &str,
+        family: &'static str,
+        precision: &'static str,
+        default: bool,
+        f: F,
+    ) where
         F: Fn(&R) -> Option<(f64, DVec3)>,
     {
-        let m = measure(rays, &self.refs, self.passes, f);
+        let m = measure(rays, &self.refs, self.passes, self.unsigned_normals, f);
         if self.progress {
             eprintln!(
                 "  {:<10} {:<28} {:>9.1} ns/ray  max rel t {:.2e}  disagree {}",
@@ -206,11 +214,18 @@ impl Bench {
                 max_evaluations: generic_cap,
                 ..RootOptions::default()
             };
-            self.run(rays, &format!("zeroset generic tol {tol:.0e}"), "generic", "f64", false, |r: &Ray| {
-                first_root(prim, r, range, &options)
-                    .hit
-                    .map(|h| (h.t, prim.gradient(r.at(h.t)).normalize_or_zero()))
-            });
+            self.run(
+                rays,
+                &format!("zeroset generic tol {tol:.0e}"),
+                "generic",
+                "f64",
+                false,
+                |r: &Ray| {
+                    first_root(prim, r, range, &options)
+                        .hit
+                        .map(|h| (h.t, prim.gradient(r.at(h.t)).normalize_or_zero()))
+                },
+            );
         }
         self.rays = rays.to_vec();
     }
@@ -238,7 +253,8 @@ impl Bench {
         S64: parry3d_f64::query::RayCast,
     {
         let t = translation;
-        let pose32 = parry3d::math::Pose::from_translation(parry3d::math::Vector::new(t.x as f32, t.y as f32, t.z as f32));
+        let pose32 =
+            parry3d::math::Pose::from_translation(parry3d::math::Vector::new(t.x as f32, t.y as f32, t.z as f32));
         let pose64 = parry3d_f64::math::Pose::from_translation(parry3d_f64::math::Vector::new(t.x, t.y, t.z));
         let r32: Vec<parry3d::query::Ray> = self
             .rays
@@ -261,18 +277,32 @@ impl Bench {
                 )
             })
             .collect();
-        self.run(&r32, "parry3d f32", "parry3d", "f32", false, |r: &parry3d::query::Ray| {
-            s32.cast_ray_and_get_normal(&pose32, r, T_MAX as f32, true).map(|h| {
-                (
-                    f64::from(h.time_of_impact),
-                    DVec3::new(f64::from(h.normal.x), f64::from(h.normal.y), f64::from(h.normal.z)),
-                )
-            })
-        });
-        self.run(&r64, "parry3d f64", "parry3d", "f64", false, |r: &parry3d_f64::query::Ray| {
-            s64.cast_ray_and_get_normal(&pose64, r, T_MAX, true)
-                .map(|h| (h.time_of_impact, DVec3::new(h.normal.x, h.normal.y, h.normal.z)))
-        });
+        self.run(
+            &r32,
+            "parry3d f32",
+            "parry3d",
+            "f32",
+            false,
+            |r: &parry3d::query::Ray| {
+                s32.cast_ray_and_get_normal(&pose32, r, T_MAX as f32, true).map(|h| {
+                    (
+                        f64::from(h.time_of_impact),
+                        DVec3::new(f64::from(h.normal.x), f64::from(h.normal.y), f64::from(h.normal.z)),
+                    )
+                })
+            },
+        );
+        self.run(
+            &r64,
+            "parry3d f64",
+            "parry3d",
+            "f64",
+            false,
+            |r: &parry3d_f64::query::Ray| {
+                s64.cast_ray_and_get_normal(&pose64, r, T_MAX, true)
+                    .map(|h| (h.time_of_impact, DVec3::new(h.normal.x, h.normal.y, h.normal.z)))
+            },
+        );
     }
 }
 
@@ -310,6 +340,7 @@ pub fn run_all(opt: &CaseOptions) -> Vec<Row> {
         passes: opt.passes,
         rows: Vec::new(),
         progress: opt.progress,
+        unsigned_normals: matches!(primitive, "Plane" | "Triangle" | "Disk" | "Polygon"),
     };
     let with_refs = |rays: Vec<Ray>, shape: &Shape| -> (Vec<Ray>, Vec<Ref>) {
         let refs = references(shape, &rays);
@@ -334,7 +365,11 @@ pub fn run_all(opt: &CaseOptions) -> Vec<Row> {
             |ray| bl::sphere_textbook(c64, r, ray, T_MAX),
         );
         b.robust_port_f32(|ray| bl::sphere_robust(c32, r as f32, ray, t32));
-        b.parry(&parry3d::shape::Ball::new(r as f32), &parry3d_f64::shape::Ball::new(r), c);
+        b.parry(
+            &parry3d::shape::Ball::new(r as f32),
+            &parry3d_f64::shape::Ball::new(r),
+            c,
+        );
         rows.extend(b.rows);
     }
 

@@ -70,7 +70,10 @@ impl Dd {
 impl Neg for Dd {
     type Output = Dd;
     fn neg(self) -> Dd {
-        Dd { hi: -self.hi, lo: -self.lo }
+        Dd {
+            hi: -self.hi,
+            lo: -self.lo,
+        }
     }
 }
 
@@ -164,7 +167,11 @@ pub fn at(o: DVec3, d: DVec3, t: Dd) -> V3 {
 pub fn quadratic(a: Dd, b: Dd, c: Dd) -> (Option<(Dd, Dd)>, f64) {
     let disc = b * b - a * c;
     let scale = (b * b).abs() + (a * c).abs();
-    let rel = if scale.hi > 0.0 { (disc.hi / scale.hi).abs() } else { 0.0 };
+    let rel = if scale.hi > 0.0 {
+        (disc.hi / scale.hi).abs()
+    } else {
+        0.0
+    };
     if disc.is_negative() {
         return (None, rel);
     }

@@ -32,7 +32,7 @@ OPTIONS:
   --passes N         timed passes per method, median reported (default 5)
   --seed N           ray seed (default 1)
   --only A,B         primitives to run (Sphere,Plane,Triangle,Disk,Polygon,Box,Cylinder,Cone,Ellipsoid)
-  --generic-cap N    most Φ evaluations per ray for the generic finder (default 100000)
+  --generic-cap N    most Φ evaluations per ray for the generic finder (default 1000; a miss beyond it)
   --torus-rays N     rays for the torus study (default 40000)
   --scene-runs N     renders per scene and thread count (default 5)
   --no-primitives    skip the per-primitive table
@@ -49,7 +49,7 @@ fn main() {
         rays: 100_000,
         passes: 5,
         seed: 1,
-        generic_cap: 100_000,
+        generic_cap: 1_000,
         only: None,
         progress: false,
     };
@@ -100,7 +100,7 @@ fn main() {
     }
     std::fs::create_dir_all(&out).expect("create the output directory");
     let start = Instant::now();
-    let mut report = output::Report::new(&opt, torus_rays, scene_runs);
+    let mut report = output::Report::new(&opt, scene_runs);
 
     // whole scenes first, so that their peak memory is not the per-primitive ray sets'
     if scenes {
@@ -108,7 +108,10 @@ fn main() {
         report.scenes = scenes::run_all(scene_runs);
     }
     if primitives {
-        eprintln!("[zeroset-bench] primitives ({} rays each, {} passes) …", opt.rays, opt.passes);
+        eprintln!(
+            "[zeroset-bench] primitives ({} rays each, {} passes) …",
+            opt.rays, opt.passes
+        );
         report.rows = cases::run_all(&opt);
     }
     if torus {

@@ -50,8 +50,9 @@ pub struct Measured {
     pub nans: usize,
 }
 
-/// Times `f` on every ray (`passes` passes, median) and compares its answers with `refs`.
-pub fn measure<R, F>(rays: &[R], refs: &[Ref], passes: usize, f: F) -> Measured
+/// Times `f` on every ray (`passes` passes, median) and compares its answers with `refs`;
+/// `unsigned_normals` compares normals up to sign (open surfaces).
+pub fn measure<R, F>(rays: &[R], refs: &[Ref], passes: usize, unsigned_normals: bool, f: F) -> Measured
 where
     F: Fn(&R) -> Option<(f64, DVec3)>,
 {
@@ -100,7 +101,11 @@ where
                     let c = n.normalize_or_zero().dot(reference.normal).clamp(-1.0, 1.0);
                     // the angle from the cross product keeps precision for tiny angles
                     let s = n.normalize_or_zero().cross(reference.normal).length();
-                    let deg = s.atan2(c).to_degrees();
+                    let mut deg = s.atan2(c).to_degrees();
+                    if unsigned_normals {
+                        // open surfaces: a normal facing the ray (parry3d's convention) is as right
+                        deg = deg.min(180.0 - deg);
+                    }
                     m.max_normal_deg = m.max_normal_deg.max(deg);
                 }
             }

@@ -10,8 +10,8 @@ use std::path::Path;
 pub struct Report {
     pub rays: usize,
     pub passes: usize,
+    pub generic_cap: u32,
     pub seed: u64,
-    pub torus_rays: usize,
     pub scene_runs: usize,
     pub rows: Vec<Row>,
     pub torus: Option<TorusResult>,
@@ -35,12 +35,12 @@ fn load() -> String {
 }
 
 impl Report {
-    pub fn new(opt: &CaseOptions, torus_rays: usize, scene_runs: usize) -> Self {
+    pub fn new(opt: &CaseOptions, scene_runs: usize) -> Self {
         Report {
             rays: opt.rays,
             passes: opt.passes,
+            generic_cap: opt.generic_cap,
             seed: opt.seed,
-            torus_rays,
             scene_runs,
             rows: Vec::new(),
             torus: None,
@@ -60,14 +60,15 @@ impl Report {
              {:.0} s in all. Rays per primitive: {} (seed {}), 70 % random through the bounds (hits and misses), \
              30 % hard (grazing within ~1e-7 of tangency, edges, rims, vertices, apex); every ray is f32-exact, \
              the same for every method; query range t ∈ [0, 1e4]. ns/ray: median of {} passes over all rays, \
-             one thread, intersection + normal. Errors against a double-double reference: relative t error over \
+             one thread, intersection + normal; the generic finder may spend {} Φ evaluations on a ray (more is a miss). Errors against a double-double reference: relative t error over \
              rays both hit; normal angle away from edges and rims (relative margin > 1e-6); disagree = rays where \
              the method and the reference differ on hit/miss.\n",
             load(),
             self.elapsed_s,
             self.rays,
             self.seed,
-            self.passes
+            self.passes,
+            self.generic_cap
         );
         if !self.rows.is_empty() {
             let _ = writeln!(s, "## Primitives (★ = zeroset's default)\n");
@@ -131,9 +132,10 @@ impl Report {
                         r.checked
                     );
                 }
-                if !r.note.is_empty() {
-                    let _ = writeln!(s, "\n{}: {}\n", r.scene, r.note);
-                }
+            }
+            s.push('\n');
+            for r in self.scenes.iter().filter(|r| !r.note.is_empty()) {
+                let _ = writeln!(s, "- {}: {}", r.scene, r.note);
             }
             let _ = writeln!(
                 s,
@@ -316,7 +318,12 @@ fn torus_markdown(t: &TorusResult) -> String {
             let _ = writeln!(s, "- no tolerance reached max |t err| ≤ 1e-6: **not met**");
         }
     }
-    let true_holes: usize = t.rows.iter().filter(|r| r.declared_lipschitz == Some(1.0)).map(|r| r.holes).sum();
+    let true_holes: usize = t
+        .rows
+        .iter()
+        .filter(|r| r.declared_lipschitz == Some(1.0))
+        .map(|r| r.holes)
+        .sum();
     let _ = writeln!(
         s,
         "- true bound (L = 1), all tolerances: {true_holes} holes: {}",
@@ -328,7 +335,11 @@ fn torus_markdown(t: &TorusResult) -> String {
             "- wrong bound (L = 0.25): {} holes, violation reported on {} rays: {}\n",
             w.holes,
             w.violations,
-            if w.violations > 0 { "detected and reported (met)" } else { "**not detected**" }
+            if w.violations > 0 {
+                "detected and reported (met)"
+            } else {
+                "**not detected**"
+            }
         );
     }
     s

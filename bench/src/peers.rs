@@ -46,7 +46,10 @@ fn python(dir: &Path, args: &[&str], timeout_s: u32) -> (bool, String, String) {
 
 fn tail(s: &str, n: usize) -> Vec<String> {
     let lines: Vec<&str> = s.lines().filter(|l| !l.trim().is_empty()).collect();
-    lines[lines.len().saturating_sub(n)..].iter().map(|l| (*l).to_owned()).collect()
+    lines[lines.len().saturating_sub(n)..]
+        .iter()
+        .map(|l| (*l).to_owned())
+        .collect()
 }
 
 /// Pulls `"key": number` out of a RESULT JSON line.
@@ -67,14 +70,16 @@ fn embree() -> External {
         seconds: 0.0,
     };
     if !(importable("embreex") && importable("trimesh") && importable("numpy")) {
-        out.lines.push("skipped: `import embreex, trimesh, numpy` failed (pip install embreex numpy trimesh)".into());
+        out.lines
+            .push("skipped: `import embreex, trimesh, numpy` failed (pip install embreex numpy trimesh)".into());
         return out;
     }
     let bench = anchors().join("../bench");
     if !Path::new("/tmp/mesh4.ply").exists() {
         let (ok, _, err) = python(&bench, &["gen.py", "--mesh", "/tmp/mesh4.ply", "4"], 120);
         if !ok {
-            out.lines.push(format!("skipped: mesh generation failed: {}", tail(&err, 1).join(" ")));
+            out.lines
+                .push(format!("skipped: mesh generation failed: {}", tail(&err, 1).join(" ")));
             return out;
         }
     }
@@ -84,7 +89,11 @@ fn embree() -> External {
         180,
     );
     if ok {
-        out.lines = stdout.lines().filter(|l| !l.trim().is_empty()).map(str::to_owned).collect();
+        out.lines = stdout
+            .lines()
+            .filter(|l| !l.trim().is_empty())
+            .map(str::to_owned)
+            .collect();
     } else {
         out.lines.push("failed:".into());
         out.lines.extend(tail(&stderr, 3));
@@ -110,7 +119,16 @@ fn mitsuba() -> Vec<External> {
         ("spheres1k", "rays", "llvm_ad_rgb"),
     ] {
         let start = Instant::now();
-        let args = ["run_mitsuba.py", mode, "--scene", scene, "--variant", variant, "--runs", "3"];
+        let args = [
+            "run_mitsuba.py",
+            mode,
+            "--scene",
+            scene,
+            "--variant",
+            variant,
+            "--runs",
+            "3",
+        ];
         let (ok, stdout, stderr) = python(&anchors().join("mitsuba"), &args, 150);
         let mut lines = Vec::new();
         if let Some(result) = stdout.lines().find(|l| l.starts_with("RESULT")) {

@@ -42,7 +42,12 @@ pub fn speed_vs_error(rows: &[Row], path: &Path) -> Result<(), Box<dyn std::erro
     let root = SVGBackend::new(path, (1100, 720)).into_drawing_area();
     root.fill(&WHITE)?;
     let x_max = rows.iter().map(|r| r.m.ns_median).fold(10.0, f64::max) * 1.5;
-    let x_min = rows.iter().map(|r| r.m.ns_median).fold(f64::INFINITY, f64::min).max(0.1) / 1.5;
+    let x_min = rows
+        .iter()
+        .map(|r| r.m.ns_median)
+        .fold(f64::INFINITY, f64::min)
+        .max(0.1)
+        / 1.5;
     let y_max = rows.iter().map(error).fold(1e-15, f64::max) * 10.0;
     let mut chart = ChartBuilder::on(&root)
         .caption(
@@ -65,7 +70,10 @@ pub fn speed_vs_error(rows: &[Row], path: &Path) -> Result<(), Box<dyn std::erro
     primitives.dedup();
     for (i, p) in primitives.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
-        let own: Vec<&Row> = rows.iter().filter(|r| r.primitive == *p && r.family != "parry3d").collect();
+        let own: Vec<&Row> = rows
+            .iter()
+            .filter(|r| r.primitive == *p && r.family != "parry3d")
+            .collect();
         let mut pts: Vec<(f64, f64)> = own.iter().map(|r| (r.m.ns_median, error(r))).collect();
         let front = pareto(&mut pts);
         chart

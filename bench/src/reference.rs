@@ -12,20 +12,44 @@ use zeroset_primitives::Ray;
 /// The shapes the bench measures, in the parametrisations the references use.
 #[derive(Clone, Debug)]
 pub enum Shape {
-    Sphere { c: DVec3, r: f64 },
+    Sphere {
+        c: DVec3,
+        r: f64,
+    },
     /// `⟨p, n⟩ = offset` with the normal as given (not normalised).
-    Plane { n: DVec3, offset: f64 },
-    Disk { c: DVec3, n: DVec3, r: f64 },
+    Plane {
+        n: DVec3,
+        offset: f64,
+    },
+    Disk {
+        c: DVec3,
+        n: DVec3,
+        r: f64,
+    },
     Triangle([DVec3; 3]),
     /// Convex, planar, counter-clockwise about the normal of its first three vertices.
     Polygon(Vec<DVec3>),
-    Cuboid { lo: DVec3, hi: DVec3 },
+    Cuboid {
+        lo: DVec3,
+        hi: DVec3,
+    },
     /// Capped, axis +Y from `base`.
-    Cylinder { base: DVec3, r: f64, h: f64 },
+    Cylinder {
+        base: DVec3,
+        r: f64,
+        h: f64,
+    },
     /// Capped and pointed: radius `r` at `base`, apex at `base + h·Y`.
-    Cone { base: DVec3, r: f64, h: f64 },
+    Cone {
+        base: DVec3,
+        r: f64,
+        h: f64,
+    },
     /// Axis-aligned.
-    Ellipsoid { c: DVec3, radii: DVec3 },
+    Ellipsoid {
+        c: DVec3,
+        radii: DVec3,
+    },
 }
 
 fn d(x: f64) -> Dd {
@@ -121,10 +145,10 @@ pub fn reference(shape: &Shape, ray: &Ray, t_max: f64) -> Ref {
         Shape::Triangle(v) => convex_polygon(v, o, dir, t_max),
         Shape::Polygon(v) => convex_polygon(v, o, dir, t_max),
         Shape::Cuboid { lo, hi } => {
-            let (mut t_near, mut near_axis, mut near_sign) = (d(f64::NEG_INFINITY), 0, 0.0);
-            let mut t_far = d(f64::INFINITY);
-            let mut ts = [d(0.0); 3];
-            let mut active = [false; 3];
+            // (no infinities in double-double: they turn into NaN, so the slabs start unset)
+            let mut near: Option<(Dd, usize, f64)> = None;
+            let mut far: Option<Dd> = None;
+            let mut ts = [None; 3];
             for i in 0..3 {
                 if dir[i] == 0.0 {
                     if !(lo[i] <= o[i] && o[i] <= hi[i]) {
@@ -135,24 +159,28 @@ pub fn reference(shape: &Shape, ray: &Ray, t_max: f64) -> Ref {
                 let t0 = (d(lo[i]) - d(o[i])) / d(dir[i]);
                 let t1 = (d(hi[i]) - d(o[i])) / d(dir[i]);
                 let (a, b, s) = if dir[i] > 0.0 { (t0, t1, -1.0) } else { (t1, t0, 1.0) };
-                ts[i] = a;
-                active[i] = true;
-                if a.f64() > t_near.f64() || (a - t_near).hi > 0.0 {
-                    (t_near, near_axis, near_sign) = (a, i, s);
+                ts[i] = Some(a);
+                if near.is_none_or(|(n, _, _)| (n - a).is_negative()) {
+                    near = Some((a, i, s));
                 }
-                if (b - t_far).is_negative() {
-                    t_far = b;
+                if far.is_none_or(|f| (b - f).is_negative()) {
+                    far = Some(b);
                 }
             }
+            let (Some((t_near, near_axis, near_sign)), Some(t_far)) = (near, far) else {
+                return Ref::MISS;
+            };
             if (t_far - t_near).is_negative() || !ok(t_near, t_max) {
                 return Ref::MISS;
             }
             // margin: how close the entry is to an edge (another slab's entry, or the exit)
             let scale = t_near.f64().abs().max(1e-300);
             let mut margin = ((t_far - t_near).f64() / scale).abs();
-            for i in 0..3 {
-                if active[i] && i != near_axis {
-                    margin = margin.min(((t_near - ts[i]).f64() / scale).abs());
+            for (i, t) in ts.iter().enumerate() {
+                if let Some(t) = t {
+                    if i != near_axis {
+                        margin = margin.min(((t_near - *t).f64() / scale).abs());
+                    }
                 }
             }
             let mut n = DVec3::ZERO;

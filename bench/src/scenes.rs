@@ -35,6 +35,7 @@ pub struct SceneRow {
 }
 
 #[derive(Deserialize)]
+#[serde(rename = "Scene")]
 struct SceneFile {
     objects: Vec<ObjectFile>,
 }
@@ -196,7 +197,8 @@ fn run_one(path: &Path, runs: usize) -> SceneRow {
             .collect();
         let t = median(&mut times);
         let mr = |s: f64| row.pixels as f64 / s / 1e6;
-        row.timings.push((threads, t, mr(t), mr(times[times.len() - 1]), mr(times[0])));
+        row.timings
+            .push((threads, t, mr(t), mr(times[times.len() - 1]), mr(times[0])));
     }
     row.peak_rss_mib = peak_rss_mib();
 
@@ -247,7 +249,10 @@ fn run_one(path: &Path, runs: usize) -> SceneRow {
                 match (r.t, f64_hit) {
                     (Some(t), Some((_, raw))) => {
                         let tr = t.f64();
-                        Some(((f64::from(px) - tr).abs() / tr, ((crate::dd::Dd::new(raw.t) - t) / t).abs().f64()))
+                        Some((
+                            (f64::from(px) - tr).abs() / tr,
+                            ((crate::dd::Dd::new(raw.t) - t) / t).abs().f64(),
+                        ))
                     }
                     _ => {
                         disagree = true;

@@ -132,7 +132,11 @@ fn reference(ray: &Ray) -> (Ref, f64) {
     let normal = (p - DVec3::new(centre.x, 0.0, centre.y)).normalize_or_zero();
     let depth = r.get(i + 1).map_or(0.0, |t1| {
         let mid = ray.at(0.5 * (t.f64() + t1.f64()));
-        -Torus { major: MAJOR, minor: MINOR }.phi(mid)
+        -Torus {
+            major: MAJOR,
+            minor: MINOR,
+        }
+        .phi(mid)
     });
     (
         Ref {
@@ -173,8 +177,11 @@ pub fn run(n: usize, passes: usize, seed: u64) -> TorusResult {
         (max_abs, holes)
     };
 
-    let quartic = QuarticTorus { major: MAJOR, minor: MINOR };
-    let m = measure(&rays, &refs, passes, |r: &Ray| {
+    let quartic = QuarticTorus {
+        major: MAJOR,
+        minor: MINOR,
+    };
+    let m = measure(&rays, &refs, passes, false, |r: &Ray| {
         quartic.intersect(r, range).map(|h| (h.t, quartic.normal_at(r, &h)))
     });
     let answers: Vec<Option<f64>> = rays.iter().map(|r| quartic.intersect(r, range).map(|h| h.t)).collect();
@@ -191,11 +198,14 @@ pub fn run(n: usize, passes: usize, seed: u64) -> TorusResult {
 
     let mut generic = |lipschitz: f64, tolerance: f64, label: &str| {
         let surface = Declared {
-            torus: Torus { major: MAJOR, minor: MINOR },
+            torus: Torus {
+                major: MAJOR,
+                minor: MINOR,
+            },
             lipschitz,
         };
         let options = RootOptions::with_tolerance(tolerance);
-        let m = measure(&rays, &refs, passes, |r: &Ray| {
+        let m = measure(&rays, &refs, passes, false, |r: &Ray| {
             first_root(&surface, r, range, &options)
                 .hit
                 .map(|h| (h.t, surface.torus.normal_at(r, &h)))
