@@ -2,6 +2,11 @@
 //! course (written once, generic over f32/f64) and f32 ports of zeroset's robust sphere, box and
 //! triangle. They live here, not in the kernel, and exist only to be measured against.
 
+#![allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    reason = "`!(a <= b)` rejects NaN too, as in zeroset's kernel"
+)]
+
 use glam::DVec3;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
