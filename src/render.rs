@@ -181,13 +181,18 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
                 };
                 (object, hit, shading_normal)
             });
-            let mut k = 0;
+            let mut rest = &mut pixel[..];
             for aov in &aovs {
-                let values = pixel_values(scene, *aov, &ray, hit.as_ref(), &world_to_camera, options.depth_miss);
-                for value in values.iter().take(aov.channels().len()) {
-                    pixel[k] = *value;
-                    k += 1;
-                }
+                let n = write_aov(
+                    rest,
+                    scene,
+                    *aov,
+                    &ray,
+                    hit.as_ref(),
+                    &world_to_camera,
+                    options.depth_miss,
+                );
+                rest = &mut rest[n..];
             }
         }
         if options.progress {
@@ -211,41 +216,65 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
     }
 }
 
-/// The (up to three) channel values of one AOV for one pixel.
-#[inline]
-fn pixel_values(
+/// Writes one AOV's channels for one pixel at the start of `out`; returns how many it wrote.
+#[inline(always)]
+fn write_aov(
+    out: &mut [f32],
     scene: &Scene,
     aov: Aov,
     ray: &Ray,
     hit: Option<&(u32, SurfaceHit, Option<DVec3>)>,
     world_to_camera: &glam::DMat4,
     depth_miss: f32,
-) -> [f32; 3] {
-    let v3 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
+) -> usize {
+    let mut put3 = |v: DVec3| {
+        out[0] = v.x as f32;
+        out[1] = v.y as f32;
+        out[2] = v.z as f32;
+        3
+    };
     let Some((object, hit, shading_normal)) = hit else {
         return match aov {
-            Aov::Beauty => v3(scene.background),
-            Aov::Depth | Aov::Distance => [depth_miss; 3],
-            Aov::PrimitiveId => [-1.0; 3],
-            _ => [0.0; 3],
+            Aov::Beauty => put3(scene.background),
+            Aov::Normal | Aov::Position | Aov::CameraNormal | Aov::ShadingNormal => put3(DVec3::ZERO),
+            Aov::Depth | Aov::Distance => {
+                out[0] = depth_miss;
+                1
+            }
+            Aov::PrimitiveId => {
+                out[0] = -1.0;
+                1
+            }
+            Aov::Alpha => {
+                out[0] = 0.0;
+                1
+            }
+            Aov::Uv => {
+                out[..2].fill(0.0);
+                2
+            }
         };
     };
     let normal = hit.normal.unwrap_or(DVec3::ZERO);
-    match aov {
-        Aov::Beauty => v3(shade(scene, *object, ray, hit)),
-        Aov::Alpha => [1.0; 3],
-        Aov::Depth => [scene.camera.planar_depth(hit.point) as f32; 3],
-        Aov::Distance => [hit.t as f32; 3],
-        Aov::Normal => v3(normal),
-        Aov::Position => v3(hit.point),
-        Aov::CameraNormal => v3(world_to_camera.transform_vector3(normal)),
-        Aov::PrimitiveId => [*object as f32; 3],
+    let scalar = match aov {
+        Aov::Beauty => return put3(shade(scene, *object, ray, hit)),
+        Aov::Normal => return put3(normal),
+        Aov::Position => return put3(hit.point),
+        Aov::CameraNormal => return put3(world_to_camera.transform_vector3(normal)),
+        Aov::ShadingNormal => return put3(shading_normal.unwrap_or(normal)),
         Aov::Uv => {
             let uv = hit.uv.unwrap_or_default();
-            [uv.x as f32, uv.y as f32, 0.0]
+            out[0] = uv.x as f32;
+            out[1] = uv.y as f32;
+            return 2;
         }
-        Aov::ShadingNormal => v3(shading_normal.unwrap_or(normal)),
-    }
+        Aov::Alpha => 1.0,
+        Aov::Depth => scene.camera.planar_depth(hit.point) as f32,
+        Aov::Distance => hit.t as f32,
+        Aov::PrimitiveId => *object as f32,
+    };
+    out[0] = scalar;
+    1
 }
 
 /// Where a secondary (shadow) ray starts: the hit point moved along the facing normal by the
