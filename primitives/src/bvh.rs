@@ -66,6 +66,10 @@ pub struct Bvh {
 
 const BINS: usize = 16;
 const MAX_LEAF: usize = 2;
+/// Below this depth nodes split at the median, so the tree is at most `MEDIAN_DEPTH + log₂ n`
+/// deep and the traversal stack (`STACK` entries) cannot overflow for any `n < 2³²`.
+const MEDIAN_DEPTH: usize = 28;
+const STACK: usize = MEDIAN_DEPTH + 33;
 
 struct BuildItem {
     bounds: Aabb,
@@ -136,7 +140,7 @@ impl Bvh {
             items: Vec::with_capacity(items.len()),
         };
         if !work.is_empty() {
-            bvh.build_node(&mut work);
+            bvh.build_node(&mut work, 0);
         }
         bvh
     }
@@ -147,14 +151,16 @@ impl Bvh {
         self.nodes.len()
     }
 
-    fn build_node(&mut self, work: &mut [BuildItem]) -> usize {
+    fn build_node(&mut self, work: &mut [BuildItem], depth: usize) -> usize {
         let bounds = work.iter().fold(Aabb::EMPTY, |b, w| b.union(w.bounds));
         let node_index = self.nodes.len();
         self.nodes.push(Node::new(&bounds));
-        let split = if work.len() > MAX_LEAF {
-            best_split(work, &bounds)
-        } else {
+        let split = if work.len() <= MAX_LEAF {
             None
+        } else if depth >= MEDIAN_DEPTH {
+            Some(median_split(work))
+        } else {
+            best_split(work, &bounds)
         };
         match split {
             None => {
@@ -164,8 +170,8 @@ impl Bvh {
             }
             Some(mid) => {
                 let (left, right) = work.split_at_mut(mid);
-                self.build_node(left);
-                let second = self.build_node(right);
+                self.build_node(left, depth + 1);
+                let second = self.build_node(right, depth + 1);
                 self.nodes[node_index].offset = second as u32;
             }
         }
@@ -189,7 +195,7 @@ impl Bvh {
         let t0 = round_down(range.min);
         let mut t1 = round_up(range.max);
         let mut best = None;
-        let mut stack = [(0u32, 0f32); 48];
+        let mut stack = [(0u32, 0f32); STACK];
         let mut top = 0usize;
         let mut current = 0usize;
         slab.entry(&self.nodes[0], t0, t1)?;
@@ -241,6 +247,21 @@ impl Bvh {
             }
         }
     }
+}
+
+/// Splits `work` at its median centroid along the centroids' longest axis.
+fn median_split(work: &mut [BuildItem]) -> usize {
+    let extent = work.iter().fold(Aabb::EMPTY, |b, w| b.including(w.centroid)).extent();
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    let mid = work.len() / 2;
+    work.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+    mid
 }
 
 /// Index at which to split `work` (sorted in place), or `None` for a leaf.
