@@ -85,7 +85,7 @@ struct Marcher<'a, I: Implicit + ?Sized> {
 
 impl<I: Implicit + ?Sized> Marcher<'_, I> {
     fn g(&mut self, t: f64) -> f64 {
-        self.evaluations += 1;
+        self.evaluations = self.evaluations.saturating_add(1);
         self.surface.phi(self.ray.at(t))
     }
 
@@ -93,7 +93,9 @@ impl<I: Implicit + ?Sized> Marcher<'_, I> {
     fn refine(&mut self, mut a: f64, mut ga: f64, mut b: f64, mut gb: f64, tolerance: f64) -> f64 {
         let mut side = 0i8;
         let mut width = b - a;
-        while b - a > tolerance {
+        // also stop where no f64 lies strictly between a and b (t far from 0 whose ulp exceeds
+        // the tolerance): the bracket cannot shrink further
+        while b - a > tolerance && 0.5 * (a + b) > a && 0.5 * (a + b) < b {
             // secant point, kept strictly inside
             let mut t = (a * gb - b * ga) / (gb - ga);
             if !(t > a && t < b) {
