@@ -10,6 +10,7 @@
 //!      wrong (the midpoint catches a wrong bound that jumps over a whole thin part): it is counted (see [`lipschitz_violations`]) and the march
 //!      goes on with twice the observed slope, from the last sample;
 //!    - without one, sample `g` at [`RootOptions::samples`] evenly spaced points.
+//!
 //!    A ray that touches the surface without crossing it (exact tangency) is a miss; one that
 //!    crosses it over a stretch longer than the tolerance is found.
 //! 3. **Refine** the bracket by the Illinois variant of regula falsi, falling back to bisection
@@ -160,7 +161,7 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
     let Some(clipped) = surface.bounds().expanded(margin).clip(ray, range) else {
         return report;
     };
-    if !(clipped.min.is_finite() && clipped.max.is_finite()) || !ray.is_valid() {
+    if !clipped.min.is_finite() || !clipped.max.is_finite() || !ray.is_valid() {
         return report;
     }
     let dir_len = ray.dir.length();

@@ -128,7 +128,10 @@ fn closed_kind(kind: u8) -> u8 {
     [0, 5, 6, 8, 10, 12][usize::from(kind) % 6]
 }
 
-fn affine(t: ([f64; 3], [f64; 3], f64, [f64; 3])) -> DAffine3 {
+/// Per-axis log10 scales / 3, rotation axis, angle, translation.
+type AffineSpec = ([f64; 3], [f64; 3], f64, [f64; 3]);
+
+fn affine(t: AffineSpec) -> DAffine3 {
     let (scale, axis, angle, translation) = t;
     let s = DVec3::new(
         10f64.powf(3.0 * scale[0]),
@@ -146,7 +149,7 @@ struct Recipe {
     combinator: u8,
     kinds: (u8, u8),
     params: ([f64; 12], [f64; 12]),
-    transform: Option<([f64; 3], [f64; 3], f64, [f64; 3])>,
+    transform: Option<AffineSpec>,
     amount: f64,
 }
 

@@ -970,7 +970,8 @@ fn recast(prim: &dyn Primitive, rng: &mut StdRng, rays: usize, aim: &dyn Fn(&mut
         // the sign of Φ on the side the secondary rays start on
         let arrival = if n.dot(hit.normal.unwrap()) > 0.0 { 1.0 } else { -1.0 };
         let origin = hit.secondary_origin(ray.dir);
-        if !(prim.phi(origin) * arrival > 0.0) {
+        let side = prim.phi(origin) * arrival;
+        if side <= 0.0 || side.is_nan() {
             r.wrong_side += 1;
         }
         // leaving: cos log-uniform in [1e-6, 1]
