@@ -287,7 +287,8 @@ impl Intersect for Cone {
         let (o2, d2) = (o.truncate(), d.truncate());
         let mut best: Option<RawHit> = None;
         let mut consider = |t: f64, feature: u32| {
-            if range.contains(t) && best.is_none_or(|b| t < b.t) {
+            // a finite t only: a denormal axial direction puts a cap at t = ±∞
+            if t.is_finite() && range.contains(t) && best.is_none_or(|b| t < b.t) {
                 best = Some(RawHit::on_feature(t, feature));
             }
         };

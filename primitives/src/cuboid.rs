@@ -192,7 +192,7 @@ impl Intersect for Cuboid {
         }
         if let Some(face) = in_face_plane {
             // the ray runs along a face and is on it at t_min: it touches the closed box there
-            if t_near < range.min && range.min <= t_far {
+            if t_near < range.min && range.min <= t_far && range.min.is_finite() && range.contains(range.min) {
                 return Some(RawHit::on_feature(range.min, face));
             }
         }

@@ -23,6 +23,11 @@
 //! [`Intersect::intersect`] returns a cheap [`RawHit`]; the closest one is finished once with
 //! [`SurfaceHit::complete`], computing only what a [`HitRequest`] asks for.
 
+#![allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    reason = "`!(a <= b)` is the kernel's idiom for a comparison that also rejects NaN"
+)]
+
 pub mod bounds;
 pub mod bvh;
 pub mod csg;

@@ -71,11 +71,13 @@ impl Interval {
         Self { min, max }
     }
 
-    /// Whether `t` lies in the closed range. NaN is never contained.
+    /// Whether `t` lies in the closed range and is finite: NaN and `±∞` are never contained
+    /// (a hit at infinity, from a direction component that underflows a division, is no hit,
+    /// also for the range `[−∞, ∞]`).
     #[inline]
     #[must_use]
     pub fn contains(&self, t: f64) -> bool {
-        self.min <= t && t <= self.max
+        self.min <= t && t <= self.max && t.is_finite()
     }
 
     /// Whether the range holds no value (`min > max`, or a NaN bound).

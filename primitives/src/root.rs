@@ -10,6 +10,7 @@
 //!      wrong (the midpoint catches a wrong bound that jumps over a whole thin part): it is counted (see [`lipschitz_violations`]) and the march
 //!      goes on with twice the observed slope, from the last sample;
 //!    - without one, sample `g` at [`RootOptions::samples`] evenly spaced points.
+//!
 //!    A ray that touches the surface without crossing it (exact tangency) is a miss; one that
 //!    crosses it over a stretch longer than the tolerance is found.
 //! 3. **Refine** the bracket by the Illinois variant of regula falsi, falling back to bisection
@@ -85,7 +86,7 @@ struct Marcher<'a, I: Implicit + ?Sized> {
 
 impl<I: Implicit + ?Sized> Marcher<'_, I> {
     fn g(&mut self, t: f64) -> f64 {
-        self.evaluations += 1;
+        self.evaluations = self.evaluations.saturating_add(1);
         self.surface.phi(self.ray.at(t))
     }
 
@@ -93,7 +94,9 @@ impl<I: Implicit + ?Sized> Marcher<'_, I> {
     fn refine(&mut self, mut a: f64, mut ga: f64, mut b: f64, mut gb: f64, tolerance: f64) -> f64 {
         let mut side = 0i8;
         let mut width = b - a;
-        while b - a > tolerance {
+        // also stop where no f64 lies strictly between a and b (t far from 0 whose ulp exceeds
+        // the tolerance): the bracket cannot shrink further
+        while b - a > tolerance && 0.5 * (a + b) > a && 0.5 * (a + b) < b {
             // secant point, kept strictly inside
             let mut t = (a * gb - b * ga) / (gb - ga);
             if !(t > a && t < b) {
@@ -158,7 +161,7 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
     let Some(clipped) = surface.bounds().expanded(margin).clip(ray, range) else {
         return report;
     };
-    if !(clipped.min.is_finite() && clipped.max.is_finite()) || !ray.is_valid() {
+    if !clipped.min.is_finite() || !clipped.max.is_finite() || !ray.is_valid() {
         return report;
     }
     let dir_len = ray.dir.length();

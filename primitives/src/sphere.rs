@@ -69,6 +69,10 @@ impl Sphere {
         let d = ray.dir;
         let r = self.radius;
         let a = d.length_squared();
+        if !(a > 0.0) {
+            // a zero direction, or one whose square underflows (|d| < 1.5e-162): no usable ray
+            return None;
+        }
         let b = sum_of_products([(f.x, d.x), (f.y, d.y), (f.z, d.z), (lo.dot(d), 1.0)]);
         // |f|² − r² compensated: the near root c₀/q of a huge sphere seen from close keeps full
         // precision (plain f64 loses r/(2h) ulps for an origin at height h)

@@ -339,6 +339,10 @@ pub fn cuboid(o: DVec3, d: DVec3, lo: DVec3, hi: DVec3, t_min: f64) -> Reference
 
 /// Capped or open cone frustum on the Z axis: base centre `b`, radii `r0` (at `b`) and `r1`
 /// (at `b + H·z`). `t ≥ t_min`.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "a reference mirrors the primitive's parameters"
+)]
 pub fn cone_z(o: DVec3, d: DVec3, b: DVec3, r0: f64, r1: f64, height: f64, capped: bool, t_min: f64) -> Reference {
     let ol = V::from(o).sub(V::from(b));
     let dv = V::from(d);
