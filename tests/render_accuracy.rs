@@ -199,8 +199,8 @@ fn placed_box(min: DVec3, max: DVec3, scale: DVec3, axis: DVec3, degrees: f64, t
         };
         // an edge or corner: two slabs give (almost) the same t
         let ties = if t_near > 0.0 { &entries } else { &exits };
-        for b in 0..3 {
-            if b != a && ties[b].is_finite() && (ties[b] - t).abs() < 1e-9 * scale_t {
+        for (b, tie) in ties.iter().enumerate() {
+            if b != a && tie.is_finite() && (tie - t).abs() < 1e-9 * scale_t {
                 return Analytic::Ambiguous;
             }
         }
@@ -715,10 +715,8 @@ fn transformed_triangle_matches_closed_form() {
     let translate = DVec3::new(0.3, 0.6, 0.2);
     let place = |p: DVec3| mat_mul(&r, p * scale) + translate;
     let s = check_scene(
-        &format!(
-            "(shape: Triangle(a: (-1, -1, 0), b: (1, -1, 0), c: (0, 1, 0)), \
-              transform: (translate: (0.3, 0.6, 0.2), rotate: (axis: (1, 0, 0), degrees: -30), scale: (1.5, 0.7, 1)))"
-        ),
+        "(shape: Triangle(a: (-1, -1, 0), b: (1, -1, 0), c: (0, 1, 0)), \
+          transform: (translate: (0.3, 0.6, 0.2), rotate: (axis: (1, 0, 0), degrees: -30), scale: (1.5, 0.7, 1)))",
         &[triangle(place(a), place(b), place(c))],
     );
     assert!(s.hits > 100 && s.misses > 300, "{s:?}");

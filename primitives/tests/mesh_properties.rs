@@ -345,10 +345,10 @@ fn instances_share_one_mesh_and_match_transformed_copies() {
                 (a, b) => {
                     // only grazing rays near the silhouette may differ (f32 rounding of the copy)
                     let t = a.or(b).unwrap().t;
-                    let n = if a.is_some() {
-                        instance.normal_at(&ray, &a.unwrap())
-                    } else {
-                        copy.normal_at(&ray, &b.unwrap())
+                    let n = match (a, b) {
+                        (Some(hit), _) => instance.normal_at(&ray, &hit),
+                        (None, Some(hit)) => copy.normal_at(&ray, &hit),
+                        (None, None) => unreachable!("one of the two hit"),
                     };
                     assert!(n.dot(ray.dir).abs() < 0.05, "non-grazing disagreement at t = {t}");
                 }

@@ -44,10 +44,12 @@ pub fn write_exr(frame: &Frame, path: &Path, header: &ExrHeader) -> std::result:
         }
     }
     let window = frame.window;
-    let mut attributes = LayerAttributes::default();
-    attributes.layer_position = Vec2(window.x0 as i32, window.y0 as i32);
-    attributes.world_to_camera = Some(imath_matrix(&header.world_to_camera));
-    attributes.world_to_normalized_device = Some(imath_matrix(&header.world_to_ndc));
+    let attributes = LayerAttributes {
+        layer_position: Vec2(window.x0 as i32, window.y0 as i32),
+        world_to_camera: Some(imath_matrix(&header.world_to_camera)),
+        world_to_normalized_device: Some(imath_matrix(&header.world_to_ndc)),
+        ..LayerAttributes::default()
+    };
     let encoding = Encoding {
         compression: Compression::ZIP16,
         blocks: Blocks::ScanLines,

@@ -81,7 +81,7 @@ pub fn write_previews(frame: &Frame, dir: &Path, stem: &str) -> image::ImageResu
         let range = (hi - lo).max(f32::MIN_POSITIVE);
         let path = dir.join(format!("{stem}.depth.png"));
         save(frame, &path, |i| {
-            let hit = alpha.map_or(true, |a| frame.samples[i * stride + a] > 0.0);
+            let hit = alpha.is_none_or(|a| frame.samples[i * stride + a] > 0.0);
             let z = frame.samples[i * stride + o];
             if hit && z.is_finite() && z > 0.0 {
                 depth_ramp((z.ln() - lo) / range)

@@ -10,6 +10,9 @@
 //!
 //! [`register_all`] registers them; `src/main.rs` is a complete `zeroset` binary with them.
 
+// `!(x >= 0.0)` is used on purpose: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 mod gyroid;
 mod quartic;
 mod superellipsoid;
