@@ -10,10 +10,12 @@ pub mod camera;
 pub mod cli;
 pub mod combinators;
 pub mod mesh_io;
+pub mod motion;
 pub mod output;
 pub mod query;
 pub mod registry;
 pub mod render;
+pub mod sampling;
 pub mod scene;
 pub mod shapes;
 
