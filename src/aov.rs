@@ -12,6 +12,21 @@
 //! | `CameraNormal` | `Nc.X, Nc.Y, Nc.Z`    | the normal in camera space (+x right, +y up, −z view) | 0 |
 //! | `PrimitiveId`  | `id`                  | index of the object in the scene's `objects` list   | −1 |
 //! | `Uv`           | `u, v`                | surface parameters (0 where a type has none)        | 0 |
+//!
+//! **Several samples per pixel** (`sampling.spp > 1`, or moving objects) are resolved per AOV,
+//! since only colour may be blended:
+//!
+//! | AOV | rule over the pixel's samples |
+//! |---|---|
+//! | `Beauty` | filter-weighted mean of the samples' colours (background for misses) |
+//! | `Alpha` | coverage: filter-weighted fraction of samples that hit (with `Box`, hits / spp) |
+//! | `Depth`, `Distance`, `Position` | all three from the **nearest** hit sample (smallest `Z`; the first of equals), never averaged across a silhouette |
+//! | `PrimitiveId` | the object hit by the most samples; ties go to the one with the nearest sample |
+//! | `Normal`, `CameraNormal`, `ShadingNormal` | mean over the samples that hit that object only, renormalised |
+//! | `Uv` | mean over the same samples as the normal (not seam-aware) |
+//!
+//! A pixel no sample hits gets the miss values. `Distance` is measured from the sample's lens
+//! point (the eye for a pinhole); `Z` is always planar depth from the eye.
 
 use serde::Deserialize;
 

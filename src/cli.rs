@@ -65,6 +65,9 @@ pub struct RenderArgs {
     /// Skip the PNG previews.
     #[arg(long)]
     pub no_previews: bool,
+    /// Samples per pixel (default: the scene's `sampling.spp`, itself 1 by default).
+    #[arg(long)]
+    pub spp: Option<u32>,
 }
 
 /// `zeroset query`.
@@ -161,6 +164,12 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             Some(w)
         }
     };
+    if let Some(spp) = args.spp {
+        if spp == 0 {
+            bail!("--spp must be at least 1");
+        }
+        scene.sampling.spp = spp;
+    }
     if args.depth_miss.is_nan() {
         bail!("--depth-miss must be a number or ±inf, not NaN");
     }
@@ -192,9 +201,10 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         eprintln!("wrote {}", path.display());
     }
     println!(
-        "rendered {}x{} ({} objects, load+BVH {:.3} s) in {:.3} s: {:.2} Mrays/s on {} threads",
+        "rendered {}x{} at {} spp ({} objects, load+BVH {:.3} s) in {:.3} s: {:.2} Mrays/s on {} threads",
         frame.window.width(),
         frame.window.height(),
+        scene.sampling.spp,
         scene.objects.len(),
         load_time.as_secs_f64(),
         frame.elapsed.as_secs_f64(),

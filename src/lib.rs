@@ -2,7 +2,8 @@
 //!
 //! Scenes are RON files ([`scene`]), primitives come from the `zeroset-primitives` kernel or
 //! from user types registered in the [`registry`]; the renderer ([`render`]) casts one ray per
-//! pixel through the pixel centre of a pinhole [`camera`], keeps the first hit, and writes the
+//! pixel through the pixel centre of a pinhole [`camera`] (or several per pixel through a thin
+//! lens over a shutter interval: [`sampling`], [`motion`]), keeps the first hit, and writes the
 //! requested [`aov`]s to EXR and PNG ([`output`]). [`query`] answers batches of rays.
 
 pub mod aov;
@@ -10,10 +11,12 @@ pub mod camera;
 pub mod cli;
 pub mod combinators;
 pub mod mesh_io;
+pub mod motion;
 pub mod output;
 pub mod query;
 pub mod registry;
 pub mod render;
+pub mod sampling;
 pub mod scene;
 pub mod shapes;
 

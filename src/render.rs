@@ -1,12 +1,27 @@
-//! The render loop: one ray per pixel through the pixel centre, first hit wins, and only the
-//! requested AOVs computed for it.
+//! The render loop: rays through each pixel, first hit wins, and only the requested AOVs
+//! computed for it.
 //!
-//! Rows are distributed over rayon's threads in bands; every pixel is computed independently
-//! from the scene alone, so the image is bit-identical whatever the thread count. The loop knows
-//! nothing about any particular primitive: it calls [`Scene::intersect`] and
-//! [`SurfaceHit::complete`].
+//! With one sample per pixel and no moving object, one ray goes through each pixel centre (the
+//! pinhole ray; the lens centre) and the AOVs are that ray's. Otherwise each pixel traces the
+//! samples of [`crate::sampling`] (position, lens point, time) and resolves them per AOV:
+//!
+//! | AOV | rule over the pixel's samples |
+//! |---|---|
+//! | `Beauty` | filter-weighted mean of the samples' colours (background for misses) |
+//! | `Alpha` | filter-weighted fraction of samples that hit (with `Box`: hits / spp) |
+//! | `Depth`, `Distance`, `Position` | of the **nearest** hit sample (smallest `Z`), never averaged |
+//! | `PrimitiveId` | the object hit by the most samples (ties: the one with the nearest sample) |
+//! | `Normal`, `CameraNormal`, `ShadingNormal` | mean over the samples that hit that object, renormalised |
+//! | `Uv` | mean over the same samples as the normal |
+//!
+//! and a pixel no sample hits gets the miss values. Rows are distributed over rayon's threads in
+//! bands; every pixel is computed independently from the scene and its own samples (a hash of
+//! seed, pixel and sample index), so the image is bit-identical whatever the thread count. The
+//! loop knows nothing about any particular primitive: it calls [`Scene::intersect`] (or
+//! [`Scene::intersect_at`]) and [`SurfaceHit::complete`].
 
 use crate::aov::Aov;
+use crate::sampling::{pixel_samples, PixelSample};
 use crate::scene::{Light, Scene};
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -81,6 +96,8 @@ pub struct Frame {
     pub samples: Vec<f32>,
     /// Wall time of the trace.
     pub elapsed: Duration,
+    /// Primary rays per pixel (samples per pixel).
+    pub spp: u32,
 }
 
 impl Frame {
@@ -123,10 +140,12 @@ impl Frame {
         self.samples.iter().skip(offset).step_by(stride).copied().collect()
     }
 
-    /// Primary rays per second (millions).
+    /// Primary rays per second (millions), all samples counted.
     #[must_use]
     pub fn mrays_per_second(&self) -> f64 {
-        f64::from(self.window.width()) * f64::from(self.window.height()) / self.elapsed.as_secs_f64().max(1e-12) / 1e6
+        f64::from(self.window.width()) * f64::from(self.window.height()) * f64::from(self.spp)
+            / self.elapsed.as_secs_f64().max(1e-12)
+            / 1e6
     }
 }
 
@@ -165,34 +184,48 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
             .expect("valid template"),
     );
     let bar_shown = AtomicBool::new(false);
+    let sampled = scene.sampling.spp > 1 || scene.has_motion();
+    let context = RowContext {
+        aovs: &aovs,
+        request,
+        shading,
+        beauty: aovs.contains(&Aov::Beauty),
+        channels,
+        world_to_camera,
+        depth_miss: options.depth_miss,
+    };
 
     samples.par_chunks_mut(row_len).enumerate().for_each(|(row, out)| {
         let y = window.y0 + row as u32;
-        for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
-            let x = window.x0 + column as u32;
-            let ray = camera.pixel_ray(x, y);
-            let hit = scene.intersect(&ray, Interval::POSITIVE).map(|(object, raw)| {
-                let primitive = &*scene.objects[object as usize].primitive;
-                let hit = SurfaceHit::complete(primitive, &ray, &raw, request);
-                let shading_normal = if shading {
-                    primitive.shading_normal_at(&ray, &raw).or(hit.normal)
-                } else {
-                    None
-                };
-                (object, hit, shading_normal)
-            });
-            let mut rest = &mut pixel[..];
-            for aov in &aovs {
-                let n = write_aov(
-                    rest,
-                    scene,
-                    *aov,
-                    &ray,
-                    hit.as_ref(),
-                    &world_to_camera,
-                    options.depth_miss,
-                );
-                rest = &mut rest[n..];
+        if sampled {
+            render_row_sampled(scene, &context, window.x0, y, out);
+        } else {
+            for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
+                let x = window.x0 + column as u32;
+                let ray = camera.pixel_ray(x, y);
+                let hit = scene.intersect(&ray, Interval::POSITIVE).map(|(object, raw)| {
+                    let primitive = &*scene.objects[object as usize].primitive;
+                    let hit = SurfaceHit::complete(primitive, &ray, &raw, request);
+                    let shading_normal = if shading {
+                        primitive.shading_normal_at(&ray, &raw).or(hit.normal)
+                    } else {
+                        None
+                    };
+                    (object, hit, shading_normal)
+                });
+                let mut rest = &mut pixel[..];
+                for aov in &aovs {
+                    let n = write_aov(
+                        rest,
+                        scene,
+                        *aov,
+                        &ray,
+                        hit.as_ref(),
+                        &world_to_camera,
+                        options.depth_miss,
+                    );
+                    rest = &mut rest[n..];
+                }
             }
         }
         if options.progress {
@@ -213,6 +246,154 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         aovs,
         samples,
         elapsed: start.elapsed(),
+        spp: scene.sampling.spp.max(1),
+    }
+}
+
+/// What every row of one render shares.
+struct RowContext<'a> {
+    aovs: &'a [Aov],
+    request: HitRequest,
+    shading: bool,
+    beauty: bool,
+    channels: usize,
+    world_to_camera: glam::DMat4,
+    depth_miss: f32,
+}
+
+/// One sample's hit: the object, its record, shading normal, planar depth and ray.
+struct SampleHit {
+    object: u32,
+    hit: SurfaceHit,
+    shading_normal: Option<DVec3>,
+    depth: f64,
+    ray: Ray,
+}
+
+/// Renders row `y` from column `x0` with the scene's samples per pixel, resolving each pixel's
+/// samples per AOV as the module table says.
+fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out: &mut [f32]) {
+    let camera = &scene.camera;
+    let filter = scene.sampling.filter;
+    let mut points: Vec<PixelSample> = Vec::new();
+    let mut scratch = Vec::new();
+    let mut hits: Vec<SampleHit> = Vec::new();
+    // (object, samples that hit it, its nearest depth)
+    let mut counts: Vec<(u32, u32, f64)> = Vec::new();
+    for (column, pixel) in out.chunks_exact_mut(context.channels).enumerate() {
+        let x = x0 + column as u32;
+        pixel_samples(&scene.sampling, camera.shutter, x, y, &mut points, &mut scratch);
+        let (cx, cy) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
+        let (mut weights, mut covered, mut colour) = (0.0, 0.0, DVec3::ZERO);
+        hits.clear();
+        for sample in &points {
+            let w = filter.weight(sample.x - cx, sample.y - cy);
+            weights += w;
+            let ray = camera.lens_ray(sample.x, sample.y, sample.lens);
+            let Some((object, raw)) = scene.intersect_at(&ray, Interval::POSITIVE, sample.time) else {
+                if context.beauty {
+                    colour += w * scene.background;
+                }
+                continue;
+            };
+            let (hit, shading_normal) = scene.with_primitive_at(object, sample.time, |primitive| {
+                let hit = SurfaceHit::complete(primitive, &ray, &raw, context.request);
+                let shading_normal = if context.shading {
+                    primitive.shading_normal_at(&ray, &raw).or(hit.normal)
+                } else {
+                    None
+                };
+                (hit, shading_normal)
+            });
+            if context.beauty {
+                colour += w * shade_at(scene, object, &ray, &hit, sample.time);
+            }
+            covered += w;
+            hits.push(SampleHit {
+                object,
+                hit,
+                shading_normal,
+                depth: camera.planar_depth(hit.point),
+                ray,
+            });
+        }
+        let mut rest = &mut pixel[..];
+        // the nearest hit sample (the first of equals), for depth, distance and position
+        let Some(nearest) = hits.iter().min_by(|a, b| a.depth.total_cmp(&b.depth)) else {
+            for aov in context.aovs {
+                let n = write_aov(
+                    rest,
+                    scene,
+                    *aov,
+                    &Ray::new(camera.eye, camera.forward),
+                    None,
+                    &context.world_to_camera,
+                    context.depth_miss,
+                );
+                rest = &mut rest[n..];
+            }
+            continue;
+        };
+        // the object most samples hit (ties: the nearest), for id, normals and uv
+        counts.clear();
+        for h in &hits {
+            match counts.iter_mut().find(|c| c.0 == h.object) {
+                Some(c) => {
+                    c.1 += 1;
+                    c.2 = c.2.min(h.depth);
+                }
+                None => counts.push((h.object, 1, h.depth)),
+            }
+        }
+        let chosen = counts
+            .iter()
+            .copied()
+            .reduce(|a, b| if b.1 > a.1 || (b.1 == a.1 && b.2 < a.2) { b } else { a })
+            .map_or(nearest.object, |c| c.0);
+        let (mut normal, mut shading_normal, mut uv, mut uv_count) = (DVec3::ZERO, DVec3::ZERO, glam::DVec2::ZERO, 0.0);
+        for h in hits.iter().filter(|h| h.object == chosen) {
+            normal += h.hit.normal.unwrap_or(DVec3::ZERO);
+            shading_normal += h.shading_normal.unwrap_or(DVec3::ZERO);
+            if let Some(v) = h.hit.uv {
+                uv += v;
+                uv_count += 1.0;
+            }
+        }
+        let merged = SurfaceHit {
+            normal: context.request.normal.then(|| normal.normalize_or_zero()),
+            uv: (uv_count > 0.0).then(|| uv / uv_count),
+            ..nearest.hit
+        };
+        let merged = (
+            chosen,
+            merged,
+            context.shading.then(|| shading_normal.normalize_or_zero()),
+        );
+        for aov in context.aovs {
+            let n = match aov {
+                Aov::Beauty => {
+                    let c = colour / weights;
+                    rest[0] = c.x as f32;
+                    rest[1] = c.y as f32;
+                    rest[2] = c.z as f32;
+                    3
+                }
+                Aov::Alpha => {
+                    rest[0] = (covered / weights) as f32;
+                    1
+                }
+                _ => write_aov(
+                    rest,
+                    scene,
+                    *aov,
+                    &nearest.ray,
+                    Some(&merged),
+                    &context.world_to_camera,
+                    context.depth_miss,
+                ),
+            };
+            rest = &mut rest[n..];
+        }
     }
 }
 
@@ -289,6 +470,23 @@ pub fn secondary_offset(hit: &SurfaceHit, dir: DVec3) -> DVec3 {
 /// no lights, a headlight at the eye (no shadows).
 #[must_use]
 pub fn shade(scene: &Scene, object: u32, ray: &Ray, hit: &SurfaceHit) -> DVec3 {
+    shade_with(scene, object, ray, hit, |r, range| scene.occluded(r, range))
+}
+
+/// [`shade`] at frame time `time`: shadow rays see moving objects where they are at that time.
+#[must_use]
+pub fn shade_at(scene: &Scene, object: u32, ray: &Ray, hit: &SurfaceHit, time: f64) -> DVec3 {
+    shade_with(scene, object, ray, hit, |r, range| scene.occluded_at(r, range, time))
+}
+
+#[inline(always)]
+fn shade_with(
+    scene: &Scene,
+    object: u32,
+    ray: &Ray,
+    hit: &SurfaceHit,
+    occluded: impl Fn(&Ray, Interval) -> bool,
+) -> DVec3 {
     let material = &scene.objects[object as usize].material;
     let n = hit.facing_normal(ray.dir).unwrap_or(DVec3::ZERO);
     let view = -ray.dir.normalize();
@@ -307,7 +505,7 @@ pub fn shade(scene: &Scene, object: u32, ray: &Ray, hit: &SurfaceHit) -> DVec3 {
             Light::Directional { direction, intensity } => (-direction.normalize(), f64::INFINITY, intensity),
         };
         let cos = n.dot(to_light);
-        if cos <= 0.0 || scene.occluded(&Ray::new(origin, to_light), Interval::new(0.0, distance)) {
+        if cos <= 0.0 || occluded(&Ray::new(origin, to_light), Interval::new(0.0, distance)) {
             continue;
         }
         colour += material.color * intensity * cos;

@@ -7,7 +7,9 @@
 
 use crate::aov::Aov;
 use crate::camera::{Camera, CameraError};
+use crate::motion::{Moving, Placement};
 use crate::registry::{BuildContext, ShapeDesc};
+use crate::sampling::Sampling;
 use glam::{DAffine3, DQuat, DVec3};
 use ron::extensions::Extensions;
 use serde::Deserialize;
@@ -87,7 +89,24 @@ fn default_scale() -> DVec3 {
     DVec3::ONE
 }
 
-/// `camera: (eye: …, look_at: … | direction: …, up: …, vfov_deg: … | hfov_deg: …, width, height)`.
+/// `shutter: (open: 0, close: 1)`: the frame times the shutter is open.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShutterDesc {
+    /// Opening time; default 0.
+    #[serde(default)]
+    pub open: f64,
+    /// Closing time; default 1.
+    #[serde(default = "default_one")]
+    pub close: f64,
+}
+
+fn default_one() -> f64 {
+    1.0
+}
+
+/// `camera: (eye: …, look_at: … | direction: …, up: …, vfov_deg: … | hfov_deg: …, width, height,
+/// aperture: 0, focus_distance: …, shutter: (open: 0, close: 1))`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraDesc {
@@ -115,6 +134,16 @@ pub struct CameraDesc {
     /// Height in pixels; default 480.
     #[serde(default = "default_height")]
     pub height: u32,
+    /// Thin-lens radius (world units); default 0, the pinhole.
+    #[serde(default)]
+    pub aperture: f64,
+    /// Distance of the plane in focus along the view axis; default the distance to `look_at`
+    /// (required with `direction` and `aperture > 0`).
+    #[serde(default)]
+    pub focus_distance: Option<f64>,
+    /// Shutter interval in frame time; default `(open: 0, close: 1)`.
+    #[serde(default)]
+    pub shutter: Option<ShutterDesc>,
 }
 
 /// `material: (color: (r, g, b), specular: 0, shininess: 32)`.
@@ -187,9 +216,13 @@ pub struct ObjectDesc {
     pub name: Option<String>,
     /// The primitive: any registered name, e.g. `Sphere(radius: 1)`.
     pub shape: ShapeDesc,
-    /// Placement; default identity.
+    /// Placement (at frame time 0 when `transform_close` is given); default identity.
     #[serde(default)]
     pub transform: Option<TransformDesc>,
+    /// Placement at frame time 1 for a moving object (interpolated in between, see
+    /// [`crate::motion`]); default none (static).
+    #[serde(default)]
+    pub transform_close: Option<TransformDesc>,
     /// Surface material.
     #[serde(default)]
     pub material: Material,
@@ -259,6 +292,9 @@ pub struct SceneDesc {
     /// What to write.
     #[serde(default)]
     pub outputs: Outputs,
+    /// Samples per pixel, filter and seed; default one sample at each pixel centre.
+    #[serde(default)]
+    pub sampling: Sampling,
 }
 
 /// A placed primitive with its material.
@@ -266,8 +302,11 @@ pub struct SceneDesc {
 pub struct Object {
     /// Name from the scene file, if any.
     pub name: Option<String>,
-    /// The primitive in world space (its transform applied).
+    /// The primitive in world space (its transform applied; for a moving object, placed at frame
+    /// time 0, which is what time-less queries such as [`Scene::intersect`] see).
     pub primitive: Arc<dyn Primitive>,
+    /// The motion of a moving object; `None` for a static one (which ignores ray times).
+    pub motion: Option<Arc<Moving>>,
     /// Surface material.
     pub material: Material,
 }
@@ -289,6 +328,8 @@ pub struct Scene {
     pub background: DVec3,
     /// Requested outputs.
     pub outputs: Outputs,
+    /// Samples per pixel, filter and seed.
+    pub sampling: Sampling,
     /// Objects with infinite bounds, tested on every ray.
     unbounded: Vec<u32>,
     bvh: Bvh,
@@ -363,6 +404,25 @@ impl Scene {
                 .shape
                 .build(context)
                 .map_err(|e| (location.clone(), format!("field `{}`: {}", e.field, e.problem)))?;
+            let motion = match &object.transform_close {
+                None => None,
+                Some(close) => {
+                    let start = match &object.transform {
+                        None => Placement::IDENTITY,
+                        Some(t) => placement(t).map_err(|m| (location.clone(), m))?,
+                    };
+                    let end = placement(close)
+                        .map_err(|m| (location.clone(), m.replace("`transform.", "`transform_close.")))?;
+                    // a "motion" to the same placement is a static object, bit for bit
+                    if start == end {
+                        None
+                    } else {
+                        Some(Arc::new(
+                            Moving::new(primitive.clone(), start, end).map_err(|m| (location.clone(), m))?,
+                        ))
+                    }
+                }
+            };
             if let Some(t) = &object.transform {
                 let m = build_transform(t).map_err(|m| (location.clone(), m))?;
                 primitive = Arc::new(
@@ -381,6 +441,7 @@ impl Scene {
             objects.push(Object {
                 name: object.name,
                 primitive,
+                motion,
                 material: m,
             });
         }
@@ -402,14 +463,17 @@ impl Scene {
         if desc.outputs.aovs.is_empty() {
             return Err(("outputs".into(), "field `aovs`: list at least one AOV".into()));
         }
-        Ok(Self::assemble(
+        desc.sampling.validate().map_err(|m| ("sampling".to_string(), m))?;
+        let mut scene = Self::assemble(
             camera,
             objects,
             desc.lights,
             desc.ambient,
             desc.background,
             desc.outputs,
-        ))
+        );
+        scene.sampling = desc.sampling;
+        Ok(scene)
     }
 
     /// Builds the acceleration structure over validated parts.
@@ -425,7 +489,10 @@ impl Scene {
         let mut unbounded = Vec::new();
         let mut boxes = Vec::new();
         for (i, o) in objects.iter().enumerate() {
-            let b = o.primitive.bounds();
+            let b = match &o.motion {
+                None => o.primitive.bounds(),
+                Some(m) => m.bounds(),
+            };
             if b.is_finite() {
                 boxes.push((b, i as u32));
             } else {
@@ -441,9 +508,57 @@ impl Scene {
             ambient,
             background,
             outputs,
+            sampling: Sampling::default(),
             unbounded,
             bvh,
         }
+    }
+
+    /// Whether any object moves (then the time of a ray matters).
+    #[must_use]
+    pub fn has_motion(&self) -> bool {
+        self.objects.iter().any(|o| o.motion.is_some())
+    }
+
+    /// Calls `f` with object `object`'s primitive as placed at frame time `time` (static objects
+    /// ignore the time).
+    #[inline]
+    pub fn with_primitive_at<R>(&self, object: u32, time: f64, f: impl FnOnce(&dyn Primitive) -> R) -> R {
+        let o = &self.objects[object as usize];
+        match &o.motion {
+            None => f(&*o.primitive),
+            Some(m) => m.with_primitive_at(time, f),
+        }
+    }
+
+    /// The closest hit along `ray` at frame time `time` with `t` in `range`: like
+    /// [`Scene::intersect`], with moving objects placed at `time`. A scene without moving objects
+    /// gives exactly [`Scene::intersect`]'s answer.
+    #[inline]
+    pub fn intersect_at(&self, ray: &Ray, mut range: Interval, time: f64) -> Option<(u32, RawHit)> {
+        let mut best = None;
+        for &i in &self.unbounded {
+            if let Some(hit) = self.with_primitive_at(i, time, |p| p.intersect(ray, range)) {
+                range.max = hit.t;
+                best = Some((i, hit));
+            }
+        }
+        let mut raw = None;
+        let object = self.bvh.closest(ray, range, |id, r| {
+            let hit = self.with_primitive_at(id, time, |p| p.intersect(ray, r))?;
+            raw = Some(hit);
+            Some(hit.t)
+        });
+        match (object, raw) {
+            (Some(object), Some(raw)) => Some((object, raw)),
+            _ => best,
+        }
+    }
+
+    /// Whether anything blocks `ray` within `range` at frame time `time`.
+    #[must_use]
+    pub fn occluded_at(&self, ray: &Ray, range: Interval, time: f64) -> bool {
+        self.intersect_at(ray, range, time).is_some()
     }
 
     /// The closest hit along `ray` with `t` in `range`: the object index and its raw hit.
@@ -522,7 +637,22 @@ fn build_camera(c: &CameraDesc) -> Result<Camera, CameraError> {
             v
         }
     };
-    Camera::new(c.eye, direction, c.up, vfov, c.width, c.height)
+    let camera = Camera::new(c.eye, direction, c.up, vfov, c.width, c.height)?;
+    let focus = match (c.focus_distance, c.look_at) {
+        (Some(f), _) => f,
+        (None, Some(target)) => (target - c.eye).dot(camera.forward),
+        (None, None) if c.aperture == 0.0 || c.direction.is_none() => camera.focus_distance,
+        (None, None) => {
+            return Err(CameraError {
+                field: "focus_distance",
+                problem: "is required with `direction` and a non-zero `aperture`".into(),
+            })
+        }
+    };
+    let shutter = c.shutter.unwrap_or(ShutterDesc { open: 0.0, close: 1.0 });
+    camera
+        .with_lens(c.aperture, focus)?
+        .with_shutter(shutter.open, shutter.close)
 }
 
 impl TransformDesc {
@@ -530,6 +660,19 @@ impl TransformDesc {
     pub fn to_affine(&self) -> Result<DAffine3, String> {
         build_transform(self)
     }
+}
+
+/// The components of a transform description, validated as [`TransformDesc::to_affine`] does.
+fn placement(t: &TransformDesc) -> Result<Placement, String> {
+    build_transform(t)?;
+    Ok(Placement {
+        scale: t.scale,
+        rotation: match &t.rotate {
+            None => DQuat::IDENTITY,
+            Some(r) => r.quat()?,
+        },
+        translation: t.translate,
+    })
 }
 
 fn build_transform(t: &TransformDesc) -> Result<DAffine3, String> {
