@@ -330,7 +330,7 @@ pub struct Scene {
     pub outputs: Outputs,
     /// Samples per pixel, filter and seed.
     pub sampling: Sampling,
-    /// Objects with infinite bounds, tested on every ray.
+    /// Objects tested on every ray: those with infinite bounds, and a lone bounded object.
     unbounded: Vec<u32>,
     bvh: Bvh,
 }
@@ -498,6 +498,11 @@ impl Scene {
             } else {
                 unbounded.push(i as u32);
             }
+        }
+        // a lone bounded object is tested directly: a scene of one primitive pays nothing for the BVH
+        if boxes.len() == 1 {
+            unbounded.push(boxes[0].1);
+            boxes.clear();
         }
         let bvh = Bvh::build(&boxes);
         Self {

@@ -13,6 +13,7 @@
 
 use crate::{Aabb, Interval, Ray};
 use glam::Vec3A;
+use std::mem::MaybeUninit;
 
 /// A node: bounds in f32, rounded outward from the f64 bounds so they still contain them.
 #[derive(Clone, Copy, Debug)]
@@ -195,7 +196,8 @@ impl Bvh {
         let t0 = round_down(range.min);
         let mut t1 = round_up(range.max);
         let mut best = None;
-        let mut stack = [(0u32, 0f32); STACK];
+        // uninitialised: only entries below `top`, written before, are ever read
+        let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK];
         let mut top = 0usize;
         let mut current = 0usize;
         slab.entry(&self.nodes[0], t0, t1)?;
@@ -217,7 +219,7 @@ impl Bvh {
                 match (ta, tb) {
                     (Some(ta), Some(tb)) => {
                         let (near, far, t_far) = if ta <= tb { (a, b, tb) } else { (b, a, ta) };
-                        stack[top] = (far as u32, t_far);
+                        stack[top].write((far as u32, t_far));
                         top += 1;
                         current = near;
                         continue;
@@ -239,7 +241,8 @@ impl Bvh {
                     return best;
                 }
                 top -= 1;
-                let (candidate, entry) = stack[top];
+                // SAFETY: `stack[top]` was written by the push that raised `top` above it
+                let (candidate, entry) = unsafe { stack[top].assume_init() };
                 if entry <= t1 {
                     current = candidate as usize;
                     break;

@@ -22,6 +22,7 @@
 
 use glam::Vec3A;
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 /// Largest leaf the SAH may choose.
 pub(crate) const MAX_LEAF: usize = 6;
@@ -212,7 +213,8 @@ impl MeshBvh {
         if ray.entry(&self.root, t_min, t_max).is_none() {
             return;
         }
-        let mut stack = [(0u32, 0u32, 0f32); STACK];
+        // uninitialised: only entries below `top`, written before, are ever read
+        let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; STACK];
         let mut top = 0usize;
         let mut node = &self.root;
         loop {
@@ -227,7 +229,7 @@ impl MeshBvh {
                 match (ea, eb) {
                     (Some(a), Some(b)) => {
                         let (near, far, t_far) = if a <= b { (0, 1, b) } else { (1, 0, a) };
-                        stack[top] = (node.first, far, t_far);
+                        stack[top].write((node.first, far, t_far));
                         top += 1;
                         node = &pair[near];
                         continue;
@@ -249,7 +251,8 @@ impl MeshBvh {
                     return;
                 }
                 top -= 1;
-                let (pair, slot, entry) = stack[top];
+                // SAFETY: `stack[top]` was written by the push that raised `top` above it
+                let (pair, slot, entry) = unsafe { stack[top].assume_init() };
                 if entry <= t_max {
                     node = &self.pairs[pair as usize].0[slot as usize];
                     break;
