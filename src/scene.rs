@@ -540,24 +540,12 @@ impl Scene {
     /// [`Scene::intersect`], with moving objects placed at `time`. A scene without moving objects
     /// gives exactly [`Scene::intersect`]'s answer.
     #[inline]
-    pub fn intersect_at(&self, ray: &Ray, mut range: Interval, time: f64) -> Option<(u32, RawHit)> {
-        let mut best = None;
-        for &i in &self.unbounded {
-            if let Some(hit) = self.with_primitive_at(i, time, |p| p.intersect(ray, range)) {
-                range.max = hit.t;
-                best = Some((i, hit));
-            }
-        }
-        let mut raw = None;
-        let object = self.bvh.closest(ray, range, |id, r| {
-            let hit = self.with_primitive_at(id, time, |p| p.intersect(ray, r))?;
-            raw = Some(hit);
-            Some(hit.t)
-        });
-        match (object, raw) {
-            (Some(object), Some(raw)) => Some((object, raw)),
-            _ => best,
-        }
+    pub fn intersect_at(&self, ray: &Ray, range: Interval, time: f64) -> Option<(u32, RawHit)> {
+        self.closest(
+            range,
+            |id, r| self.with_primitive_at(id, time, |p| p.intersect(ray, r)),
+            ray,
+        )
     }
 
     /// Whether anything blocks `ray` within `range` at frame time `time`.
@@ -568,17 +556,33 @@ impl Scene {
 
     /// The closest hit along `ray` with `t` in `range`: the object index and its raw hit.
     #[inline]
-    pub fn intersect(&self, ray: &Ray, mut range: Interval) -> Option<(u32, RawHit)> {
+    pub fn intersect(&self, ray: &Ray, range: Interval) -> Option<(u32, RawHit)> {
+        self.closest(
+            range,
+            |id, r| self.objects[id as usize].primitive.intersect(ray, r),
+            ray,
+        )
+    }
+
+    /// The closest hit of `test(object, range)` over the always-tested objects and the BVH,
+    /// shrinking `range.max` as hits are found.
+    #[inline(always)]
+    fn closest(
+        &self,
+        mut range: Interval,
+        test: impl Fn(u32, Interval) -> Option<RawHit>,
+        ray: &Ray,
+    ) -> Option<(u32, RawHit)> {
         let mut best = None;
         for &i in &self.unbounded {
-            if let Some(hit) = self.objects[i as usize].primitive.intersect(ray, range) {
+            if let Some(hit) = test(i, range) {
                 range.max = hit.t;
                 best = Some((i, hit));
             }
         }
         let mut raw = None;
         let object = self.bvh.closest(ray, range, |id, r| {
-            let hit = self.objects[id as usize].primitive.intersect(ray, r)?;
+            let hit = test(id, r)?;
             raw = Some(hit);
             Some(hit.t)
         });
