@@ -28,6 +28,14 @@ use crate::traits::{Implicit, Intersect, Parametric};
 use glam::{DVec2, DVec3};
 use std::f64::consts::{PI, TAU};
 
+/// Fraction (2⁻⁸) of its operands' magnitude that a difference must keep for the plain-f64 fast
+/// path of [`Sphere::roots`].
+const FAST_PATH_MARGIN: f64 = 1.0 / 256.0;
+
+/// Squared distance, in squared radii, beyond which [`Sphere::roots`] always takes the
+/// compensated path (1024 radii).
+const FAR_RADII: f64 = 1024.0 * 1024.0;
+
 /// A sphere of radius `radius` around `center`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sphere {
@@ -60,6 +68,38 @@ impl Sphere {
     #[inline]
     #[must_use]
     pub fn roots(&self, ray: &Ray) -> Option<(f64, f64)> {
+        // fast path in plain f64, taken only where rounding cannot matter: the discriminant and
+        // c₀ are each at least 2⁻⁸ of the magnitudes they are differences of, so each has a
+        // relative error below 2⁸·ε ≈ 6e-14 (no cancellation); everything else — near-tangent
+        // rays, origins near the surface — takes the compensated path below
+        let f = ray.origin - self.center;
+        let d = ray.dir;
+        let r2 = self.radius * self.radius;
+        let a = d.length_squared();
+        let ff = f.length_squared();
+        let ar2 = a * r2;
+        // the cross product with one rounding per component: f × d cancels component by
+        // component for a small, distant sphere, which a plain cross product would amplify
+        let ww = cross_accurate(f, d).length_squared();
+        let disc = ar2 - ww;
+        let scale = (ar2 + ww) * FAST_PATH_MARGIN;
+        if disc < -scale && a > 0.0 && a.is_finite() {
+            return None; // clearly no real root
+        }
+        let c0 = ff - r2;
+        // (an origin more than 1024 radii away also takes the compensated path: there the
+        // rounding of t along the ray, amplified by |f|/r, dominates the normal)
+        if disc > scale && c0.abs() > (ff + r2) * FAST_PATH_MARGIN && ff < r2 * FAR_RADII && a > 0.0 && a.is_finite() {
+            let b = f.dot(d);
+            let q = -(b + disc.sqrt().copysign(b));
+            let (t0, t1) = (c0 / q, q / a);
+            return Some(if t0 <= t1 { (t0, t1) } else { (t1, t0) });
+        }
+        self.roots_compensated(ray)
+    }
+
+    /// [`Sphere::roots`] with compensated arithmetic throughout.
+    fn roots_compensated(&self, ray: &Ray) -> Option<(f64, f64)> {
         // f = o − c split exactly into f + f_lo (two-sum): an origin close to a huge sphere keeps
         // its height above the surface even where o − c rounds
         let (fx, lx) = two_sum(ray.origin.x, -self.center.x);
