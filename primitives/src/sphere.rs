@@ -28,9 +28,15 @@ use crate::traits::{Implicit, Intersect, Parametric};
 use glam::{DVec2, DVec3};
 use std::f64::consts::{PI, TAU};
 
-/// Fraction (2⁻⁸) of its operands' magnitude that a difference must keep for the plain-f64 fast
-/// path of [`Sphere::roots`].
-const FAST_PATH_MARGIN: f64 = 1.0 / 256.0;
+/// Relative distance from zero (64ε) beyond which the fast path of [`Sphere::roots`] trusts the
+/// sign of its discriminant.
+const SIGN_MARGIN: f64 = 64.0 * f64::EPSILON;
+
+/// Fraction (2⁻⁸) of its operands that `c₀ = |f|² − r²` must keep for the fast path.
+const C0_MARGIN: f64 = 1.0 / 256.0;
+
+/// `ε / 2⁻⁴⁰`: the fast path needs `ε·scale / (√disc·|q|) < 2⁻⁴⁰`.
+const Q_ERROR_MARGIN: f64 = f64::EPSILON * 1_099_511_627_776.0;
 
 /// Squared distance, in squared radii, beyond which [`Sphere::roots`] always takes the
 /// compensated path (1024 radii).
@@ -68,32 +74,38 @@ impl Sphere {
     #[inline]
     #[must_use]
     pub fn roots(&self, ray: &Ray) -> Option<(f64, f64)> {
-        // fast path in plain f64, taken only where rounding cannot matter: the discriminant and
-        // c₀ are each at least 2⁻⁸ of the magnitudes they are differences of, so each has a
-        // relative error below 2⁸·ε ≈ 6e-14 (no cancellation); everything else — near-tangent
-        // rays, origins near the surface — takes the compensated path below
+        // Fast path in plain f64 (with an FMA cross product), taken where its rounding provably
+        // cannot matter, else the compensated path below. With the cross product rounded once per
+        // component, `disc = a·r² − |f × d|²` is within ~4ε·(a·r² + |f × d|²) of exact, so its
+        // sign is certain beyond 64ε of that scale; `q = −(b + sign(b)·√disc)` adds two terms of
+        // one sign, and its relative error, about ε·scale / (2√disc·|q|), is kept below 2⁻⁴⁰;
+        // `c₀ = |f|² − r²` must keep 2⁻⁸ of its operands (the origin is not near the surface), and
+        // the origin must lie within 1024 radii (beyond, the rounding of t along the ray,
+        // amplified by |f|/r, would dominate the normal).
         let f = ray.origin - self.center;
         let d = ray.dir;
         let r2 = self.radius * self.radius;
         let a = d.length_squared();
-        let ff = f.length_squared();
+        if !(a > 0.0 && a.is_finite()) {
+            return self.roots_compensated(ray);
+        }
         let ar2 = a * r2;
-        // the cross product with one rounding per component: f × d cancels component by
-        // component for a small, distant sphere, which a plain cross product would amplify
         let ww = cross_accurate(f, d).length_squared();
         let disc = ar2 - ww;
-        let scale = (ar2 + ww) * FAST_PATH_MARGIN;
-        if disc < -scale && a > 0.0 && a.is_finite() {
-            return None; // clearly no real root
+        let scale = ar2 + ww;
+        if disc < -SIGN_MARGIN * scale {
+            return None; // certainly no real root
         }
+        let ff = f.length_squared();
         let c0 = ff - r2;
-        // (an origin more than 1024 radii away also takes the compensated path: there the
-        // rounding of t along the ray, amplified by |f|/r, dominates the normal)
-        if disc > scale && c0.abs() > (ff + r2) * FAST_PATH_MARGIN && ff < r2 * FAR_RADII && a > 0.0 && a.is_finite() {
+        if disc > SIGN_MARGIN * scale && c0.abs() > (ff + r2) * C0_MARGIN && ff < r2 * FAR_RADII {
             let b = f.dot(d);
-            let q = -(b + disc.sqrt().copysign(b));
-            let (t0, t1) = (c0 / q, q / a);
-            return Some(if t0 <= t1 { (t0, t1) } else { (t1, t0) });
+            let root = disc.sqrt();
+            let q = -(b + root.copysign(b));
+            if scale * Q_ERROR_MARGIN < root * q.abs() {
+                let (t0, t1) = (c0 / q, q / a);
+                return Some(if t0 <= t1 { (t0, t1) } else { (t1, t0) });
+            }
         }
         self.roots_compensated(ray)
     }
