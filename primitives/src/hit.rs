@@ -2,7 +2,7 @@
 //!
 //! Intersection runs in two stages ("cheap first, full once"):
 //!
-//! 1. [`Intersect::intersect`](crate::Intersect::intersect) finds the smallest `t` in the query
+//! 1. [`Intersect::intersect`] finds the smallest `t` in the query
 //!    interval and returns a [`RawHit`]: `t` plus whatever the primitive needs to finish later (a
 //!    face index, barycentric coordinates).
 //! 2. For the closest hit only, [`SurfaceHit::complete`] computes the point and, if asked for in a
