@@ -28,40 +28,40 @@
     reason = "`!(a <= b)` is the kernel's idiom for a comparison that also rejects NaN"
 )]
 
+// infrastructure
 pub mod bounds;
 pub mod bvh;
-pub mod csg;
 pub mod error;
 pub mod hit;
 pub mod math;
-pub mod mesh;
 pub mod offset;
 pub mod ray;
 pub mod root;
 pub mod traits;
 pub mod transformed;
 
+// built-in primitives, one file each
 pub mod cone;
 pub mod cuboid;
 pub mod cylinder;
-pub mod ellipsoid;
-pub mod plane;
-
 pub mod disk;
+pub mod ellipsoid;
+pub mod mesh;
+pub mod plane;
 pub mod polygon;
+pub mod sphere;
 pub mod triangle;
 
-pub mod sphere;
+// implicit combinators
+pub mod csg;
 
 #[cfg(feature = "testing")]
 pub mod testing;
 
 pub use bounds::Aabb;
 pub use bvh::Bvh;
-pub use csg::{Csg, CsgOp, Function, Offset, SmoothUnion};
 pub use error::PrimitiveError;
 pub use hit::{HitRequest, RawHit, SurfaceHit};
-pub use mesh::Mesh;
 pub use ray::{Interval, Ray};
 pub use root::{first_root, RootOptions, RootReport};
 pub use traits::{Implicit, Intersect, Parametric, Primitive, UvDomain};
@@ -70,13 +70,14 @@ pub use transformed::Transformed;
 pub use cone::Cone;
 pub use cuboid::Cuboid;
 pub use cylinder::Cylinder;
-pub use ellipsoid::Ellipsoid;
-pub use plane::Plane;
-
 pub use disk::Disk;
+pub use ellipsoid::Ellipsoid;
+pub use mesh::Mesh;
+pub use plane::Plane;
 pub use polygon::Polygon;
+pub use sphere::Sphere;
 pub use triangle::Triangle;
 
-pub use sphere::Sphere;
+pub use csg::{Csg, CsgOp, Function, Offset, SmoothUnion};
 
 pub use glam;

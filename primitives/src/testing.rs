@@ -78,7 +78,8 @@ fn sample_domain(rng: &mut StdRng, (lo, hi): (f64, f64), window: f64) -> f64 {
     lo + (hi - lo) * rng.random::<f64>()
 }
 
-fn random_unit(rng: &mut StdRng) -> DVec3 {
+/// A uniformly distributed random unit vector (rejection sampling in the unit ball).
+pub fn random_unit(rng: &mut StdRng) -> DVec3 {
     loop {
         let v = DVec3::new(
             rng.random_range(-1.0..1.0),

@@ -16,6 +16,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::sync::Arc;
 use support::{Reference, Stats};
+use zeroset_primitives::testing::random_unit;
 use zeroset_primitives::*;
 
 /// One f32 ulp at 1, relative: 2⁻²³. The aim is "a few f32 ulp" (4 ulp ≈ 4.8e-7 at
@@ -28,20 +29,6 @@ fn f(x: f64) -> f64 {
 
 fn v32(v: DVec3) -> DVec3 {
     DVec3::new(f(v.x), f(v.y), f(v.z))
-}
-
-fn unit(rng: &mut StdRng) -> DVec3 {
-    loop {
-        let v = DVec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
-        let l = v.length();
-        if l > 1e-3 && l <= 1.0 {
-            return v / l;
-        }
-    }
 }
 
 fn log_uniform(rng: &mut StdRng, lo: f64, hi: f64) -> f64 {
@@ -103,14 +90,14 @@ fn sphere_small_and_far() {
     let mut rng = StdRng::seed_from_u64(1);
     let mut stats = Stats::new("sphere r=1e-3 at 1e4..1e5");
     for _ in 0..100_000 {
-        let c = v32(unit(&mut rng) * log_uniform(&mut rng, 1e4, 1e5));
+        let c = v32(random_unit(&mut rng) * log_uniform(&mut rng, 1e4, 1e5));
         let r = f(1e-3);
         let o = v32(DVec3::new(
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
         ));
-        let target = c + unit(&mut rng) * r * 1.2 * rng.random::<f64>().sqrt();
+        let target = c + random_unit(&mut rng) * r * 1.2 * rng.random::<f64>().sqrt();
         let d = v32((target - o).normalize());
         let s = Sphere::new(c, r).unwrap();
         let reference = support::sphere(o, d, c, r, 0.0);
@@ -133,7 +120,7 @@ fn sphere_huge_seen_from_close() {
         let h = log_uniform(&mut rng, 1e-3, 1.0);
         let o = v32(DVec3::new(rng.random_range(-1.0..1.0), h, rng.random_range(-1.0..1.0)));
         // downward-ish directions, including shallow ones
-        let mut d = unit(&mut rng);
+        let mut d = random_unit(&mut rng);
         d.y = -d.y.abs().max(1e-4);
         let d = v32(d);
         let s = Sphere::new(c, r).unwrap();
@@ -151,9 +138,9 @@ fn sphere_grazing_within_1e_6_of_tangency() {
     let mut rng = StdRng::seed_from_u64(3);
     let mut stats = Stats::new("sphere grazing |δ| ≤ 1e-6");
     for _ in 0..100_000 {
-        let c = v32(unit(&mut rng) * rng.random_range(0.0..10.0));
+        let c = v32(random_unit(&mut rng) * rng.random_range(0.0..10.0));
         let r = f(log_uniform(&mut rng, 0.1, 10.0));
-        let d = v32(unit(&mut rng));
+        let d = v32(random_unit(&mut rng));
         let side = d.any_orthonormal_vector();
         let delta = log_uniform(&mut rng, 1e-14, 1e-6) * if rng.random::<bool>() { 1.0 } else { -1.0 };
         let o = v32(c + side * r * (1.0 + delta) - d * rng.random_range(2.0..20.0) * r);
@@ -169,10 +156,10 @@ fn sphere_origin_inside() {
     let mut rng = StdRng::seed_from_u64(4);
     let mut stats = Stats::new("sphere origin inside");
     for _ in 0..50_000 {
-        let c = v32(unit(&mut rng) * rng.random_range(0.0..100.0));
+        let c = v32(random_unit(&mut rng) * rng.random_range(0.0..100.0));
         let r = f(log_uniform(&mut rng, 1e-3, 1e3));
-        let o = v32(c + unit(&mut rng) * r * rng.random::<f64>() * 0.999);
-        let d = v32(unit(&mut rng));
+        let o = v32(c + random_unit(&mut rng) * r * rng.random::<f64>() * 0.999);
+        let d = v32(random_unit(&mut rng));
         let s = Sphere::new(c, r).unwrap();
         let reference = support::sphere(o, d, c, r, 0.0);
         assert!(reference.t.is_some());
@@ -203,12 +190,12 @@ fn ellipsoid_radii_ratio_1e4() {
             1 => DVec3::new(radii.y, radii.z, radii.x),
             _ => DVec3::new(radii.z, radii.x, radii.y),
         };
-        let c = v32(unit(&mut rng) * 100.0);
+        let c = v32(random_unit(&mut rng) * 100.0);
         let e = Ellipsoid::new(c, radii, DQuat::IDENTITY).unwrap();
         // aim at points of (or near) the surface from up to 3·10⁴ away
-        let s = unit(&mut rng) * rng.random_range(0.9..1.05);
+        let s = random_unit(&mut rng) * rng.random_range(0.9..1.05);
         let target = c + radii * s;
-        let o = v32(target + unit(&mut rng) * log_uniform(&mut rng, 1.0, 3e4));
+        let o = v32(target + random_unit(&mut rng) * log_uniform(&mut rng, 1.0, 3e4));
         let d = v32((target - o).normalize());
         let reference = support::ellipsoid(o, d, c, radii, 0.0);
         book(&mut stats, &e, Ray::new(o, d), Interval::POSITIVE, reference, 1e-12);
@@ -225,12 +212,12 @@ fn transformed_sphere_and_box_at_1e5_with_scales_1e_3_to_1e3() {
     let unit_box = Cuboid::new(DVec3::splat(-1.0), DVec3::new(1.0, 2.0, 0.5)).unwrap();
     for _ in 0..60_000 {
         let s = f(log_uniform(&mut rng, 1e-3, 1e3));
-        let translation = v32(unit(&mut rng) * 1e5);
+        let translation = v32(random_unit(&mut rng) * 1e5);
         let m = DAffine3::from_scale_rotation_translation(DVec3::splat(s), DQuat::IDENTITY, translation);
         let ts = Transformed::new(unit_sphere, m).unwrap();
         let tb = Transformed::new(unit_box, m).unwrap();
-        let target = translation + unit(&mut rng) * s * rng.random_range(0.0..1.2);
-        let o = v32(target + unit(&mut rng) * s * log_uniform(&mut rng, 2.0, 1e3));
+        let target = translation + random_unit(&mut rng) * s * rng.random_range(0.0..1.2);
+        let o = v32(target + random_unit(&mut rng) * s * log_uniform(&mut rng, 2.0, 1e3));
         let d = v32((target - o).normalize());
         let ray = Ray::new(o, d);
         let reference = support::sphere(o, d, translation, s, 0.0);
@@ -256,10 +243,10 @@ fn plane_parallel_nearly_parallel_and_in_plane() {
     let mut stats = Stats::new("plane nearly parallel 1e-12..1");
     let mut parallel_hits = 0;
     for _ in 0..60_000 {
-        let n = v32(unit(&mut rng));
+        let n = v32(random_unit(&mut rng));
         let offset = f(rng.random_range(-100.0..100.0));
         let p = Plane::new(n, offset).unwrap();
-        let o = v32(unit(&mut rng) * rng.random_range(0.0..1000.0));
+        let o = v32(random_unit(&mut rng) * rng.random_range(0.0..1000.0));
         // a direction with ⟨d, n⟩ of relative size 1e-12…1
         let tangent = n.any_orthonormal_vector();
         let cos = log_uniform(&mut rng, 1e-12, 1.0) * if rng.random::<bool>() { 1.0 } else { -1.0 };
@@ -445,7 +432,7 @@ fn triangle_mesh_is_watertight_at_shared_edges_and_vertices() {
             // a point of the edge, rounded: on it up to rounding (the hard case)
             a + rng.random::<f64>() * (b - a)
         };
-        let o = v32(center + unit(&mut rng) * rng.random_range(0.0..0.05));
+        let o = v32(center + random_unit(&mut rng) * rng.random_range(0.0..0.05));
         let ray = Ray::new(o, target - o);
         rays += 1;
         let mut ts: Vec<f64> = Vec::new();
@@ -515,7 +502,7 @@ fn box_face_planes_edges_corners_and_signed_zeros() {
     let mut stats = Stats::new("box face planes/edges/corners/±0");
     let mut exact_edges = 0;
     for i in 0..100_000 {
-        let lo = v32(unit(&mut rng) * 10.0);
+        let lo = v32(random_unit(&mut rng) * 10.0);
         let hi = lo
             + v32(DVec3::new(
                 rng.random_range(0.01..5.0),
@@ -531,7 +518,7 @@ fn box_face_planes_edges_corners_and_signed_zeros() {
         };
         // a target on an edge or corner (or a face)
         let target = DVec3::new(pick(&mut rng, 0), pick(&mut rng, 1), pick(&mut rng, 2));
-        let mut o = v32(target + unit(&mut rng) * rng.random_range(0.5..20.0));
+        let mut o = v32(target + random_unit(&mut rng) * rng.random_range(0.5..20.0));
         let mut d = v32(target - o);
         match i % 4 {
             // a zero (±0) component: the origin shares that coordinate with the target, which may
@@ -574,7 +561,7 @@ fn cone_case(
     let mut stats = Stats::new(name);
     for _ in 0..40_000 {
         let scale = f(log_uniform(&mut rng, 1e-2, 1e2));
-        let base = v32(unit(&mut rng) * 10.0);
+        let base = v32(random_unit(&mut rng) * 10.0);
         let (r0, r1, h) = (f(r0 * scale), f(r1 * scale), f(scale * 2.0));
         let prim: Box<dyn Primitive> = if r0 == r1 {
             Box::new(Cylinder::new(base, DVec3::Z, r0, h, capped).unwrap())
@@ -631,7 +618,7 @@ fn cylinder_and_cone_through_the_cap_rim() {
         let a = rng.random_range(0.0..std::f64::consts::TAU);
         let z = if rng.random::<bool>() { 0.0 } else { h };
         let target = DVec3::new(r * a.cos(), r * a.sin(), z) * (1.0 + rng.random_range(-1e-3..1e-3));
-        let o = target + unit(rng) * s * rng.random_range(1.0..10.0);
+        let o = target + random_unit(rng) * s * rng.random_range(1.0..10.0);
         (o, target - o)
     };
     for (name, r0, r1) in [("cylinder through rim", 1.0, 1.0), ("frustum through rim", 1.0, 0.5)] {
@@ -675,7 +662,7 @@ fn cone_through_the_apex_and_parallel_to_the_side() {
         // parallel to a generator: direction (−r·cos a, −r·sin a, h), origin anywhere near
         let a = rng.random_range(0.0..std::f64::consts::TAU);
         let d = DVec3::new(-r * a.cos(), -r * a.sin(), h);
-        let shift = DVec3::new(a.cos(), a.sin(), 0.0) * r * rng.random_range(-0.8..0.8) + unit(rng) * 0.05 * r;
+        let shift = DVec3::new(a.cos(), a.sin(), 0.0) * r * rng.random_range(-0.8..0.8) + random_unit(rng) * 0.05 * r;
         (DVec3::new(r * a.cos(), r * a.sin(), 0.0) + shift - d, d)
     };
     for capped in [true, false] {
@@ -862,8 +849,8 @@ fn root_finder_reports_a_too_small_lipschitz_bound() {
     let before = root::lipschitz_violations();
     let (mut true_hits, mut lost, mut lost_silently, mut flagged) = (0, 0, 0, 0);
     for _ in 0..5_000 {
-        let o = unit(&mut rng) * rng.random_range(1.5..6.0);
-        let d = (unit(&mut rng) * rng.random_range(0.0..1.3) - o).normalize();
+        let o = random_unit(&mut rng) * rng.random_range(1.5..6.0);
+        let d = (random_unit(&mut rng) * rng.random_range(0.0..1.3) - o).normalize();
         let ray = Ray::new(o, d);
         let truth = first_root(&right, &ray, Interval::POSITIVE, &RootOptions::default());
         let report = first_root(&wrong, &ray, Interval::POSITIVE, &RootOptions::default());
@@ -976,7 +963,9 @@ fn recast(prim: &dyn Primitive, rng: &mut StdRng, rays: usize, aim: &dyn Fn(&mut
         }
         // leaving: cos log-uniform in [1e-6, 1]
         let cos = log_uniform(rng, 1e-6, 1.0);
-        let tangent = (unit(rng) - n * n.dot(unit(rng))).cross(n).normalize_or_zero();
+        let tangent = (random_unit(rng) - n * n.dot(random_unit(rng)))
+            .cross(n)
+            .normalize_or_zero();
         let tangent = if tangent == DVec3::ZERO {
             n.any_orthonormal_vector()
         } else {
@@ -1040,7 +1029,7 @@ fn recast_from_hit_points_never_self_hits_and_never_misses_entering() {
                 rng.random_range(-1.0..1.0),
                 rng.random_range(-1.0..1.0),
             );
-            let o = target + unit(rng) * bounds.diagonal_length().max(1e-300) * rng.random_range(0.6..3.0);
+            let o = target + random_unit(rng) * bounds.diagonal_length().max(1e-300) * rng.random_range(0.6..3.0);
             Ray::new(o, (target - o).normalize())
         }
     };

@@ -8,6 +8,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::Arc;
+use zeroset_primitives::testing::random_unit;
 use zeroset_primitives::*;
 
 /// A closed icosphere, subdivided `level` times, radially displaced (so neighbouring faces are not
@@ -76,20 +77,6 @@ fn icosphere(level: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
         })
         .collect();
     (verts, f)
-}
-
-fn random_unit(rng: &mut StdRng) -> DVec3 {
-    loop {
-        let v = DVec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
-        let l = v.length();
-        if l > 0.05 && l <= 1.0 {
-            return v / l;
-        }
-    }
 }
 
 /// ≥ 1M rays aimed exactly at vertices and at points of shared edges of a closed mesh must all hit:
