@@ -8,7 +8,7 @@
 //! child's subtree follows it.
 //!
 //! Build. Triangle boxes and centroids in f32; each split bins centroids into 32 bins per axis
-//! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 2, triangle
+//! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 1, triangle
 //! cost 1), and partitions in place. Subtrees of more than [`PARALLEL_MIN`] triangles are built with
 //! `rayon::join`. A node becomes a leaf when SAH prefers it and it holds at most [`MAX_LEAF`]
 //! triangles; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split at the
@@ -27,7 +27,7 @@ use std::mem::MaybeUninit;
 /// Largest leaf the SAH may choose.
 pub(crate) const MAX_LEAF: usize = 6;
 /// SAH cost of a traversal step (testing a pair of child boxes) relative to one triangle test.
-const TRAVERSAL_COST: f32 = 2.0;
+const TRAVERSAL_COST: f32 = 1.0;
 /// Centroid bins per axis.
 const BINS: usize = 32;
 /// Subtrees with more triangles than this are built in parallel.
