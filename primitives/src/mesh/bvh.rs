@@ -1,5 +1,6 @@
-//! The per-mesh BVH: parallel binned-SAH build, 32-byte f32 nodes stored in sibling pairs (one
-//! 64-byte cache line holds both children a traversal step tests), ordered closest-hit traversal.
+//! The per-mesh BVH: parallel binned-SAH build of a binary tree, kept as 32-byte f32 nodes in
+//! sibling pairs (for nearest-point queries) and collapsed into 4-wide SoA nodes ([`Quad`]) for
+//! ordered closest-hit traversal, four child boxes per SSE slab test.
 //!
 //! Layout. Every interior node refers to a [`Pair`] holding its two children; a node is
 //! `lo[3], first, hi[3], count` (32 bytes): a leaf has `count > 0` triangles starting at `first`
@@ -20,7 +21,7 @@
 //! first; the farther one is pushed with its entry distance and skipped when popped if the
 //! closest hit found meanwhile is nearer.
 
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
 
@@ -38,6 +39,8 @@ const PARALLEL_BINNING_MIN: usize = 65536;
 const MEDIAN_DEPTH: usize = 64;
 /// Traversal stack capacity (`MEDIAN_DEPTH` + log₂ of `u32::MAX` + margin).
 pub(crate) const STACK: usize = 128;
+/// 4-wide traversal stack: at most 3 entries left per level over at most `STACK` levels, plus 4.
+const QUAD_STACK: usize = 3 * STACK + 4;
 
 /// `1 + 2γ₃` in f32 (γₙ = nε/(1 − nε), ε = 2⁻²⁴).
 const EXIT_PAD: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
@@ -116,11 +119,27 @@ enum BuildNode {
     Inner { bounds: Bb, children: Box<[BuildNode; 2]> },
 }
 
-/// The hierarchy; triangles are referred to by their position in leaf order.
+/// A 4-wide node for closest-hit traversal: up to four children's boxes in SoA layout, tested
+/// in one SSE pass per axis. `count[i] = 0` marks an inner child (its quad is `child[i]`),
+/// `count[i] > 0` a leaf of that many triangles from `child[i]`; slots beyond `len` are empty.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+pub(crate) struct Quad {
+    lo: [[f32; 4]; 3],
+    hi: [[f32; 4]; 3],
+    child: [u32; 4],
+    count: [u32; 4],
+    len: u32,
+}
+
+/// The hierarchy; triangles are referred to by their position in leaf order. Closest-hit
+/// traversal uses the 4-wide `quads` (collapsed from the binary tree); nearest-point queries
+/// use the binary `pairs`.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct MeshBvh {
     pub root: Node,
     pub pairs: Vec<Pair>,
+    quads: Vec<Quad>,
 }
 
 #[derive(Clone, Copy)]
@@ -167,7 +186,9 @@ impl MeshBvh {
         let mut bvh = Self {
             root: Node::default(),
             pairs: Vec::with_capacity(tris.len() / 2 + 1),
+            quads: Vec::with_capacity(tris.len() / 4 + 1),
         };
+        bvh.flatten_quad(&collapse(&tree));
         bvh.root = match &tree {
             BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
             BuildNode::Inner { bounds, children } => {
@@ -176,7 +197,31 @@ impl MeshBvh {
             }
         };
         bvh.pairs.shrink_to_fit();
+        bvh.quads.shrink_to_fit();
         bvh
+    }
+
+    fn flatten_quad(&mut self, children: &[&BuildNode]) -> u32 {
+        let index = self.quads.len();
+        self.quads.push(Quad::default());
+        let mut quad = Quad {
+            len: children.len() as u32,
+            ..Quad::default()
+        };
+        for (slot, child) in children.iter().enumerate() {
+            let (bounds, first, count) = match child {
+                BuildNode::Leaf { bounds, start, count } => (bounds, *start, *count),
+                BuildNode::Inner { bounds, .. } => (bounds, self.flatten_quad(&collapse(child)), 0),
+            };
+            for axis in 0..3 {
+                quad.lo[axis][slot] = bounds.lo[axis];
+                quad.hi[axis][slot] = bounds.hi[axis];
+            }
+            quad.child[slot] = first;
+            quad.count[slot] = count;
+        }
+        self.quads[index] = quad;
+        index as u32
     }
 
     fn flatten(&mut self, children: &[BuildNode; 2]) -> u32 {
@@ -197,11 +242,15 @@ impl MeshBvh {
 
     /// Bytes held by the nodes.
     pub fn memory_bytes(&self) -> usize {
-        self.pairs.capacity() * std::mem::size_of::<Pair>() + std::mem::size_of::<Node>()
+        self.pairs.capacity() * std::mem::size_of::<Pair>()
+            + self.quads.capacity() * std::mem::size_of::<Quad>()
+            + std::mem::size_of::<Node>()
     }
 
-    /// Closest-hit traversal: `leaf(first, count, t_max)` tests a leaf's triangles and returns
-    /// the new, smaller `t_max` if it found a hit. `t_min`/`t_max` bound the search.
+    /// Closest-hit traversal over the 4-wide nodes: `leaf(first, count, t_max)` tests a leaf's
+    /// triangles and returns the new, smaller `t_max` if it found a hit. `t_min`/`t_max` bound
+    /// the search. The children a node's ray enters are pushed farthest first, so the nearest is
+    /// visited next; an entry popped after the closest hit moved nearer than it is skipped.
     #[inline]
     pub fn traverse(
         &self,
@@ -210,52 +259,51 @@ impl MeshBvh {
         mut t_max: f32,
         mut leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
     ) {
-        if ray.entry(&self.root, t_min, t_max).is_none() {
+        if self.quads.is_empty() {
             return;
         }
         // uninitialised: only entries below `top`, written before, are ever read
-        let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; STACK];
+        let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; QUAD_STACK];
         let mut top = 0usize;
-        let mut node = &self.root;
+        let mut quad = 0usize;
         loop {
-            if node.count > 0 {
-                if let Some(t) = leaf(node.first, node.count, t_max) {
-                    t_max = t;
-                }
-            } else {
-                let pair = &self.pairs[node.first as usize].0;
-                let ea = ray.entry(&pair[0], t_min, t_max);
-                let eb = ray.entry(&pair[1], t_min, t_max);
-                match (ea, eb) {
-                    (Some(a), Some(b)) => {
-                        let (near, far, t_far) = if a <= b { (0, 1, b) } else { (1, 0, a) };
-                        stack[top].write((node.first, far, t_far));
-                        top += 1;
-                        node = &pair[near];
-                        continue;
+            let q = &self.quads[quad];
+            let entries = ray.entry4(q, t_min, t_max);
+            // push the entered children, farthest first
+            let mut order = [(0f32, 0usize); 4];
+            let mut n = 0;
+            for (slot, entry) in entries.iter().enumerate().take(q.len as usize) {
+                if let Some(t) = *entry {
+                    let mut k = n;
+                    while k > 0 && order[k - 1].0 < t {
+                        order[k] = order[k - 1];
+                        k -= 1;
                     }
-                    (Some(_), None) => {
-                        node = &pair[0];
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = &pair[1];
-                        continue;
-                    }
-                    (None, None) => {}
+                    order[k] = (t, slot);
+                    n += 1;
                 }
             }
-            // pop the next node the ray enters before the closest hit so far
+            for &(t, slot) in &order[..n] {
+                stack[top].write((q.child[slot], q.count[slot], t));
+                top += 1;
+            }
+            // pop until an inner node to open
             loop {
                 if top == 0 {
                     return;
                 }
                 top -= 1;
                 // SAFETY: `stack[top]` was written by the push that raised `top` above it
-                let (pair, slot, entry) = unsafe { stack[top].assume_init() };
-                if entry <= t_max {
-                    node = &self.pairs[pair as usize].0[slot as usize];
+                let (child, count, entry) = unsafe { stack[top].assume_init() };
+                if entry > t_max {
+                    continue;
+                }
+                if count == 0 {
+                    quad = child as usize;
                     break;
+                }
+                if let Some(t) = leaf(child, count, t_max) {
+                    t_max = t;
                 }
             }
         }
@@ -315,15 +363,52 @@ impl SlabRay {
         }
     }
 
-    /// Entry distance into `node` within `[t0, t1]`, or `None`.
+    /// Entry distances into the four boxes of `quad` within `[t0, t1]` (per axis `(lo − o)·inv` and
+    /// `(hi − o)·inv`, nearest exit enlarged by `1 + 2γ₃`; four boxes per SSE operation).
     #[inline(always)]
-    pub fn entry(&self, node: &Node, t0: f32, t1: f32) -> Option<f32> {
-        let a = (Vec3A::from_array(node.lo) - self.origin) * self.inv;
-        let b = (Vec3A::from_array(node.hi) - self.origin) * self.inv;
-        let near = a.min(b).max_element().max(t0);
-        let far = (a.max(b).min_element() * EXIT_PAD).min(t1);
-        (near <= far).then_some(near)
+    fn entry4(&self, quad: &Quad, t0: f32, t1: f32) -> [Option<f32>; 4] {
+        let mut near = Vec4::splat(t0);
+        let mut far = Vec4::splat(f32::INFINITY);
+        for axis in 0..3 {
+            let o = Vec4::splat(self.origin[axis]);
+            let inv = Vec4::splat(self.inv[axis]);
+            let a = (Vec4::from_array(quad.lo[axis]) - o) * inv;
+            let b = (Vec4::from_array(quad.hi[axis]) - o) * inv;
+            near = near.max(a.min(b));
+            far = far.min(a.max(b));
+        }
+        let far = (far * EXIT_PAD).min(Vec4::splat(t1));
+        let hit = near.cmple(far).bitmask();
+        let near = near.to_array();
+        [0, 1, 2, 3].map(|i| (hit & (1 << i) != 0).then_some(near[i]))
     }
+}
+
+/// Up to four nodes standing for `node` in a 4-wide tree: its children, with the inner one of
+/// largest surface area replaced by its own two children while fewer than four (a leaf root is
+/// its own single child).
+fn collapse(node: &BuildNode) -> Vec<&BuildNode> {
+    let mut out: Vec<&BuildNode> = match node {
+        BuildNode::Leaf { .. } => return vec![node],
+        BuildNode::Inner { children, .. } => children.iter().collect(),
+    };
+    while out.len() < 4 {
+        let widest = out
+            .iter()
+            .enumerate()
+            .filter_map(|(i, n)| match n {
+                BuildNode::Inner { bounds, .. } => Some((i, bounds.half_area())),
+                BuildNode::Leaf { .. } => None,
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((i, _)) = widest else { break };
+        let BuildNode::Inner { children, .. } = out[i] else {
+            unreachable!("chosen among inner nodes")
+        };
+        out[i] = &children[0];
+        out.push(&children[1]);
+    }
+    out
 }
 
 fn build_node(tris: &mut [BuildTri], start: u32, bounds: Bb, depth: usize) -> BuildNode {
