@@ -191,6 +191,14 @@ fn mesh_hits_equal_separate_triangles() {
         .iter()
         .map(|t| Mesh::new(t.iter().map(|&i| v[i as usize]).collect(), vec![[0, 1, 2]], None).unwrap())
         .collect();
+    // and as the kernel's own `Triangle` primitives (f64, watertight), one per face
+    let triangles: Vec<Triangle> = (0..f.len())
+        .map(|i| {
+            let [a, b, c] = mesh.triangle(i);
+            Triangle::new(a, b, c).unwrap()
+        })
+        .collect();
+    let mut max_rel_triangle = 0f64;
     let corners = |i: usize| mesh.triangle(i);
     let mut rng = StdRng::seed_from_u64(11);
     let (mut hits, mut misses, mut other_triangle) = (0, 0, 0);
@@ -211,6 +219,18 @@ fn mesh_hits_equal_separate_triangles() {
                 reference(&ray, a, b, c).map(|t| (i, t))
             })
             .min_by(|a, b| a.1.total_cmp(&b.1));
+        let tri = triangles
+            .iter()
+            .filter_map(|p| p.intersect(&ray, Interval::POSITIVE))
+            .min_by(|a, b| a.t.total_cmp(&b.t));
+        assert_eq!(
+            m.is_some(),
+            tri.is_some(),
+            "mesh and Triangle primitives disagree on {ray:?}"
+        );
+        if let (Some(m), Some(tri)) = (m, tri) {
+            max_rel_triangle = max_rel_triangle.max((m.t - tri.t).abs() / tri.t);
+        }
         match (m, s, r) {
             (None, None, None) => misses += 1,
             (Some(m), Some((si, sh)), Some((_, rt))) => {
@@ -236,6 +256,8 @@ fn mesh_hits_equal_separate_triangles() {
     );
     assert!(hits > 5_000 && misses > 1_000);
     assert!(max_rel < 1e-5 && max_rel_ref < 1e-5);
+    eprintln!("mesh vs Triangle primitives: max relative t difference {max_rel_triangle:e}");
+    assert!(max_rel_triangle < 1e-12, "{max_rel_triangle:e}");
 }
 
 /// Φ is ≈ 0 at hits, and negative just inside / positive just outside along the normal.
