@@ -1,18 +1,20 @@
-//! A bounding volume hierarchy over bounded items (a scene's objects, a mesh's triangles): binned SAH build, flattened
-//! depth-first nodes, ordered closest-hit traversal.
+//! The scene's bounding volume hierarchy over its bounded objects: binned-SAH build of a binary
+//! tree, collapsed into 4-wide nodes for ordered closest-hit traversal. (Meshes have their own,
+//! `crate::mesh`.)
 //!
 //! Build: each split evaluates 16 bins of centroids per axis with the surface-area heuristic
 //! (traversal cost 1, intersection cost 1 per item) and makes a leaf when no split is cheaper
-//! or at most 2 items remain. Nodes are stored depth-first: an interior node's first child follows
-//! it, the second is at `second_child`.
+//! or at most 2 items remain; below depth 28 it splits at the median. Binary nodes are stored
+//! depth-first (an interior node's first child follows it, the second is at `offset`), then each
+//! interior node is collapsed with its widest descendants into a 4-wide node (`Quad`).
 //!
-//! Traversal: nodes hold f32 bounds (32 bytes a node) rounded outward; a slab test per child
-//! with precomputed reciprocal directions, conservative against the f64 ray (see `SlabRay`), the
-//! nearer child first, farther ones skipped once the closest hit so far is nearer than their
-//! entry. Primitives are then tested in f64, so the f32 traversal never changes a hit.
+//! Traversal: quads hold their children's f32 bounds (rounded outward) in SoA layout, tested
+//! four at a time with SSE, conservative against the f64 ray (see `SlabRay`); entered children
+//! are pushed farthest first and skipped when popped if the closest hit is already nearer.
+//! Primitives are then tested in f64, so the f32 traversal never changes a hit.
 
 use crate::{Aabb, Interval, Ray};
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 use std::mem::MaybeUninit;
 
 /// A node: bounds in f32, rounded outward from the f64 bounds so they still contain them.
@@ -63,6 +65,21 @@ impl Node {
 pub struct Bvh {
     nodes: Vec<Node>,
     items: Vec<u32>,
+    /// The binary tree collapsed into 4-wide nodes, which the traversal walks.
+    quads: Vec<Quad>,
+}
+
+/// A 4-wide node: up to four children's boxes in SoA layout, tested in one SSE pass per axis.
+/// `count[i] = 0` marks an inner child (its quad is `child[i]`), `count[i] > 0` a leaf of that
+/// many items from `items[child[i]]`; slots beyond `len` are empty.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+struct Quad {
+    lo: [[f32; 4]; 3],
+    hi: [[f32; 4]; 3],
+    child: [u32; 4],
+    count: [u32; 4],
+    len: u32,
 }
 
 const BINS: usize = 16;
@@ -71,6 +88,8 @@ const MAX_LEAF: usize = 2;
 /// deep and the traversal stack (`STACK` entries) cannot overflow for any `n < 2³²`.
 const MEDIAN_DEPTH: usize = 28;
 const STACK: usize = MEDIAN_DEPTH + 33;
+/// 4-wide traversal stack: at most 3 entries left per level over at most `STACK` levels, plus 4.
+const QUAD_STACK: usize = 3 * STACK + 4;
 
 struct BuildItem {
     bounds: Aabb,
@@ -111,8 +130,29 @@ impl SlabRay {
         Self { origin, inv, pad }
     }
 
+    /// Entry distances into the four boxes of `quad` within `[t0, t1]`: [`SlabRay::entry`]'s
+    /// arithmetic, four boxes per SSE operation.
+    #[inline(always)]
+    fn entry4(&self, quad: &Quad, t0: f32, t1: f32) -> [Option<f32>; 4] {
+        let mut near = Vec4::splat(t0);
+        let mut far = Vec4::splat(t1);
+        for axis in 0..3 {
+            let o = Vec4::splat(self.origin[axis]);
+            let inv = Vec4::splat(self.inv[axis]);
+            let pad = Vec4::splat(self.pad[axis]);
+            let a = (Vec4::from_array(quad.lo[axis]) - o) * inv;
+            let b = (Vec4::from_array(quad.hi[axis]) - o) * inv;
+            near = near.max(a.min(b) - pad);
+            far = far.min(a.max(b) * EXIT_PAD + pad);
+        }
+        let hit = near.cmple(far).bitmask();
+        let near = near.to_array();
+        [0, 1, 2, 3].map(|i| (hit & (1 << i) != 0).then_some(near[i]))
+    }
+
     /// Entry distance into the node within `[t0, t1]`, or `None`.
     #[inline(always)]
+    #[cfg(test)]
     fn entry(&self, node: &Node, t0: f32, t1: f32) -> Option<f32> {
         let lo = (Vec3A::from_array(node.bounds[0]) - self.origin) * self.inv;
         let hi = (Vec3A::from_array(node.bounds[1]) - self.origin) * self.inv;
@@ -139,11 +179,66 @@ impl Bvh {
         let mut bvh = Self {
             nodes: Vec::with_capacity(2 * items.len()),
             items: Vec::with_capacity(items.len()),
+            quads: Vec::with_capacity(items.len() / 2 + 1),
         };
         if !work.is_empty() {
             bvh.build_node(&mut work, 0);
+            let children = bvh.collapse(0);
+            bvh.flatten_quad(&children);
         }
         bvh
+    }
+
+    fn half_area(&self, node: usize) -> f32 {
+        let [lo, hi] = self.nodes[node].bounds;
+        let e = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+    }
+
+    /// Up to four nodes standing for `node` in the 4-wide tree: its children, with the inner
+    /// one of largest surface area replaced by its own two children while fewer than four (a
+    /// leaf stands for itself).
+    fn collapse(&self, node: usize) -> Vec<usize> {
+        if self.nodes[node].count > 0 {
+            return vec![node];
+        }
+        let mut out = vec![node + 1, self.nodes[node].offset as usize];
+        while out.len() < 4 {
+            let widest = out
+                .iter()
+                .enumerate()
+                .filter(|(_, &n)| self.nodes[n].count == 0)
+                .max_by(|a, b| self.half_area(*a.1).total_cmp(&self.half_area(*b.1)));
+            let Some((i, &n)) = widest else { break };
+            out[i] = n + 1;
+            out.push(self.nodes[n].offset as usize);
+        }
+        out
+    }
+
+    fn flatten_quad(&mut self, children: &[usize]) -> u32 {
+        let index = self.quads.len();
+        self.quads.push(Quad::default());
+        let mut quad = Quad {
+            len: children.len() as u32,
+            ..Quad::default()
+        };
+        for (slot, &child) in children.iter().enumerate() {
+            let node = self.nodes[child];
+            for axis in 0..3 {
+                quad.lo[axis][slot] = node.bounds[0][axis];
+                quad.hi[axis][slot] = node.bounds[1][axis];
+            }
+            if node.count > 0 {
+                quad.child[slot] = node.offset;
+                quad.count[slot] = node.count;
+            } else {
+                let grandchildren = self.collapse(child);
+                quad.child[slot] = self.flatten_quad(&grandchildren);
+            }
+        }
+        self.quads[index] = quad;
+        index as u32
     }
 
     /// Number of nodes (0 for an empty hierarchy).
@@ -179,9 +274,10 @@ impl Bvh {
         node_index
     }
 
-    /// Closest-hit traversal: calls `test(id, range)` for items whose node the ray enters within
-    /// `range`; `test` returns the hit parameter if it found one inside the range, which then
-    /// becomes the new `range.max`. Returns the id of the item that set the final `range.max`.
+    /// Closest-hit traversal: calls `test(id, range)` for items whose node the ray enters
+    /// within `range`; `test` returns the hit parameter if it found one inside the range, which
+    /// then becomes the new `range.max`. Returns the id of the item that set the final
+    /// `range.max`. Walks the 4-wide nodes, entered children pushed farthest first.
     #[inline]
     pub fn closest(
         &self,
@@ -189,7 +285,7 @@ impl Bvh {
         mut range: Interval,
         mut test: impl FnMut(u32, Interval) -> Option<f64>,
     ) -> Option<u32> {
-        if self.nodes.is_empty() {
+        if self.quads.is_empty() {
             return None;
         }
         let slab = SlabRay::new(ray);
@@ -197,55 +293,50 @@ impl Bvh {
         let mut t1 = round_up(range.max);
         let mut best = None;
         // uninitialised: only entries below `top`, written before, are ever read
-        let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK];
+        let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; QUAD_STACK];
         let mut top = 0usize;
-        let mut current = 0usize;
-        slab.entry(&self.nodes[0], t0, t1)?;
+        let mut quad = 0usize;
         loop {
-            let node = &self.nodes[current];
-            if node.count > 0 {
-                let start = node.offset as usize;
-                for &id in &self.items[start..start + node.count as usize] {
-                    if let Some(t) = test(id, range) {
-                        range.max = t;
-                        t1 = round_up(t);
-                        best = Some(id);
+            let q = &self.quads[quad];
+            let entries = slab.entry4(q, t0, t1);
+            let mut order = [(0f32, 0usize); 4];
+            let mut n = 0;
+            for (slot, entry) in entries.iter().enumerate().take(q.len as usize) {
+                if let Some(t) = *entry {
+                    let mut k = n;
+                    while k > 0 && order[k - 1].0 < t {
+                        order[k] = order[k - 1];
+                        k -= 1;
                     }
-                }
-            } else {
-                let (a, b) = (current + 1, node.offset as usize);
-                let ta = slab.entry(&self.nodes[a], t0, t1);
-                let tb = slab.entry(&self.nodes[b], t0, t1);
-                match (ta, tb) {
-                    (Some(ta), Some(tb)) => {
-                        let (near, far, t_far) = if ta <= tb { (a, b, tb) } else { (b, a, ta) };
-                        stack[top].write((far as u32, t_far));
-                        top += 1;
-                        current = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        current = a;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        current = b;
-                        continue;
-                    }
-                    (None, None) => {}
+                    order[k] = (t, slot);
+                    n += 1;
                 }
             }
-            // pop the next node that the ray enters before the closest hit so far
+            for &(t, slot) in &order[..n] {
+                stack[top].write((q.child[slot], q.count[slot], t));
+                top += 1;
+            }
             loop {
                 if top == 0 {
                     return best;
                 }
                 top -= 1;
                 // SAFETY: `stack[top]` was written by the push that raised `top` above it
-                let (candidate, entry) = unsafe { stack[top].assume_init() };
-                if entry <= t1 {
-                    current = candidate as usize;
+                let (child, count, entry) = unsafe { stack[top].assume_init() };
+                if entry > t1 {
+                    continue;
+                }
+                if count == 0 {
+                    quad = child as usize;
                     break;
+                }
+                let start = child as usize;
+                for &id in &self.items[start..start + count as usize] {
+                    if let Some(t) = test(id, range) {
+                        range.max = t;
+                        t1 = round_up(t);
+                        best = Some(id);
+                    }
                 }
             }
         }
@@ -332,6 +423,54 @@ mod tests {
     use super::*;
     use glam::DVec3;
     use rand::{Rng, SeedableRng};
+
+    /// The 4-wide slab test gives exactly the single-box test's answer for each of its boxes.
+    #[test]
+    fn four_wide_entry_equals_single_entries() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        for _ in 0..20_000 {
+            let mut quad = Quad {
+                len: 4,
+                ..Quad::default()
+            };
+            let mut nodes = Vec::new();
+            for slot in 0..4 {
+                let c = DVec3::new(
+                    rng.random_range(-9.0..9.0),
+                    rng.random_range(-9.0..9.0),
+                    rng.random_range(-9.0..9.0),
+                );
+                let h = DVec3::new(
+                    rng.random_range(0.0..2.0),
+                    rng.random_range(0.0..2.0),
+                    rng.random_range(0.0..2.0),
+                );
+                let node = Node::new(&Aabb::new(c - h, c + h));
+                for axis in 0..3 {
+                    quad.lo[axis][slot] = node.bounds[0][axis];
+                    quad.hi[axis][slot] = node.bounds[1][axis];
+                }
+                nodes.push(node);
+            }
+            let mut d = DVec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            if rng.random_bool(0.2) {
+                d.y = 0.0;
+            }
+            let o = DVec3::new(
+                rng.random_range(-1e3..1e3),
+                rng.random_range(-20.0..20.0),
+                rng.random_range(-20.0..20.0),
+            );
+            let slab = SlabRay::new(&Ray::new(o, d));
+            let (t0, t1) = (rng.random_range(0.0..1.0), rng.random_range(1.0..2e3));
+            let single: Vec<_> = nodes.iter().map(|n| slab.entry(n, t0, t1)).collect();
+            assert_eq!(slab.entry4(&quad, t0, t1).to_vec(), single);
+        }
+    }
 
     /// The BVH finds the same closest box as testing every box, on random boxes and rays.
     #[test]
