@@ -69,27 +69,91 @@ pub struct Bvh {
     quads: Vec<Quad>,
 }
 
-/// A 4-wide node: up to four children's boxes in SoA layout, tested in one SSE pass per axis.
-/// `count[i] = 0` marks an inner child (its quad is `child[i]`), `count[i] > 0` a leaf of that
-/// many items from `items[child[i]]`; slots beyond `len` are empty.
+/// A 4-wide node, shared by the scene's and the meshes' hierarchies: up to four children's f32
+/// boxes in SoA layout, tested in one SSE pass per axis. `count[i] = 0` marks an inner child
+/// (its quad is `child[i]`), `count[i] > 0` a leaf of that many items (or triangles) from
+/// `child[i]`; slots beyond `len` are empty.
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C, align(64))]
-struct Quad {
-    lo: [[f32; 4]; 3],
-    hi: [[f32; 4]; 3],
-    child: [u32; 4],
-    count: [u32; 4],
-    len: u32,
+pub(crate) struct Quad {
+    pub lo: [[f32; 4]; 3],
+    pub hi: [[f32; 4]; 3],
+    pub child: [u32; 4],
+    pub count: [u32; 4],
+    pub len: u32,
+}
+
+/// Traversal stack capacity: at most 3 entries left per level over at most 128 levels (both
+/// hierarchies split at the median below a fixed depth, which bounds theirs under 128), plus 4.
+const QUAD_STACK: usize = 3 * 128 + 4;
+
+/// Ordered closest-hit walk over 4-wide nodes, starting at `quads[0]`: `entry4(quad, t_max)`
+/// gives the entry distance of each child the ray enters before `t_max`; entered children are
+/// pushed farthest first, and one popped after the closest hit moved nearer than its entry is
+/// skipped. `leaf(first, count, t_max)` tests a leaf and returns the new, smaller `t_max` if it
+/// found a hit.
+#[inline(always)]
+pub(crate) fn traverse_quads(
+    quads: &[Quad],
+    mut t_max: f32,
+    entry4: impl Fn(&Quad, f32) -> [Option<f32>; 4],
+    mut leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
+) {
+    if quads.is_empty() {
+        return;
+    }
+    // uninitialised: only entries below `top`, written before, are ever read
+    let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; QUAD_STACK];
+    let mut top = 0usize;
+    let mut quad = 0usize;
+    loop {
+        let q = &quads[quad];
+        let entries = entry4(q, t_max);
+        // sort the entered children farthest first (insertion into at most four)
+        let mut order = [(0f32, 0usize); 4];
+        let mut n = 0;
+        for (slot, entry) in entries.iter().enumerate().take(q.len as usize) {
+            if let Some(t) = *entry {
+                let mut k = n;
+                while k > 0 && order[k - 1].0 < t {
+                    order[k] = order[k - 1];
+                    k -= 1;
+                }
+                order[k] = (t, slot);
+                n += 1;
+            }
+        }
+        for &(t, slot) in &order[..n] {
+            stack[top].write((q.child[slot], q.count[slot], t));
+            top += 1;
+        }
+        // pop until an inner node to open
+        loop {
+            if top == 0 {
+                return;
+            }
+            top -= 1;
+            // SAFETY: `stack[top]` was written by the push that raised `top` above it
+            let (child, count, entry) = unsafe { stack[top].assume_init() };
+            if entry > t_max {
+                continue;
+            }
+            if count == 0 {
+                quad = child as usize;
+                break;
+            }
+            if let Some(t) = leaf(child, count, t_max) {
+                t_max = t;
+            }
+        }
+    }
 }
 
 const BINS: usize = 16;
 const MAX_LEAF: usize = 2;
 /// Below this depth nodes split at the median, so the tree is at most `MEDIAN_DEPTH + log₂ n`
-/// deep and the traversal stack (`STACK` entries) cannot overflow for any `n < 2³²`.
+/// deep (under the 128 levels `QUAD_STACK` is sized for) for any `n < 2³²`.
 const MEDIAN_DEPTH: usize = 28;
-const STACK: usize = MEDIAN_DEPTH + 33;
-/// 4-wide traversal stack: at most 3 entries left per level over at most `STACK` levels, plus 4.
-const QUAD_STACK: usize = 3 * STACK + 4;
 
 struct BuildItem {
     bounds: Aabb,
@@ -285,61 +349,26 @@ impl Bvh {
         mut range: Interval,
         mut test: impl FnMut(u32, Interval) -> Option<f64>,
     ) -> Option<u32> {
-        if self.quads.is_empty() {
-            return None;
-        }
         let slab = SlabRay::new(ray);
         let t0 = round_down(range.min);
-        let mut t1 = round_up(range.max);
         let mut best = None;
-        // uninitialised: only entries below `top`, written before, are ever read
-        let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; QUAD_STACK];
-        let mut top = 0usize;
-        let mut quad = 0usize;
-        loop {
-            let q = &self.quads[quad];
-            let entries = slab.entry4(q, t0, t1);
-            let mut order = [(0f32, 0usize); 4];
-            let mut n = 0;
-            for (slot, entry) in entries.iter().enumerate().take(q.len as usize) {
-                if let Some(t) = *entry {
-                    let mut k = n;
-                    while k > 0 && order[k - 1].0 < t {
-                        order[k] = order[k - 1];
-                        k -= 1;
-                    }
-                    order[k] = (t, slot);
-                    n += 1;
-                }
-            }
-            for &(t, slot) in &order[..n] {
-                stack[top].write((q.child[slot], q.count[slot], t));
-                top += 1;
-            }
-            loop {
-                if top == 0 {
-                    return best;
-                }
-                top -= 1;
-                // SAFETY: `stack[top]` was written by the push that raised `top` above it
-                let (child, count, entry) = unsafe { stack[top].assume_init() };
-                if entry > t1 {
-                    continue;
-                }
-                if count == 0 {
-                    quad = child as usize;
-                    break;
-                }
-                let start = child as usize;
-                for &id in &self.items[start..start + count as usize] {
+        traverse_quads(
+            &self.quads,
+            round_up(range.max),
+            |q, t1| slab.entry4(q, t0, t1),
+            |first, count, _| {
+                let mut found = None;
+                for &id in &self.items[first as usize..(first + count) as usize] {
                     if let Some(t) = test(id, range) {
                         range.max = t;
-                        t1 = round_up(t);
                         best = Some(id);
+                        found = Some(round_up(t));
                     }
                 }
-            }
-        }
+                found
+            },
+        );
+        best
     }
 }
 

@@ -21,9 +21,9 @@
 //! first; the farther one is pushed with its entry distance and skipped when popped if the
 //! closest hit found meanwhile is nearer.
 
+use crate::bvh::{traverse_quads, Quad};
 use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
-use std::mem::MaybeUninit;
 
 /// Largest leaf the SAH may choose.
 pub(crate) const MAX_LEAF: usize = 6;
@@ -37,10 +37,6 @@ const PARALLEL_MIN: usize = 4096;
 const PARALLEL_BINNING_MIN: usize = 65536;
 /// From this depth on, nodes are split at the median.
 const MEDIAN_DEPTH: usize = 64;
-/// Traversal stack capacity (`MEDIAN_DEPTH` + log₂ of `u32::MAX` + margin).
-pub(crate) const STACK: usize = 128;
-/// 4-wide traversal stack: at most 3 entries left per level over at most `STACK` levels, plus 4.
-const QUAD_STACK: usize = 3 * STACK + 4;
 
 /// `1 + 2γ₃` in f32 (γₙ = nε/(1 − nε), ε = 2⁻²⁴).
 const EXIT_PAD: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
@@ -117,19 +113,6 @@ pub(crate) struct BuildTri {
 enum BuildNode {
     Leaf { bounds: Bb, start: u32, count: u32 },
     Inner { bounds: Bb, children: Box<[BuildNode; 2]> },
-}
-
-/// A 4-wide node for closest-hit traversal: up to four children's boxes in SoA layout, tested
-/// in one SSE pass per axis. `count[i] = 0` marks an inner child (its quad is `child[i]`),
-/// `count[i] > 0` a leaf of that many triangles from `child[i]`; slots beyond `len` are empty.
-#[derive(Clone, Copy, Debug, Default)]
-#[repr(C, align(64))]
-pub(crate) struct Quad {
-    lo: [[f32; 4]; 3],
-    hi: [[f32; 4]; 3],
-    child: [u32; 4],
-    count: [u32; 4],
-    len: u32,
 }
 
 /// The hierarchy; triangles are referred to by their position in leaf order. Closest-hit
@@ -252,61 +235,8 @@ impl MeshBvh {
     /// the search. The children a node's ray enters are pushed farthest first, so the nearest is
     /// visited next; an entry popped after the closest hit moved nearer than it is skipped.
     #[inline]
-    pub fn traverse(
-        &self,
-        ray: &SlabRay,
-        t_min: f32,
-        mut t_max: f32,
-        mut leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
-    ) {
-        if self.quads.is_empty() {
-            return;
-        }
-        // uninitialised: only entries below `top`, written before, are ever read
-        let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; QUAD_STACK];
-        let mut top = 0usize;
-        let mut quad = 0usize;
-        loop {
-            let q = &self.quads[quad];
-            let entries = ray.entry4(q, t_min, t_max);
-            // push the entered children, farthest first
-            let mut order = [(0f32, 0usize); 4];
-            let mut n = 0;
-            for (slot, entry) in entries.iter().enumerate().take(q.len as usize) {
-                if let Some(t) = *entry {
-                    let mut k = n;
-                    while k > 0 && order[k - 1].0 < t {
-                        order[k] = order[k - 1];
-                        k -= 1;
-                    }
-                    order[k] = (t, slot);
-                    n += 1;
-                }
-            }
-            for &(t, slot) in &order[..n] {
-                stack[top].write((q.child[slot], q.count[slot], t));
-                top += 1;
-            }
-            // pop until an inner node to open
-            loop {
-                if top == 0 {
-                    return;
-                }
-                top -= 1;
-                // SAFETY: `stack[top]` was written by the push that raised `top` above it
-                let (child, count, entry) = unsafe { stack[top].assume_init() };
-                if entry > t_max {
-                    continue;
-                }
-                if count == 0 {
-                    quad = child as usize;
-                    break;
-                }
-                if let Some(t) = leaf(child, count, t_max) {
-                    t_max = t;
-                }
-            }
-        }
+    pub fn traverse(&self, ray: &SlabRay, t_min: f32, t_max: f32, leaf: impl FnMut(u32, u32, f32) -> Option<f32>) {
+        traverse_quads(&self.quads, t_max, |q, t1| ray.entry4(q, t_min, t1), leaf);
     }
 
     /// Depth-first visit for nearest-point queries: `visit_box(node) -> lower bound` (or `None` to
