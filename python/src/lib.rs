@@ -1,0 +1,669 @@
+//! `zeroset._zeroset`: the compiled core of the Python package.
+//!
+//! Everything here forwards to the `zeroset` crate — scene loading, the query path of
+//! `zeroset query`, the renderer and the EXR writer — and only converts numpy arrays in and out.
+//! The GIL is released while rays are traced (rayon runs inside). The pure-Python layer
+//! (`zeroset/__init__.py`) shapes arrays, keeps the recipe a scene was built from (for pickling
+//! to Dask workers) and documents the conventions.
+
+use glam::{DAffine3, DMat3, DMat4, DVec3};
+use numpy::ndarray::{Array2, Array3};
+use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use zeroset::aov::Aov;
+use zeroset::camera::Camera;
+use zeroset::output::exr::{write_exr as write_frame, ExrHeader};
+use zeroset::primitives::{Interval, Mesh, Primitive, Ray, Transformed};
+use zeroset::query::{first_hits, QueryRay};
+use zeroset::registry::BuildContext;
+use zeroset::render::{render as render_frame, Frame, RenderOptions, Window};
+use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
+
+create_exception!(
+    _zeroset,
+    ZerosetError,
+    PyValueError,
+    "A scene, ray batch or argument zeroset cannot accept; the message names the place."
+);
+
+fn error(message: impl std::fmt::Display) -> PyErr {
+    ZerosetError::new_err(message.to_string())
+}
+
+/// A loaded scene plus the objects added from Python since its hierarchy was last built.
+struct State {
+    scene: Scene,
+    /// Objects added with `add_*` that the hierarchy does not hold yet.
+    pending: Vec<Object>,
+}
+
+/// The Python object: the state behind a mutex, taken only with the GIL released (so a thread
+/// waiting for it never blocks one that holds it), which lets Dask's threads share one scene.
+#[pyclass(name = "_Scene", module = "zeroset._zeroset", frozen)]
+struct PyScene {
+    state: Mutex<State>,
+}
+
+impl PyScene {
+    fn new(scene: Scene) -> Self {
+        Self {
+            state: Mutex::new(State { scene, pending: Vec::new() }),
+        }
+    }
+
+    /// Runs `f` on the state with the GIL released.
+    fn with<T: Send>(&self, py: Python<'_>, f: impl FnOnce(&mut State) -> T + Send) -> T {
+        py.detach(|| f(&mut self.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner)))
+    }
+}
+
+/// `(N, 3)` rows of a contiguous float64 array as vectors.
+fn vectors(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Vec<DVec3>> {
+    let shape = array.shape();
+    if shape[1] != 3 {
+        return Err(error(format!("{what}: expected shape (N, 3), got {shape:?}")));
+    }
+    Ok(array.as_array().rows().into_iter().map(|r| DVec3::new(r[0], r[1], r[2])).collect())
+}
+
+/// `world_from_local` from a 4×4 row-major affine matrix (last row `0 0 0 1`).
+fn affine(m: [[f64; 4]; 4], what: &str) -> PyResult<DAffine3> {
+    if m.iter().flatten().any(|x| !x.is_finite()) {
+        return Err(error(format!("{what}: every entry must be finite")));
+    }
+    if m[3] != [0.0, 0.0, 0.0, 1.0] {
+        return Err(error(format!("{what}: the last row must be 0 0 0 1 (an affine map), got {:?}", m[3])));
+    }
+    let linear = DMat3::from_cols(
+        DVec3::new(m[0][0], m[1][0], m[2][0]),
+        DVec3::new(m[0][1], m[1][1], m[2][1]),
+        DVec3::new(m[0][2], m[1][2], m[2][2]),
+    );
+    Ok(DAffine3::from_mat3_translation(linear, DVec3::new(m[0][3], m[1][3], m[2][3])))
+}
+
+impl State {
+    /// The scene with every pending object in its hierarchy.
+    fn built(&mut self) -> &Scene {
+        if !self.pending.is_empty() {
+            let placeholder = Scene::assemble(
+                self.scene.camera.clone(),
+                Vec::new(),
+                Vec::new(),
+                DVec3::ZERO,
+                DVec3::ZERO,
+                self.scene.outputs.clone(),
+            );
+            let old = std::mem::replace(&mut self.scene, placeholder);
+            let mut objects = old.objects;
+            objects.append(&mut self.pending);
+            let mut scene = Scene::assemble(
+                old.camera,
+                objects,
+                old.lights,
+                old.ambient,
+                old.background,
+                old.outputs,
+            );
+            scene.sampling = old.sampling;
+            scene.source = old.source;
+            self.scene = scene;
+        }
+        &self.scene
+    }
+
+    fn push(&mut self, primitive: Arc<dyn Primitive>, matrix: Option<[[f64; 4]; 4]>, name: Option<String>, material: zeroset::scene::Material) -> PyResult<usize> {
+        let primitive: Arc<dyn Primitive> = match matrix {
+            None => primitive,
+            Some(m) => Arc::new(
+                Transformed::new(primitive, affine(m, "transform")?).map_err(|e| error(format!("transform: {}", e.problem)))?,
+            ),
+        };
+        self.pending.push(Object {
+            name,
+            primitive,
+            motion: None,
+            material,
+        });
+        Ok(self.scene.objects.len() + self.pending.len() - 1)
+    }
+}
+
+fn query_rays(
+    origins: &PyReadonlyArray2<'_, f64>,
+    directions: &PyReadonlyArray2<'_, f64>,
+    tmin: &PyReadonlyArray1<'_, f64>,
+    tmax: &PyReadonlyArray1<'_, f64>,
+) -> PyResult<Vec<QueryRay>> {
+    let o = vectors(origins, "origins")?;
+    let d = vectors(directions, "directions")?;
+    if o.len() != d.len() {
+        return Err(error(format!("origins and directions differ in length: {} and {}", o.len(), d.len())));
+    }
+    let (tmin, tmax) = (tmin.to_vec()?, tmax.to_vec()?);
+    let (tmin, tmax) = (tmin.as_slice(), tmax.as_slice());
+    let range_at = |i: usize, s: &[f64]| s[if s.len() == 1 { 0 } else { i }];
+    for (name, s) in [("tmin", tmin), ("tmax", tmax)] {
+        if s.len() != 1 && s.len() != o.len() {
+            return Err(error(format!("{name}: expected a scalar or {} values, got {}", o.len(), s.len())));
+        }
+    }
+    let mut rays = Vec::with_capacity(o.len());
+    for i in 0..o.len() {
+        let (origin, dir) = (o[i], d[i]);
+        let (lo, hi) = (range_at(i, tmin), range_at(i, tmax));
+        if !origin.is_finite() || !dir.is_finite() {
+            return Err(error(format!("ray {i}: origin and direction must be finite")));
+        }
+        if dir == DVec3::ZERO {
+            return Err(error(format!("ray {i}: direction must be non-zero")));
+        }
+        if lo.is_nan() || hi.is_nan() || lo > hi {
+            return Err(error(format!("ray {i}: invalid t range [{lo}, {hi}]")));
+        }
+        rays.push(QueryRay {
+            ray: Ray::new(origin, dir),
+            range: Interval::new(lo, hi),
+        });
+    }
+    Ok(rays)
+}
+
+fn parse_aovs(names: Option<Vec<String>>, scene: &Scene) -> PyResult<Vec<Aov>> {
+    use clap::ValueEnum;
+    match names {
+        None => Ok(scene.outputs.aovs.clone()),
+        Some(names) => names
+            .iter()
+            .map(|n| {
+                Aov::from_str(n, true).map_err(|_| {
+                    let known: Vec<String> = Aov::value_variants()
+                        .iter()
+                        .filter_map(|a| a.to_possible_value().map(|v| v.get_name().to_string()))
+                        .collect();
+                    error(format!("unknown AOV `{n}`; known: {}", known.join(", ")))
+                })
+            })
+            .collect(),
+    }
+}
+
+/// Splits a frame's interleaved samples into one `(H, W)` or `(H, W, C)` float32 array per AOV.
+fn frame_arrays<'py>(py: Python<'py>, frame: &Frame) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    let (w, h) = (frame.window.width() as usize, frame.window.height() as usize);
+    let stride = frame.channel_count();
+    let mut offset = 0;
+    for aov in &frame.aovs {
+        let c = aov.channels().len();
+        let mut data = Vec::with_capacity(w * h * c);
+        for pixel in frame.samples.chunks_exact(stride) {
+            data.extend_from_slice(&pixel[offset..offset + c]);
+        }
+        offset += c;
+        let name = format!("{aov:?}");
+        if c == 1 {
+            let a = Array2::from_shape_vec((h, w), data).map_err(error)?;
+            out.set_item(name, a.into_pyarray(py))?;
+        } else {
+            let a = Array3::from_shape_vec((h, w, c), data).map_err(error)?;
+            out.set_item(name, a.into_pyarray(py))?;
+        }
+    }
+    Ok(out)
+}
+
+#[pymethods]
+impl PyScene {
+    #[staticmethod]
+    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let scene = py.detach(|| Scene::load(&path)).map_err(error)?;
+        Ok(Self::new(scene))
+    }
+
+    #[staticmethod]
+    #[pyo3(signature = (text, path = "<string>".to_string(), base_dir = None))]
+    fn from_ron(py: Python<'_>, text: String, path: String, base_dir: Option<PathBuf>) -> PyResult<Self> {
+        let context = BuildContext::new(base_dir.unwrap_or_default());
+        let scene = py.detach(|| Scene::from_ron_in(&text, &path, &context)).map_err(error)?;
+        Ok(Self::new(scene))
+    }
+
+    /// Adds one object written as a scene file's object entry, e.g.
+    /// `(shape: Sphere(radius: 1), name: "ball")`; returns its object id.
+    #[pyo3(signature = (object_ron, matrix = None, base_dir = None))]
+    fn add_object(&self, py: Python<'_>, object_ron: &str, matrix: Option<[[f64; 4]; 4]>, base_dir: Option<PathBuf>) -> PyResult<usize> {
+        const PREFIX: &str = "Scene(camera: (eye: (0, 0, 1)), objects: [";
+        let text = format!("{PREFIX}{object_ron}])");
+        let mut desc: SceneDesc = ron_options().from_str(&text).map_err(|e| {
+            let mut column = e.span.start.col;
+            if e.span.start.line == 1 {
+                column = column.saturating_sub(PREFIX.chars().count());
+            }
+            error(format!("<object>:{}:{column}: {}", e.span.start.line, e.code))
+        })?;
+        let context = BuildContext::new(base_dir.unwrap_or_default());
+        self.with(py, |state| {
+            desc.outputs = state.scene.outputs.clone();
+            let index = state.scene.objects.len() + state.pending.len();
+            let built = Scene::from_desc(desc, &context).map_err(|(location, message)| {
+                let location = location.replacen("objects[0]", &format!("objects[{index}]"), 1);
+                error(format!("<object>: {location}: {message}"))
+            })?;
+            let object = built.objects.into_iter().next().ok_or_else(|| error("no object given"))?;
+            state.push(object.primitive, matrix, object.name, object.material)
+        })
+    }
+
+    /// Adds a triangle mesh from `(N, 3)` float32 vertices and `(M, 3)` uint32 triangles.
+    #[pyo3(signature = (vertices, triangles, matrix = None, name = None))]
+    fn add_mesh(
+        &self,
+        py: Python<'_>,
+        vertices: PyReadonlyArray2<'_, f32>,
+        triangles: PyReadonlyArray2<'_, u32>,
+        matrix: Option<[[f64; 4]; 4]>,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        if vertices.shape()[1] != 3 || triangles.shape()[1] != 3 {
+            return Err(error(format!(
+                "add_mesh: expected vertices (N, 3) and triangles (M, 3), got {:?} and {:?}",
+                vertices.shape(),
+                triangles.shape()
+            )));
+        }
+        let v: Vec<[f32; 3]> = vertices.as_array().rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
+        let t: Vec<[u32; 3]> = triangles.as_array().rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
+        self.with(py, |state| {
+            let mesh = Mesh::new(v, t, None).map_err(|e| error(format!("add_mesh: field `{}`: {}", e.field, e.problem)))?;
+            state.push(Arc::new(mesh), matrix, name, zeroset::scene::Material::default())
+        })
+    }
+
+    /// Number of objects.
+    fn object_count(&self, py: Python<'_>) -> usize {
+        self.with(py, |state| state.scene.objects.len() + state.pending.len())
+    }
+
+    /// Object names (`None` where unnamed), by object id.
+    fn object_names(&self, py: Python<'_>) -> Vec<Option<String>> {
+        self.with(py, |state| state.scene.objects.iter().chain(&state.pending).map(|o| o.name.clone()).collect())
+    }
+
+    /// First hits: the arrays of `zeroset query` (see `zeroset.Scene.cast_rays`).
+    fn cast_rays<'py>(
+        &self,
+        py: Python<'py>,
+        origins: PyReadonlyArray2<'py, f64>,
+        directions: PyReadonlyArray2<'py, f64>,
+        tmin: PyReadonlyArray1<'py, f64>,
+        tmax: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let rays = query_rays(&origins, &directions, &tmin, &tmax)?;
+        let n = rays.len();
+        let (t, point, normal, object, uv, feature) = self.with(py, |state| {
+            let hits = first_hits(state.built(), &rays);
+            let mut t = vec![f64::INFINITY; n];
+            let mut point = vec![0.0; 3 * n];
+            let mut normal = vec![0.0; 3 * n];
+            let mut object = vec![-1i32; n];
+            let mut uv = vec![0.0; 2 * n];
+            let mut feature = vec![-1i64; n];
+            for (i, hit) in hits.iter().enumerate() {
+                if let Some((id, h)) = hit {
+                    t[i] = h.t;
+                    point[3 * i..3 * i + 3].copy_from_slice(&h.point.to_array());
+                    normal[3 * i..3 * i + 3].copy_from_slice(&h.normal.unwrap_or_default().to_array());
+                    object[i] = *id as i32;
+                    if let Some(p) = h.uv {
+                        uv[2 * i..2 * i + 2].copy_from_slice(&p.to_array());
+                    }
+                    feature[i] = i64::from(h.feature);
+                }
+            }
+            (t, point, normal, object, uv, feature)
+        });
+        let out = PyDict::new(py);
+        let hit: Vec<bool> = object.iter().map(|&o| o >= 0).collect();
+        out.set_item("t", PyArray1::from_vec(py, t))?;
+        out.set_item("hit", PyArray1::from_vec(py, hit))?;
+        out.set_item("point", PyArray1::from_vec(py, point).reshape([n, 3])?)?;
+        out.set_item("normal", PyArray1::from_vec(py, normal).reshape([n, 3])?)?;
+        out.set_item("object_id", PyArray1::from_vec(py, object))?;
+        out.set_item("uv", PyArray1::from_vec(py, uv).reshape([n, 2])?)?;
+        out.set_item("primitive_id", PyArray1::from_vec(py, feature))?;
+        Ok(out)
+    }
+
+    /// Whether anything is hit within each ray's range.
+    fn test_occlusions<'py>(
+        &self,
+        py: Python<'py>,
+        origins: PyReadonlyArray2<'py, f64>,
+        directions: PyReadonlyArray2<'py, f64>,
+        tmin: PyReadonlyArray1<'py, f64>,
+        tmax: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let rays = query_rays(&origins, &directions, &tmin, &tmax)?;
+        let blocked: Vec<bool> = self.with(py, |state| {
+            let scene = state.built();
+            rays.par_iter().map(|q| scene.occluded(&q.ray, q.range)).collect()
+        });
+        Ok(PyArray1::from_vec(py, blocked))
+    }
+
+    /// Number of distinct surface crossings within each ray's range (odd: the origin is inside a
+    /// closed surface). Crossings at the same `t` (a ray through a shared mesh edge) count once.
+    fn count_intersections<'py>(
+        &self,
+        py: Python<'py>,
+        origins: PyReadonlyArray2<'py, f64>,
+        directions: PyReadonlyArray2<'py, f64>,
+        tmin: PyReadonlyArray1<'py, f64>,
+        tmax: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray1<i64>>> {
+        let rays = query_rays(&origins, &directions, &tmin, &tmax)?;
+        let counts: Vec<i64> = self.with(py, |state| {
+            let scene = state.built();
+            rays.par_iter()
+                .map(|q| {
+                    let mut range = q.range;
+                    let mut count = 0;
+                    while let Some((_, hit)) = scene.intersect(&q.ray, range) {
+                        count += 1;
+                        if hit.t >= range.max {
+                            break;
+                        }
+                        range.min = hit.t.next_up();
+                    }
+                    count
+                })
+                .collect()
+        });
+        Ok(PyArray1::from_vec(py, counts))
+    }
+
+    /// Renders the scene's camera (see `zeroset.Scene.render`).
+    #[pyo3(signature = (aovs = None, width = None, height = None, crop = None, spp = None, depth_miss = f32::INFINITY, view = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        aovs: Option<Vec<String>>,
+        width: Option<u32>,
+        height: Option<u32>,
+        crop: Option<(u32, u32, u32, u32)>,
+        spp: Option<u32>,
+        depth_miss: f32,
+        view: Option<([f64; 3], [f64; 3], [f64; 3], f64)>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        if depth_miss.is_nan() {
+            return Err(error("depth_miss must be a number or ±inf, not NaN"));
+        }
+        if spp == Some(0) {
+            return Err(error("spp must be at least 1"));
+        }
+        let frame = self.with(py, |state| -> PyResult<Frame> {
+            state.built();
+            let scene = &mut state.scene;
+            let aovs = parse_aovs(aovs, scene)?;
+            let base = match view {
+                None => scene.camera.clone(),
+                Some((eye, look_at, up, vfov_deg)) => {
+                    let eye = DVec3::from_array(eye);
+                    Camera::new(
+                        eye,
+                        DVec3::from_array(look_at) - eye,
+                        DVec3::from_array(up),
+                        vfov_deg,
+                        scene.camera.width,
+                        scene.camera.height,
+                    )
+                    .map_err(|e| error(format!("view: {e}")))?
+                }
+            };
+            let camera = base
+                .with_resolution(width.unwrap_or(scene.camera.width), height.unwrap_or(scene.camera.height))
+                .map_err(|e| error(format!("width/height: {e}")))?;
+            let crop = match crop {
+                None => None,
+                Some((x0, y0, x1, y1)) => {
+                    if x0 >= x1 || y0 >= y1 || x1 > camera.width || y1 > camera.height {
+                        return Err(error(format!(
+                            "crop ({x0}, {y0}, {x1}, {y1}): need x0 < x1 ≤ {} and y0 < y1 ≤ {}",
+                            camera.width, camera.height
+                        )));
+                    }
+                    Some(Window { x0, y0, x1, y1 })
+                }
+            };
+            // the scene's own camera and spp come back after this render (the lock is held)
+            let saved_camera = std::mem::replace(&mut scene.camera, camera);
+            let saved_spp = scene.sampling.spp;
+            if let Some(spp) = spp {
+                scene.sampling.spp = spp;
+            }
+            let options = RenderOptions {
+                aovs,
+                crop,
+                depth_miss,
+                progress: false,
+            };
+            let frame = render_frame(scene, &options);
+            scene.camera = saved_camera;
+            scene.sampling.spp = saved_spp;
+            Ok(frame)
+        })?;
+        frame_arrays(py, &frame)
+    }
+
+    /// The camera: pose, field of view, resolution and its matrices (see `zeroset.Camera`).
+    fn camera<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.with(py, |state| state.scene.camera.clone());
+        let out = PyDict::new(py);
+        out.set_item("eye", c.eye.to_array())?;
+        out.set_item("forward", c.forward.to_array())?;
+        out.set_item("right", c.right.to_array())?;
+        out.set_item("up", c.up.to_array())?;
+        out.set_item("tan_half_vfov", c.tan_half_vfov)?;
+        out.set_item("width", c.width)?;
+        out.set_item("height", c.height)?;
+        out.set_item("world_to_camera_gl", rows(&c.world_to_camera()))?;
+        // OpenCV: +x right, +y down, +z forward; pixel (u, v)'s centre at the integer point (u, v)
+        let f = f64::from(c.height) / (2.0 * c.tan_half_vfov);
+        let k = [
+            [f, 0.0, f64::from(c.width) / 2.0 - 0.5],
+            [0.0, f, f64::from(c.height) / 2.0 - 0.5],
+            [0.0, 0.0, 1.0],
+        ];
+        out.set_item("intrinsics", k)?;
+        let r = [c.right, -c.up, c.forward];
+        let mut w2c = [[0.0; 4]; 4];
+        for (row, axis) in w2c.iter_mut().zip(r) {
+            *row = [axis.x, axis.y, axis.z, -axis.dot(c.eye)];
+        }
+        w2c[3] = [0.0, 0.0, 0.0, 1.0];
+        out.set_item("world_to_camera", w2c)?;
+        Ok(out)
+    }
+}
+
+/// A 4×4 matrix as row-major nested arrays.
+fn rows(m: &DMat4) -> [[f64; 4]; 4] {
+    let t = m.transpose();
+    [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array(), t.w_axis.to_array()]
+}
+
+/// Pixel-centre rays of an OpenCV pinhole camera (see `zeroset.rays_pinhole`).
+#[pyfunction]
+fn rays_pinhole<'py>(
+    py: Python<'py>,
+    intrinsics: [[f64; 3]; 3],
+    extrinsics: [[f64; 4]; 4],
+    width: u32,
+    height: u32,
+) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    let [[fx, skew, cx], [zero, fy, cy], last] = intrinsics;
+    if !(fx.is_finite() && fy.is_finite() && fx > 0.0 && fy > 0.0 && cx.is_finite() && cy.is_finite() && skew.is_finite()) || zero != 0.0 || last != [0.0, 0.0, 1.0] {
+        return Err(error(format!(
+            "intrinsics: expected [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with finite fx, fy > 0, got {intrinsics:?}"
+        )));
+    }
+    if width == 0 || height == 0 {
+        return Err(error("width and height must be at least 1"));
+    }
+    let camera_from_world = affine(extrinsics, "extrinsics")?;
+    if camera_from_world.matrix3.determinant() == 0.0 {
+        return Err(error("extrinsics: the 3×3 part is singular"));
+    }
+    let world_from_camera = camera_from_world.inverse();
+    let eye = world_from_camera.translation;
+    let n = width as usize * height as usize;
+    let (origins, directions) = py.detach(|| {
+        let mut origins = Vec::with_capacity(3 * n);
+        let mut directions = Vec::with_capacity(3 * n);
+        for v in 0..height {
+            // OpenCV pixel coordinates: pixel (u, v)'s centre is the integer point (u, v)
+            let y = (f64::from(v) - cy) / fy;
+            for u in 0..width {
+                let x = (f64::from(u) - cx - skew * y) / fx;
+                let d = world_from_camera.transform_vector3(DVec3::new(x, y, 1.0)).normalize();
+                origins.extend_from_slice(&eye.to_array());
+                directions.extend_from_slice(&d.to_array());
+            }
+        }
+        (origins, directions)
+    });
+    Ok((PyArray1::from_vec(py, origins), PyArray1::from_vec(py, directions)))
+}
+
+/// Writes AOV arrays (keyed by AOV name, `(H, W)` or `(H, W, C)` float32) as zeroset's EXR.
+#[pyfunction]
+#[pyo3(signature = (path, arrays, world_to_camera = None, scene_file = String::new(), depth_miss = f32::INFINITY))]
+fn write_exr(
+    py: Python<'_>,
+    path: PathBuf,
+    arrays: Vec<(String, PyReadonlyArray1<'_, f32>, (usize, usize, usize))>,
+    world_to_camera: Option<[[f64; 4]; 4]>,
+    scene_file: String,
+    depth_miss: f32,
+) -> PyResult<()> {
+    use clap::ValueEnum;
+    let Some((_, _, (h, w, _))) = arrays.first() else {
+        return Err(error("write_exr: no arrays given"));
+    };
+    let (h, w) = (*h, *w);
+    let mut aovs = Vec::new();
+    let mut planes = Vec::new();
+    for (name, data, (ah, aw, c)) in &arrays {
+        let aov = Aov::from_str(name, true).map_err(|_| error(format!("write_exr: `{name}` is not an AOV name")))?;
+        if (*ah, *aw) != (h, w) || *c != aov.channels().len() {
+            return Err(error(format!(
+                "write_exr: `{name}` has shape ({ah}, {aw}, {c}); expected ({h}, {w}, {})",
+                aov.channels().len()
+            )));
+        }
+        aovs.push(aov);
+        planes.push(data.to_vec()?);
+    }
+    let stride: usize = aovs.iter().map(|a| a.channels().len()).sum();
+    let mut samples = Vec::with_capacity(w * h * stride);
+    for p in 0..w * h {
+        for (aov, plane) in aovs.iter().zip(&planes) {
+            let c = aov.channels().len();
+            samples.extend_from_slice(&plane[p * c..p * c + c]);
+        }
+    }
+    let frame = Frame {
+        width: w as u32,
+        height: h as u32,
+        window: Window {
+            x0: 0,
+            y0: 0,
+            x1: w as u32,
+            y1: h as u32,
+        },
+        aovs,
+        samples,
+        elapsed: std::time::Duration::ZERO,
+        spp: 1,
+    };
+    let w2c = match world_to_camera {
+        None => DMat4::IDENTITY,
+        Some(m) => DMat4::from_cols_array_2d(&m).transpose(),
+    };
+    let header = ExrHeader {
+        world_to_camera: w2c,
+        world_to_ndc: DMat4::IDENTITY,
+        scene_file,
+        depth_miss,
+    };
+    py.detach(|| write_frame(&frame, &path, &header))
+        .map_err(|e| PyOSError::new_err(format!("writing {}: {e}", path.display())))
+}
+
+/// Reads every channel of an EXR's first layer: `(channels, header)` where `channels` maps channel
+/// names to `(H, W)` float32 arrays over the data window.
+#[pyfunction]
+fn read_exr<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyDict>)> {
+    use exr::prelude::*;
+    let image = py
+        .detach(|| read_all_flat_layers_from_file(&path))
+        .map_err(|e| PyOSError::new_err(format!("reading {}: {e}", Path::new(&path).display())))?;
+    let layer = image
+        .layer_data
+        .first()
+        .ok_or_else(|| error(format!("{}: no layers", path.display())))?;
+    let (w, h) = (layer.size.0, layer.size.1);
+    let channels = PyDict::new(py);
+    for channel in &layer.channel_data.list {
+        let values: Vec<f32> = channel.sample_data.values_as_f32().collect();
+        let a = Array2::from_shape_vec((h, w), values).map_err(error)?;
+        channels.set_item(channel.name.to_string(), a.into_pyarray(py))?;
+    }
+    let header = PyDict::new(py);
+    let display = image.attributes.display_window;
+    header.set_item("display_window", (display.position.0, display.position.1, display.size.0, display.size.1))?;
+    let position = layer.attributes.layer_position;
+    header.set_item("data_window", (position.0, position.1, w, h))?;
+    if let Some(m) = layer.attributes.world_to_camera {
+        header.set_item("worldToCamera", m.to_vec())?;
+    }
+    if let Some(m) = layer.attributes.world_to_normalized_device {
+        header.set_item("worldToNDC", m.to_vec())?;
+    }
+    for (name, value) in &layer.attributes.other {
+        if let exr::meta::attribute::AttributeValue::Text(t) = value {
+            header.set_item(name.to_string(), t.to_string())?;
+        }
+    }
+    Ok((channels, header))
+}
+
+/// `{AOV name: [EXR channel names]}` for every AOV the renderer knows.
+#[pyfunction]
+fn aov_channels(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    use clap::ValueEnum;
+    let out = PyDict::new(py);
+    for aov in Aov::value_variants() {
+        out.set_item(format!("{aov:?}"), aov.channels().to_vec())?;
+    }
+    Ok(out)
+}
+
+#[pymodule]
+fn _zeroset(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyScene>()?;
+    m.add_function(wrap_pyfunction!(rays_pinhole, m)?)?;
+    m.add_function(wrap_pyfunction!(write_exr, m)?)?;
+    m.add_function(wrap_pyfunction!(read_exr, m)?)?;
+    m.add_function(wrap_pyfunction!(aov_channels, m)?)?;
+    m.add("ZerosetError", m.py().get_type::<ZerosetError>())?;
+    Ok(())
+}

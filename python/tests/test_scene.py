@@ -1,0 +1,263 @@
+"""The Python API against independent references: `zeroset query` and `zeroset render` output
+(the same rays through the CLI), closed forms in float64, and every error path."""
+
+import math
+import pickle
+import subprocess
+
+import numpy as np
+import pytest
+
+import zeroset
+
+SPHERE_SCENE = """Scene(
+    camera: (eye: (0, 0, -6), look_at: (0, 0, 0), width: 48, height: 32),
+    objects: [
+        (name: "ball", shape: Sphere(center: (0.25, -0.5, 1), radius: 1.5)),
+        (name: "crate", shape: Box(min: (1, 1, 0), max: (2, 2, 1))),
+    ],
+)"""
+
+
+def random_rays(n, seed=1):
+    rng = np.random.default_rng(seed)
+    origins = rng.uniform(-4, 4, (n, 3))
+    targets = rng.uniform(-1.5, 1.5, (n, 3))
+    return origins, targets - origins
+
+
+def test_cast_rays_equals_zeroset_query(cli, tmp_path, repo):
+    scene_path = repo / "scenes" / "default.ron"
+    scene = zeroset.Scene.load(scene_path)
+    origins, directions = random_rays(2000)
+    rays_csv = tmp_path / "rays.csv"
+    np.savetxt(rays_csv, np.hstack([origins, directions]), delimiter=",", fmt="%.17g")
+    hits_csv = tmp_path / "hits.csv"
+    subprocess.run([cli, "query", str(scene_path), "--rays", str(rays_csv), "-o", str(hits_csv)], check=True,
+                   capture_output=True)
+    lines = hits_csv.read_text().splitlines()
+    assert lines[0].startswith("hit,t,px,py,pz,nx,ny,nz,id")
+    header = lines[0].split(",")
+    rows = [dict(zip(header, line.split(","))) for line in lines[1:]]
+    assert len(rows) == len(origins)
+    got = scene.cast_rays(origins, directions)
+    assert got["hit"].sum() > 500, "the rays should hit the scene often"
+    for i, row in enumerate(rows):
+        assert bool(int(row["hit"])) == bool(got["hit"][i])
+        if got["hit"][i]:
+            assert float(row["t"]) == got["t"][i]
+            assert [float(row[k]) for k in ("px", "py", "pz")] == got["point"][i].tolist()
+            assert [float(row[k]) for k in ("nx", "ny", "nz")] == got["normal"][i].tolist()
+            assert int(row["id"]) == got["object_id"][i]
+        else:
+            assert got["t"][i] == math.inf and got["object_id"][i] == -1
+
+
+def test_cast_rays_sphere_closed_form():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    rng = np.random.default_rng(7)
+    centre = np.array([0.25, -0.5, 1.0])
+    origins = rng.uniform(-6, 6, (5000, 3)).astype(np.float32)  # float32 input accepted
+    targets = centre + rng.normal(size=(5000, 3)) * 0.8
+    directions = targets - origins
+    got = scene.cast_rays(origins, directions, tmax=1e9)
+    # float64 closed form of the same rays: |o + t d - c|² = r²
+    o = origins.astype(np.float64)
+    oc = o - centre
+    a = np.einsum("ij,ij->i", directions, directions)
+    b = np.einsum("ij,ij->i", oc, directions)
+    c = np.einsum("ij,ij->i", oc, oc) - 1.5 ** 2
+    disc = b * b - a * c
+    t_near = (-b - np.sqrt(np.maximum(disc, 0))) / a
+    t_far = (-b + np.sqrt(np.maximum(disc, 0))) / a
+    t_ref = np.where(t_near >= 0, t_near, t_far)
+    on_sphere = got["object_id"] == 0
+    assert on_sphere.sum() > 3000
+    np.testing.assert_allclose(got["t"][on_sphere], t_ref[on_sphere], rtol=1e-12)
+    p = o[on_sphere] + got["t"][on_sphere, None] * directions[on_sphere]
+    np.testing.assert_allclose(got["normal"][on_sphere], (p - centre) / 1.5, atol=1e-9)
+    np.testing.assert_allclose(got["point"][on_sphere], p, atol=1e-9)
+
+
+def test_leading_dimensions_and_broadcast():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    origins = np.zeros((4, 5, 3)) + [0.25, -0.5, -6.0]
+    got = scene.cast_rays(origins, [0.0, 0.0, 1.0])
+    assert got["t"].shape == (4, 5)
+    assert got["point"].shape == (4, 5, 3)
+    assert got["uv"].shape == (4, 5, 2)
+    np.testing.assert_array_equal(got["t"], np.full((4, 5), 7.0 - 1.5))
+    per_ray_tmax = np.full((4, 5), 5.0)
+    assert not scene.cast_rays(origins, [0.0, 0.0, 1.0], tmax=per_ray_tmax)["hit"].any()
+
+
+def test_occlusion_and_intersection_counts():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    inside = np.array([[0.25, -0.5, 1.0], [0.5, -0.5, 1.0]])
+    outside = np.array([[0.25, -0.5, -6.0], [0.25, -0.5, -3.0]])
+    d = np.array([[0.0, 0.0, 1.0]] * 2)
+    np.testing.assert_array_equal(scene.count_intersections(inside, d), [1, 1])
+    np.testing.assert_array_equal(scene.count_intersections(outside, d), [2, 2])
+    np.testing.assert_array_equal(scene.test_occlusions(outside, d, tmax=[4.0, 3.0]), [False, True])
+
+
+def closed_icosahedron():
+    p = (1 + 5 ** 0.5) / 2
+    v = np.array([[-1, p, 0], [1, p, 0], [-1, -p, 0], [1, -p, 0], [0, -1, p], [0, 1, p],
+                  [0, -1, -p], [0, 1, -p], [p, 0, -1], [p, 0, 1], [-p, 0, -1], [-p, 0, 1]], dtype=np.float64)
+    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
+                  [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
+                  [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
+    return v, f
+
+
+def test_mesh_in_code_inside_test_and_primitive_ids():
+    scene = zeroset.Scene.empty()
+    v, f = closed_icosahedron()
+    mesh_id = scene.add_mesh(v, f, name="ico")
+    assert mesh_id == 0 and scene.object_names == ["ico"]
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-0.7, 0.7, (500, 3))  # inside the inscribed sphere (radius ≈ 1.51)
+    dirs = rng.normal(size=(500, 3))
+    counts = scene.count_intersections(points, dirs)
+    np.testing.assert_array_equal(counts, 1)
+    far = points * 0 + [0.0, 0.0, 10.0]
+    hits = scene.cast_rays(far, -far)
+    assert hits["hit"].all()
+    # the face hit is the one whose plane is at the reported t: check with float64 geometry
+    for i in range(5):
+        a, b, c = v[f[hits["primitive_id"][i]]]
+        n = np.cross(b - a, c - a)
+        assert abs(np.dot(hits["point"][i] - a, n)) < 1e-6 * np.linalg.norm(n)
+
+
+def test_add_with_keywords_and_transform():
+    scene = zeroset.Scene.empty()
+    moved = np.eye(4)
+    moved[:3, 3] = [0, 0, 3]
+    scene.add("Sphere", radius=1.0, name="a", transform=moved)
+    scene.add("Box(min: (-1, -1, -1), max: (1, 1, 1))", transform=np.diag([2.0, 1.0, 1.0, 1.0]))
+    got = scene.cast_rays([[0, 0, -10], [0, 0, 10], [-10, 0, 0]], [[0, 0, 1], [0, 0, -1], [1, 0, 0]])
+    np.testing.assert_array_equal(got["object_id"], [1, 0, 1])
+    np.testing.assert_allclose(got["t"], [9.0, 6.0, 8.0], rtol=0, atol=1e-12)
+
+
+def test_render_equals_the_exr_of_the_cli(cli, tmp_path, repo):
+    scene_path = repo / "scenes" / "default.ron"
+    aovs = ["Beauty", "Alpha", "Depth", "Normal", "Position", "PrimitiveId", "Uv"]
+    subprocess.run([cli, "render", str(scene_path), "-o", str(tmp_path / "f.exr"), "--width", "96", "--height",
+                    "54", "--no-previews", "--aov", ",".join(aovs)], check=True, capture_output=True)
+    from_cli, header = zeroset.read_exr(tmp_path / "f.exr")
+    got = zeroset.Scene.load(scene_path).render(aovs=aovs, width=96, height=54)
+    assert set(got) == set(aovs)
+    for name in aovs:
+        assert got[name].dtype == np.float32
+        np.testing.assert_array_equal(got[name], from_cli[name], err_msg=name)
+    assert header["display_window"] == (0, 0, 96, 54)
+    # write_exr round trip keeps every value, +inf depth included
+    zeroset.write_exr(tmp_path / "again.exr", got)
+    back, _ = zeroset.read_exr(tmp_path / "again.exr")
+    for name in aovs:
+        np.testing.assert_array_equal(back[name], got[name], err_msg=name)
+    assert np.isinf(got["Depth"]).any()
+
+
+def test_crop_matches_full_frame():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    full = scene.render(aovs=["Depth", "Normal"])
+    part = scene.render(aovs=["Depth", "Normal"], crop=(10, 5, 30, 20))
+    np.testing.assert_array_equal(part["Depth"], full["Depth"][5:20, 10:30])
+    np.testing.assert_array_equal(part["Normal"], full["Normal"][5:20, 10:30])
+
+
+def test_rays_pinhole_reproduce_the_render():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    cam = scene.camera
+    origins, directions = zeroset.rays_pinhole(cam.intrinsics(), cam.world_to_camera(), cam.width, cam.height)
+    assert origins.shape == (32, 48, 3)
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=-1), 1.0, atol=1e-15)
+    hits = scene.cast_rays(origins, directions)
+    frame = scene.render(aovs=["Depth", "Distance"])
+    hit = hits["hit"]
+    assert (np.isfinite(frame["Depth"]) == hit).all()
+    planar = hits["t"] * (directions @ cam.forward)
+    np.testing.assert_allclose(frame["Depth"][hit], planar[hit], rtol=1e-6)
+    np.testing.assert_allclose(frame["Distance"][hit], hits["t"][hit], rtol=1e-6)
+
+
+def test_rays_pinhole_opencv_convention():
+    k = np.array([[100.0, 0, 2.0], [0, 50.0, 1.0], [0, 0, 1]])
+    world_to_camera = np.eye(4)
+    world_to_camera[:3, 3] = [1.0, 2.0, 3.0]  # the camera sits at (-1, -2, -3)
+    o, d = zeroset.rays_pinhole(k, world_to_camera, 5, 3)
+    np.testing.assert_array_equal(o[0, 0], [-1.0, -2.0, -3.0])
+    np.testing.assert_allclose(d[1, 2], [0, 0, 1], atol=0)  # pixel (u=2, v=1) is the principal point
+    ref = np.array([(4 - 2.0) / 100, (0 - 1.0) / 50, 1.0])  # pixel (u=4, v=0): right and up (−y)
+    np.testing.assert_allclose(d[0, 4], ref / np.linalg.norm(ref), rtol=1e-15)
+
+
+def test_pickle_rebuilds_identically():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    v, f = closed_icosahedron()
+    scene.add_mesh(v * 0.3, f, transform=np.array([[1, 0, 0, -2], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]))
+    scene.add("Cylinder", radius=0.2, height=1.0)
+    copy = pickle.loads(pickle.dumps(scene))
+    assert copy.object_count == scene.object_count == 4
+    a = scene.render(aovs=["Depth", "PrimitiveId"])
+    b = copy.render(aovs=["Depth", "PrimitiveId"])
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: zeroset.Scene.from_ron("Scene(camera: (eye: (0, 0, 1)), objcts: [])", "bad.ron"),
+         "bad.ron:1:33: Unexpected field named `objcts`"),
+        (lambda: zeroset.Scene.from_ron("Scene(camera: (eye: (0,0,1)), objects: [(shape: Sphere(radius: -1))])"),
+         "objects[0] (Sphere): field `radius`"),
+        (lambda: zeroset.Scene.load("/nonexistent/scene.ron"), "/nonexistent/scene.ron"),
+        (lambda: zeroset.Scene.empty().add("Sphere(radius: 0)"), "field `radius`"),
+        (lambda: zeroset.Scene.empty().add("Shpere(radius: 1)"), "unknown primitive `Shpere`"),
+        (lambda: zeroset.Scene.empty().add("Sphere", radius=1, transform=np.zeros((4, 4))), "last row"),
+        (lambda: zeroset.Scene.empty().add("Sphere", radius=1, transform=np.diag([1, 1, 0, 1.0])), "transform"),
+        (lambda: zeroset.Scene.empty().add_mesh([[0, 0, 0]], [[0, 1, 2]]), "triangle indices"),
+        (lambda: zeroset.Scene.empty().add_mesh([[0, 0, np.nan], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]), "add_mesh"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).cast_rays([[0, 0, 0]], [[0, 0, 0]]), "non-zero"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).cast_rays([[0, 0, np.nan]], [[0, 0, 1]]), "finite"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).cast_rays([[0, 0]], [[0, 0]]), "dimension of 3"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).cast_rays([[0, 0, 0]], [[0, 0, 1]], tmin=2, tmax=1),
+         "invalid t range"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).cast_rays(np.zeros((3, 3)), [[0, 0, 1]] * 3,
+                                                                tmax=[1.0, 2.0]), "tmax"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(aovs=["Depht"]), "unknown AOV `Depht`"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(crop=(0, 0, 100, 10)), "crop"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(spp=0), "spp"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(width=0), "width"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(depth_miss=float("nan")), "NaN"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(view=dict(eye=(0, 0, 0), look_at=(0, 0, 0))), "view"),
+        (lambda: zeroset.rays_pinhole(np.eye(3) * [0, 1, 1], np.eye(4), 4, 4), "intrinsics"),
+        (lambda: zeroset.rays_pinhole(np.eye(3), np.zeros((4, 4)), 4, 4), "extrinsics"),
+        (lambda: zeroset.write_exr("/tmp/x.exr", {"Depht": np.zeros((2, 2))}), "not an AOV"),
+        (lambda: zeroset.write_exr("/tmp/x.exr", {"Normal": np.zeros((2, 2))}), "Normal"),
+    ],
+)
+def test_errors_are_exceptions_with_the_cli_messages(call, message):
+    with pytest.raises((zeroset.ZerosetError, OSError)) as info:
+        call()
+    assert message in str(info.value)
+
+
+def test_same_message_as_the_cli(cli, tmp_path):
+    bad = tmp_path / "bad.ron"
+    bad.write_text("Scene(camera: (eye: (0, 0, 1)),\n  objects: [(shape: Sphere(radius: 1, colour: 2))])")
+    run = subprocess.run([cli, "render", str(bad), "-o", str(tmp_path)], capture_output=True, text=True)
+    assert run.returncode != 0
+    with pytest.raises(zeroset.ZerosetError) as info:
+        zeroset.Scene.load(bad)
+    assert str(info.value) in run.stderr
+
+
+def test_help_explains_conventions():
+    doc = zeroset.Scene.cast_rays.__doc__
+    assert "+inf" in doc and "primitive_id" in doc and "tmin" in doc

@@ -1,0 +1,365 @@
+"""zeroset for Python: exact ray casting of implicit surfaces, numpy arrays in and out.
+
+A thin layer over the Rust crate: scenes load with the same parser as the ``zeroset`` command
+(errors carry the same ``file:line:col`` messages), ``Scene.cast_rays`` runs the same query path
+as ``zeroset query`` and ``Scene.render`` the same renderer that writes the EXR, with the GIL
+released while rays are traced.
+
+Conventions (the same as the command line's):
+
+* Φ < 0 inside, 0 on the surface, > 0 outside; normals are the outward unit ∇Φ, never flipped
+  toward the ray.
+* ``t`` is in units of the direction you pass (metric distance for unit directions); a miss has
+  ``t = +inf``.
+* The default range of ``cast_rays`` is ``tmin=0, tmax=inf``.
+* Camera space of ``Camera.world_to_camera`` / ``rays_pinhole`` is OpenCV's: +x right, +y down,
+  +z forward, the centre of pixel (u, v) at the integer point (u, v).
+
+Example::
+
+    import zeroset, numpy as np
+    scene = zeroset.Scene.load("scenes/default.ron")
+    hits = scene.cast_rays(np.zeros((4, 3)), [[0, 0, 1]] * 4)
+    depth = scene.render(aovs=["Depth"], width=320, height=180)["Depth"]
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Dict, Iterable, Optional, Sequence, Tuple
+
+import numpy as np
+
+from . import _zeroset
+from ._zeroset import ZerosetError
+
+__all__ = [
+    "Scene",
+    "Camera",
+    "ZerosetError",
+    "rays_pinhole",
+    "write_exr",
+    "read_exr",
+    "shape_ron",
+]
+
+
+def _ron_value(value: Any) -> str:
+    """A Python value written as RON: tuples and 1-D arrays of length ≤ 4 become tuples, lists
+    and longer arrays become lists, dicts become structs, strings are quoted."""
+    if isinstance(value, np.ndarray):
+        if value.ndim == 1 and value.shape[0] <= 4:
+            return "(" + ", ".join(_ron_value(v) for v in value.tolist()) + ")"
+        return "[" + ", ".join(_ron_value(np.asarray(v)) if np.ndim(v) else _ron_value(v) for v in value) + "]"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return repr(float(value)) if isinstance(value, (float, np.floating)) else str(int(value))
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, tuple):
+        return "(" + ", ".join(_ron_value(v) for v in value) + ")"
+    if isinstance(value, list):
+        return "[" + ", ".join(_ron_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "(" + ", ".join(f"{k}: {_ron_value(v)}" for k, v in value.items()) + ")"
+    if value is None:
+        return "None"
+    raise TypeError(f"cannot write {type(value).__name__} as a scene value")
+
+
+def shape_ron(kind: str, **fields: Any) -> str:
+    """``shape_ron("Sphere", center=(0, 0, 0), radius=1)`` → ``'Sphere(center: (0.0, ...), radius: 1)'``."""
+    return f"{kind}(" + ", ".join(f"{k}: {_ron_value(v)}" for k, v in fields.items()) + ")"
+
+
+def _rays(origins: Any, directions: Any) -> Tuple[np.ndarray, np.ndarray, Tuple[int, ...]]:
+    o = np.asarray(origins)
+    d = np.asarray(directions)
+    if o.shape[-1:] != (3,) or d.shape[-1:] != (3,):
+        raise ZerosetError(f"origins and directions must end in a dimension of 3, got {o.shape} and {d.shape}")
+    o, d = np.broadcast_arrays(o, d)
+    lead = o.shape[:-1]
+    o = np.ascontiguousarray(o.reshape(-1, 3), dtype=np.float64)
+    d = np.ascontiguousarray(d.reshape(-1, 3), dtype=np.float64)
+    return o, d, lead
+
+
+def _range(value: Any, lead: Tuple[int, ...], name: str) -> np.ndarray:
+    v = np.asarray(value, dtype=np.float64)
+    if v.ndim == 0:
+        return v.reshape(1)
+    try:
+        return np.ascontiguousarray(np.broadcast_to(v, lead).reshape(-1))
+    except ValueError:
+        raise ZerosetError(f"{name}: shape {v.shape} does not match the rays' {lead}") from None
+
+
+class Camera:
+    """The scene's camera: ``intrinsics()`` (3×3 K) and ``world_to_camera()`` (4×4) in the OpenCV
+    convention, so ``rays_pinhole(cam.intrinsics(), cam.world_to_camera(), cam.width,
+    cam.height)`` gives the rays ``Scene.render`` traces (up to rounding)."""
+
+    def __init__(self, info: Dict[str, Any]):
+        self._info = info
+        self.width: int = info["width"]
+        self.height: int = info["height"]
+        self.eye = np.array(info["eye"])
+        self.forward = np.array(info["forward"])
+        self.up = np.array(info["up"])
+        self.right = np.array(info["right"])
+
+    def intrinsics(self) -> np.ndarray:
+        """3×3 K: ``[[f, 0, cx], [0, f, cy], [0, 0, 1]]`` (square pixels, centred principal point)."""
+        return np.array(self._info["intrinsics"])
+
+    def world_to_camera(self) -> np.ndarray:
+        """4×4 world → camera (OpenCV: +x right, +y down, +z forward)."""
+        return np.array(self._info["world_to_camera"])
+
+    def world_to_camera_gl(self) -> np.ndarray:
+        """4×4 world → camera as the EXR ``worldToCamera`` holds it (+y up, looking along −z)."""
+        return np.array(self._info["world_to_camera_gl"])
+
+    def __repr__(self) -> str:
+        return f"Camera(eye={self.eye.tolist()}, forward={self.forward.tolist()}, {self.width}x{self.height})"
+
+
+class Scene:
+    """A zeroset scene: loaded from RON, built in code, or both.
+
+    The recipe (RON text or path, plus every ``add``/``add_mesh``) is kept so a scene can be
+    pickled to Dask workers and rebuilt there identically.
+    """
+
+    def __init__(self, core: "_zeroset._Scene", recipe: list):
+        self._core = core
+        self._recipe = recipe
+
+    # construction ------------------------------------------------------------------------
+
+    @staticmethod
+    def load(path: "os.PathLike[str] | str") -> "Scene":
+        """Reads, parses and validates a scene file (errors: ``ZerosetError`` with ``file:line:col``)."""
+        path = os.fspath(path)
+        return Scene(_zeroset._Scene.load(path), [("load", path)])
+
+    @staticmethod
+    def from_ron(text: str, path: str = "<string>", base_dir: Optional[str] = None) -> "Scene":
+        """Parses scene text; ``path`` names it in messages, relative mesh paths resolve against
+        ``base_dir`` (default: the current directory)."""
+        return Scene(_zeroset._Scene.from_ron(text, path, base_dir), [("ron", text, path, base_dir)])
+
+    @staticmethod
+    def empty(eye=(0.0, 0.0, 5.0), look_at=(0.0, 0.0, 0.0), width: int = 640, height: int = 480,
+              vfov_deg: float = 45.0) -> "Scene":
+        """A scene with a pinhole camera and no objects, to fill with ``add``/``add_mesh``."""
+        text = (f"Scene(camera: (eye: {_ron_value(tuple(map(float, eye)))}, "
+                f"look_at: {_ron_value(tuple(map(float, look_at)))}, width: {int(width)}, "
+                f"height: {int(height)}, vfov_deg: {float(vfov_deg)!r}), objects: [])")
+        return Scene.from_ron(text, "<empty>")
+
+    def add(self, shape: str, transform: Any = None, name: Optional[str] = None,
+            material: Optional[Dict[str, Any]] = None, base_dir: Optional[str] = None, **fields: Any) -> int:
+        """Adds a primitive and returns its object id.
+
+        ``shape`` is RON (``"Sphere(radius: 1)"``) or a primitive name with its fields as keyword
+        arguments (``scene.add("Sphere", center=(0, 0, 0), radius=1)``). ``transform`` is a 4×4
+        affine world-from-local matrix (row-major, last row 0 0 0 1).
+        """
+        if fields:
+            shape = shape_ron(shape, **fields)
+        entry = f"(shape: {shape}"
+        if name is not None:
+            entry += f", name: {_ron_value(name)}"
+        if material is not None:
+            entry += f", material: {_ron_value(material)}"
+        entry += ")"
+        matrix = None if transform is None else _matrix4(transform, "transform")
+        object_id = self._core.add_object(entry, matrix, base_dir)
+        self._recipe.append(("add", entry, matrix, base_dir))
+        return object_id
+
+    def add_mesh(self, vertices: Any, triangles: Any, transform: Any = None, name: Optional[str] = None) -> int:
+        """Adds a triangle mesh from ``(N, 3)`` vertices (stored as float32) and ``(M, 3)`` vertex
+        indices (counter-clockwise seen from outside); returns its object id. The arrays are
+        converted without a per-element Python loop."""
+        v = np.ascontiguousarray(vertices, dtype=np.float32)
+        t = np.asarray(triangles)
+        if t.size and (t.min() < 0 or t.max() >= len(v)):
+            raise ZerosetError(f"add_mesh: triangle indices must lie in [0, {len(v)}), got [{t.min()}, {t.max()}]")
+        t = np.ascontiguousarray(t, dtype=np.uint32)
+        if v.ndim != 2 or t.ndim != 2:
+            raise ZerosetError(f"add_mesh: expected vertices (N, 3) and triangles (M, 3), got {v.shape} and {t.shape}")
+        matrix = None if transform is None else _matrix4(transform, "transform")
+        object_id = self._core.add_mesh(v, t, matrix, name)
+        self._recipe.append(("mesh", v, t, matrix, name))
+        return object_id
+
+    # pickling (Dask ships scenes to workers as their recipe) ------------------------------
+
+    def __reduce__(self):
+        return (_from_recipe, (self._recipe,))
+
+    # queries -----------------------------------------------------------------------------
+
+    @property
+    def object_count(self) -> int:
+        """Number of objects (ids run from 0)."""
+        return self._core.object_count()
+
+    @property
+    def object_names(self) -> list:
+        """Object names by id (``None`` where unnamed)."""
+        return self._core.object_names()
+
+    @property
+    def camera(self) -> Camera:
+        """The scene's camera."""
+        return Camera(self._core.camera())
+
+    def cast_rays(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf) -> Dict[str, np.ndarray]:
+        """First hits of rays ``origins + t·directions`` with ``tmin ≤ t ≤ tmax`` (closed range, as
+        ``zeroset query``).
+
+        ``origins`` and ``directions``: array-likes of float32/float64 shaped ``(..., 3)``
+        (broadcast against each other); ``tmin``/``tmax``: scalars or arrays of the leading shape.
+        Returns a dict of arrays shaped like the leading dimensions:
+
+        * ``t`` float64, ``+inf`` on a miss (in units of ``|direction|``);
+        * ``hit`` bool;
+        * ``point`` float64 ``(..., 3)`` and ``normal`` float64 ``(..., 3)`` (outward unit ∇Φ),
+          zero on a miss;
+        * ``object_id`` int32, the object's index (-1 on a miss);
+        * ``uv`` float64 ``(..., 2)``, the primitive's surface parameters (0 where it has none);
+        * ``primitive_id`` int64: the part hit — a mesh's triangle index, a box's face, a
+          cylinder's side or cap (-1 on a miss).
+
+        The values equal ``zeroset query``'s on the same rays.
+        """
+        o, d, lead = _rays(origins, directions)
+        out = self._core.cast_rays(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax"))
+        return {k: v.reshape(lead + v.shape[1:]) for k, v in out.items()}
+
+    def test_occlusions(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf) -> np.ndarray:
+        """Whether any surface is hit with ``tmin ≤ t ≤ tmax``, shaped like the leading dimensions."""
+        o, d, lead = _rays(origins, directions)
+        return self._core.test_occlusions(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax")).reshape(lead)
+
+    def count_intersections(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf) -> np.ndarray:
+        """Number of surface crossings with ``tmin ≤ t ≤ tmax`` (an odd count: the origin is inside
+        a closed surface). Crossings at one ``t`` (a shared mesh edge) count once."""
+        o, d, lead = _rays(origins, directions)
+        return self._core.count_intersections(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax")).reshape(lead)
+
+    def render(self, aovs: Optional[Sequence[str]] = None, width: Optional[int] = None,
+               height: Optional[int] = None, crop: Optional[Tuple[int, int, int, int]] = None,
+               spp: Optional[int] = None, depth_miss: float = float("inf"),
+               view: Optional[Dict[str, Any]] = None) -> Dict[str, np.ndarray]:
+        """Renders the scene's camera; returns ``{AOV name: float32 array}``, ``(H, W)`` for one
+        channel and ``(H, W, C)`` for several, bit-identical to the EXR's channels.
+
+        ``aovs``: names as on the command line (``Beauty, Alpha, Depth, Distance, Normal,
+        Position, CameraNormal, PrimitiveId, Uv, ShadingNormal``; default the scene's outputs).
+        ``crop=(x0, y0, x1, y1)`` renders that window of the full frame (pixels, half-open),
+        exactly as the full render has it there. ``view=dict(eye=..., look_at=..., up=(0, 1, 0),
+        vfov_deg=45)`` replaces the scene camera's pose and field of view for this render.
+        """
+        pose = None
+        if view is not None:
+            unknown = set(view) - {"eye", "look_at", "up", "vfov_deg"}
+            if unknown:
+                raise ZerosetError(f"view: unknown fields {sorted(unknown)}")
+            pose = (tuple(map(float, view["eye"])), tuple(map(float, view.get("look_at", (0, 0, 0)))),
+                    tuple(map(float, view.get("up", (0, 1, 0)))), float(view.get("vfov_deg", 45.0)))
+        return self._core.render(None if aovs is None else list(aovs), width, height,
+                                 None if crop is None else tuple(int(c) for c in crop), spp, float(depth_miss),
+                                 pose)
+
+    def __repr__(self) -> str:
+        return f"Scene({self.object_count} objects, camera {self.camera.width}x{self.camera.height})"
+
+
+def _matrix4(m: Any, what: str) -> list:
+    a = np.asarray(m, dtype=np.float64)
+    if a.shape == (3, 4):
+        a = np.vstack([a, [0.0, 0.0, 0.0, 1.0]])
+    if a.shape != (4, 4):
+        raise ZerosetError(f"{what}: expected a 4×4 or 3×4 matrix, got shape {a.shape}")
+    return a.tolist()
+
+
+def _from_recipe(recipe: list) -> Scene:
+    scene: Optional[Scene] = None
+    for step in recipe:
+        kind = step[0]
+        if kind == "load":
+            scene = Scene.load(step[1])
+        elif kind == "ron":
+            scene = Scene.from_ron(step[1], step[2], step[3])
+        elif kind == "add":
+            object_id = scene._core.add_object(step[1], step[2], step[3])
+            scene._recipe.append(step)
+        elif kind == "mesh":
+            scene._core.add_mesh(step[1], step[2], step[3], step[4])
+            scene._recipe.append(step)
+    assert scene is not None, "a recipe starts with a load"
+    return scene
+
+
+def rays_pinhole(intrinsics: Any, extrinsics: Any, width: int, height: int) -> Tuple[np.ndarray, np.ndarray]:
+    """Pixel-centre rays of a pinhole camera in the OpenCV convention.
+
+    ``intrinsics``: 3×3 K ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``; ``extrinsics``: 4×4
+    world → camera (+x right, +y down, +z forward). Pixel (u, v) — column u, row v — has its
+    centre at the integer point (u, v), as in OpenCV. Returns ``(origins, directions)``, each
+    float64 ``(height, width, 3)``, directions of unit length (so ``t`` is metric distance).
+    """
+    k = np.asarray(intrinsics, dtype=np.float64)
+    if k.shape != (3, 3):
+        raise ZerosetError(f"intrinsics: expected a 3×3 matrix, got shape {k.shape}")
+    o, d = _zeroset.rays_pinhole(k.tolist(), _matrix4(extrinsics, "extrinsics"), int(width), int(height))
+    return o.reshape(height, width, 3), d.reshape(height, width, 3)
+
+
+def write_exr(path: "os.PathLike[str] | str", arrays: Dict[str, Any], header: Optional[Dict[str, Any]] = None) -> None:
+    """Writes AOV arrays as zeroset's EXR (FLOAT channels, the renderer's channel names).
+
+    ``arrays``: ``{AOV name: (H, W) or (H, W, C) array}`` as ``Scene.render`` returns them.
+    ``header`` may hold ``world_to_camera`` (4×4, the EXR's +y-up convention), ``scene_file`` and
+    ``depth_miss``.
+    """
+    header = dict(header or {})
+    items = []
+    for name, a in arrays.items():
+        a = np.ascontiguousarray(a, dtype=np.float32)
+        if a.ndim == 2:
+            shape = (a.shape[0], a.shape[1], 1)
+        elif a.ndim == 3:
+            shape = a.shape
+        else:
+            raise ZerosetError(f"write_exr: `{name}` must be (H, W) or (H, W, C), got {a.shape}")
+        items.append((name, a.reshape(-1), shape))
+    w2c = header.pop("world_to_camera", None)
+    _zeroset.write_exr(os.fspath(path), items, None if w2c is None else _matrix4(w2c, "world_to_camera"),
+                       str(header.pop("scene_file", "")), float(header.pop("depth_miss", float("inf"))))
+    if header:
+        raise ZerosetError(f"write_exr: unknown header fields {sorted(header)}")
+
+
+_AOV_CHANNELS: Dict[str, list] = _zeroset.aov_channels()
+
+
+def read_exr(path: "os.PathLike[str] | str") -> Tuple[Dict[str, np.ndarray], Dict[str, Any]]:
+    """Reads an EXR: ``(arrays, header)``. Channels that form a zeroset AOV are returned under the
+    AOV's name, shaped as ``Scene.render`` returns them; any other channel under its own name.
+    ``header`` has ``display_window``/``data_window`` ``(x, y, width, height)`` and the matrices
+    and text attributes."""
+    channels, header = _zeroset.read_exr(os.fspath(path))
+    arrays: Dict[str, np.ndarray] = {}
+    for aov, names in _AOV_CHANNELS.items():
+        if all(n in channels for n in names):
+            planes = [channels.pop(n) for n in names]
+            arrays[aov] = planes[0] if len(planes) == 1 else np.stack(planes, axis=-1)
+    arrays.update(channels)
+    return arrays, header

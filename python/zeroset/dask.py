@@ -1,0 +1,168 @@
+"""zeroset on a Dask cluster: frames as dask arrays of crop tiles, ray batches by blocks.
+
+Nothing here schedules anything itself: the functions build ordinary ``dask.array`` graphs, and
+whatever scheduler is active runs them — a ``distributed.Client`` on a ``LocalCluster``, a real
+cluster (``Client("tcp://scheduler:8786")``), dask-jobqueue on Slurm, or the local threads.
+
+The scene reaches the workers as its recipe (see ``zeroset.Scene``): a path loaded there (the
+file and the meshes it names must be on a path the workers share), RON text (its relative mesh
+paths resolve against ``base_dir`` on the worker), plus every object added in code, mesh arrays
+included. It is one piece of data in the graph, so each worker builds it (load and hierarchy)
+once, not once per block.
+
+Every block is computed by the same code as the single-process call: a tile is a ``crop``
+window of the full frame, and crops are exact, so ``render(...)[aov].compute()`` equals
+``Scene.render()[aov]`` bit for bit, and ``cast_rays`` equals ``Scene.cast_rays`` on the same
+rays.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
+
+import dask
+import dask.array as da
+import numpy as np
+
+from . import Scene, ZerosetError
+
+SceneLike = Union[Scene, str, "os.PathLike[str]"]
+
+__all__ = ["render", "render_views", "cast_rays"]
+
+
+def _as_scene(scene: SceneLike) -> Scene:
+    """A path (an existing file) is loaded; any other string is RON text; a Scene is kept."""
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, os.PathLike) or (isinstance(scene, str) and os.path.isfile(scene)):
+        return Scene.load(os.path.abspath(os.fspath(scene)))
+    if isinstance(scene, str):
+        return Scene.from_ron(scene)
+    raise ZerosetError(f"scene: expected a Scene, a path or RON text, got {type(scene).__name__}")
+
+
+def _aov_channels(scene: Scene, aovs: Optional[Sequence[str]]) -> List[Tuple[str, int]]:
+    """(name, channel count) of the AOVs a render returns, from a 1×1 render of the scene."""
+    probe = scene.render(aovs=aovs, width=None, height=None, crop=(0, 0, 1, 1))
+    return [(name, 1 if a.ndim == 2 else a.shape[2]) for name, a in probe.items()]
+
+
+def _render_block(scene: Scene, kwargs: Dict[str, Any]) -> Dict[str, np.ndarray]:
+    return scene.render(**kwargs)
+
+
+def _assemble(nested: Any, axis: int = 0) -> da.Array:
+    """Concatenates nested lists of blocks along the leading axes (``da.block`` would join the
+    trailing ones, which are channels here)."""
+    if isinstance(nested, list):
+        return da.concatenate([_assemble(n, axis + 1) for n in nested], axis=axis)
+    return nested
+
+
+def _splits(total: int, step: int) -> List[Tuple[int, int]]:
+    if step < 1:
+        raise ZerosetError(f"chunks must be at least 1 pixel, got {step}")
+    return [(a, min(a + step, total)) for a in range(0, total, step)]
+
+
+def render(scene: SceneLike, chunks: Tuple[int, int] = (512, 512), aovs: Optional[Sequence[str]] = None,
+           width: Optional[int] = None, height: Optional[int] = None, spp: Optional[int] = None,
+           depth_miss: float = float("inf")) -> Dict[str, da.Array]:
+    """A frame as ``{AOV name: dask.array}``, shaped ``(H, W)`` or ``(H, W, C)``, float32.
+
+    Each ``chunks = (rows, columns)`` tile is one task: a ``crop`` render of that window on a
+    worker. ``.compute()`` assembles the frame; ``dask.array.to_zarr`` writes it tile by tile.
+    """
+    s = _as_scene(scene)
+    cam = s.camera
+    w = width or cam.width
+    h = height or cam.height
+    channels = _aov_channels(s, aovs)
+    shared = dask.delayed(s, pure=True)
+    rows = _splits(h, chunks[0])
+    cols = _splits(w, chunks[1])
+    blocks: Dict[str, list] = {name: [] for name, _ in channels}
+    for y0, y1 in rows:
+        row: Dict[str, list] = {name: [] for name, _ in channels}
+        for x0, x1 in cols:
+            kwargs = dict(aovs=aovs, width=w, height=h, crop=(x0, y0, x1, y1), spp=spp, depth_miss=depth_miss)
+            tile = dask.delayed(_render_block, pure=True)(shared, kwargs)
+            for name, c in channels:
+                shape = (y1 - y0, x1 - x0) if c == 1 else (y1 - y0, x1 - x0, c)
+                row[name].append(da.from_delayed(tile[name], shape=shape, dtype=np.float32))
+        for name, _ in channels:
+            blocks[name].append(row[name])
+    return {name: _assemble(blocks[name]) for name, _ in channels}
+
+
+def render_views(scene: SceneLike, cameras: Iterable[Dict[str, Any]], aovs: Optional[Sequence[str]] = None,
+                 width: Optional[int] = None, height: Optional[int] = None,
+                 spp: Optional[int] = None) -> Dict[str, da.Array]:
+    """Many views of one scene: ``{AOV name: dask.array}`` shaped ``(views, H, W[, C])``, one task
+    per view. Each camera is a dict ``eye, look_at, up (default +y), vfov_deg (default 45)``."""
+    s = _as_scene(scene)
+    cam = s.camera
+    w = width or cam.width
+    h = height or cam.height
+    channels = _aov_channels(s, aovs)
+    shared = dask.delayed(s, pure=True)
+    stacks: Dict[str, list] = {name: [] for name, _ in channels}
+    for view in cameras:
+        kwargs = dict(aovs=aovs, width=w, height=h, spp=spp, view=dict(view))
+        frame = dask.delayed(_render_block, pure=True)(shared, kwargs)
+        for name, c in channels:
+            shape = (h, w) if c == 1 else (h, w, c)
+            stacks[name].append(da.from_delayed(frame[name], shape=shape, dtype=np.float32))
+    if not stacks[channels[0][0]]:
+        raise ZerosetError("render_views: no cameras given")
+    return {name: da.stack(stacks[name]) for name, _ in channels}
+
+
+def _cast_block(scene: Scene, origins: np.ndarray, directions: np.ndarray, tmin: Any, tmax: Any) -> Dict[str, np.ndarray]:
+    return scene.cast_rays(origins, directions, tmin=tmin, tmax=tmax)
+
+
+_CAST_FIELDS = {
+    "t": ((), np.float64),
+    "hit": ((), np.bool_),
+    "point": ((3,), np.float64),
+    "normal": ((3,), np.float64),
+    "object_id": ((), np.int32),
+    "uv": ((2,), np.float64),
+    "primitive_id": ((), np.int64),
+}
+
+
+def cast_rays(scene: SceneLike, origins: Any, directions: Any, tmin: float = 0.0,
+              tmax: float = float("inf")) -> Dict[str, da.Array]:
+    """``Scene.cast_rays`` over the blocks of dask arrays of rays (``(..., 3)``; numpy arrays are
+    wrapped). Returns the same dict, each value a dask array chunked like the rays' leading
+    dimensions."""
+    s = _as_scene(scene)
+    o = origins if isinstance(origins, da.Array) else da.from_array(np.asarray(origins))
+    d = directions if isinstance(directions, da.Array) else da.from_array(np.asarray(directions))
+    if o.shape != d.shape or o.shape[-1:] != (3,):
+        raise ZerosetError(f"origins and directions must have one shape (..., 3), got {o.shape} and {d.shape}")
+    o = o.rechunk(o.chunks[:-1] + ((3,),))
+    d = d.rechunk(o.chunks)
+    shared = dask.delayed(s, pure=True)
+    o_blocks = o.to_delayed()
+    d_blocks = d.to_delayed()
+    lead_chunks = o.chunks[:-1]
+    results = {}
+    for index in np.ndindex(*o_blocks.shape[:-1]):
+        block = dask.delayed(_cast_block, pure=True)(shared, o_blocks[index + (0,)], d_blocks[index + (0,)],
+                                                     float(tmin), float(tmax))
+        results[index] = block
+    out: Dict[str, da.Array] = {}
+    for field, (tail, dtype) in _CAST_FIELDS.items():
+        def nest(prefix: Tuple[int, ...]) -> Any:
+            level = len(prefix)
+            if level == len(lead_chunks):
+                shape = tuple(lead_chunks[k][prefix[k]] for k in range(level)) + tail
+                return da.from_delayed(results[prefix][field], shape=shape, dtype=dtype)
+            return [nest(prefix + (i,)) for i in range(len(lead_chunks[level]))]
+        out[field] = _assemble(nest(()))
+    return out
