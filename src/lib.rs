@@ -13,11 +13,13 @@ pub mod combinators;
 pub mod mesh_io;
 pub mod motion;
 pub mod output;
+pub mod pixels;
 pub mod query;
 pub mod registry;
 pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod shapes;
+pub mod views;
 
 pub use zeroset_primitives as primitives;

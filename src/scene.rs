@@ -6,11 +6,12 @@
 //! object (index and name) and field.
 
 use crate::aov::Aov;
-use crate::camera::{Camera, CameraError};
+use crate::camera::pose::{build_views, ViewDesc};
+use crate::camera::{Camera, CameraError, Equirectangular, Fisheye, Model, OpenCv, Orthographic, Perspective};
 use crate::motion::{Moving, Placement};
 use crate::registry::{BuildContext, ShapeDesc};
 use crate::sampling::Sampling;
-use glam::{DAffine3, DQuat, DVec3};
+use glam::{DAffine3, DQuat, DVec2, DVec3};
 use ron::extensions::Extensions;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -105,8 +106,114 @@ fn default_one() -> f64 {
     1.0
 }
 
+fn default_azimuth() -> (f64, f64) {
+    (-180.0, 180.0)
+}
+fn default_elevation() -> (f64, f64) {
+    (-90.0, 90.0)
+}
+fn default_fisheye_fov() -> f64 {
+    180.0
+}
+
+/// `model: …` of the camera: the projection (see `src/camera/` for each model's maths).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum ModelDesc {
+    /// `Perspective(principal_offset: (ox, oy))`: the pinhole, field of view from `vfov_deg` /
+    /// `hfov_deg`; principal point minus image centre in pixels (`+y` down), default `(0, 0)`.
+    Perspective {
+        /// Principal-point offset, pixels.
+        #[serde(default)]
+        principal_offset: DVec2,
+    },
+    /// `Orthographic(width: w)`: parallel rays, a frame `w` world units wide.
+    Orthographic {
+        /// Frame width in world units.
+        width: f64,
+    },
+    /// `Equirectangular(azimuth_deg: (−180, 180), elevation_deg: (−90, 90))`.
+    Equirectangular {
+        /// Azimuth range, degrees, from `forward` towards `right`.
+        #[serde(default = "default_azimuth")]
+        azimuth_deg: (f64, f64),
+        /// Elevation range, degrees, towards `up`.
+        #[serde(default = "default_elevation")]
+        elevation_deg: (f64, f64),
+    },
+    /// `Fisheye(fov_deg: 180)`: equidistant, field of view up to 360°.
+    Fisheye {
+        /// Full field of view across the image circle, degrees; default 180.
+        #[serde(default = "default_fisheye_fov")]
+        fov_deg: f64,
+    },
+    /// `OpenCv(fx: …, fy: …, cx: …, cy: …, distortion: [k1, k2, p1, p2, k3])`: OpenCV's pixel
+    /// convention (pixel centres at integers); `distortion` takes 4 or 5 numbers (k3 = 0), default
+    /// none.
+    OpenCv {
+        /// Focal length along x, pixels.
+        fx: f64,
+        /// Focal length along y, pixels.
+        fy: f64,
+        /// Principal point x.
+        cx: f64,
+        /// Principal point y.
+        cy: f64,
+        /// `[k1, k2, p1, p2(, k3)]`.
+        #[serde(default)]
+        distortion: Vec<f64>,
+    },
+}
+
+impl ModelDesc {
+    /// The model, or the problem with it.
+    pub fn build(&self) -> Result<Model, CameraError> {
+        Ok(match self {
+            ModelDesc::Perspective { principal_offset } => Model::Perspective(Perspective {
+                principal_offset: *principal_offset,
+            }),
+            ModelDesc::Orthographic { width } => Model::Orthographic(Orthographic { width: *width }),
+            ModelDesc::Equirectangular {
+                azimuth_deg,
+                elevation_deg,
+            } => Model::Equirectangular(Equirectangular {
+                azimuth: (azimuth_deg.0.to_radians(), azimuth_deg.1.to_radians()),
+                elevation: (elevation_deg.0.to_radians(), elevation_deg.1.to_radians()),
+            }),
+            ModelDesc::Fisheye { fov_deg } => Model::Fisheye(Fisheye {
+                half_fov: 0.5 * fov_deg.to_radians(),
+            }),
+            ModelDesc::OpenCv {
+                fx,
+                fy,
+                cx,
+                cy,
+                distortion,
+            } => {
+                let mut k = [0.0; 5];
+                match distortion.len() {
+                    0 | 4 | 5 => k[..distortion.len()].copy_from_slice(distortion),
+                    n => {
+                        return Err(CameraError {
+                            field: "model",
+                            problem: format!("OpenCv distortion takes 4 or 5 numbers [k1, k2, p1, p2, k3], got {n}"),
+                        })
+                    }
+                }
+                Model::OpenCv(OpenCv {
+                    fx: *fx,
+                    fy: *fy,
+                    cx: *cx,
+                    cy: *cy,
+                    distortion: k,
+                })
+            }
+        })
+    }
+}
+
 /// `camera: (eye: …, look_at: … | direction: …, up: …, vfov_deg: … | hfov_deg: …, width, height,
-/// aperture: 0, focus_distance: …, shutter: (open: 0, close: 1))`.
+/// model: Perspective(), aperture: 0, focus_distance: …, shutter: (open: 0, close: 1))`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraDesc {
@@ -144,6 +251,10 @@ pub struct CameraDesc {
     /// Shutter interval in frame time; default `(open: 0, close: 1)`.
     #[serde(default)]
     pub shutter: Option<ShutterDesc>,
+    /// Projection model; default `Perspective()` (fields of view from `vfov_deg`/`hfov_deg`,
+    /// which the other models do not take).
+    #[serde(default)]
+    pub model: Option<ModelDesc>,
 }
 
 /// `material: (color: (r, g, b), specular: 0, shininess: 32)`.
@@ -295,6 +406,10 @@ pub struct SceneDesc {
     /// Samples per pixel, filter and seed; default one sample at each pixel centre.
     #[serde(default)]
     pub sampling: Sampling,
+    /// Camera poses to render, one image each, with the camera's model and resolution (see
+    /// [`crate::camera::pose`]); default none: the camera's own pose, one image.
+    #[serde(default)]
+    pub views: Vec<ViewDesc>,
 }
 
 /// A placed primitive with its material.
@@ -330,6 +445,9 @@ pub struct Scene {
     pub outputs: Outputs,
     /// Samples per pixel, filter and seed.
     pub sampling: Sampling,
+    /// The cameras of the scene's `views`, in order; empty when there are none (then `camera`
+    /// is the one view).
+    pub views: Vec<Camera>,
     /// Objects tested on every ray: those with infinite bounds, and a lone bounded object.
     unbounded: Vec<u32>,
     bvh: Bvh,
@@ -391,6 +509,7 @@ impl Scene {
     pub fn from_desc(desc: SceneDesc, context: &BuildContext) -> Result<Self, (String, String)> {
         let camera = build_camera(&desc.camera)
             .map_err(|e| ("camera".to_string(), format!("field `{}`: {}", e.field, e.problem)))?;
+        let views = build_views(&desc.views, &camera, &context.scene_dir)?;
         check_finite("scene", "ambient", desc.ambient)?;
         check_finite("scene", "background", desc.background)?;
         let mut objects = Vec::with_capacity(desc.objects.len());
@@ -473,6 +592,7 @@ impl Scene {
             desc.outputs,
         );
         scene.sampling = desc.sampling;
+        scene.views = views;
         Ok(scene)
     }
 
@@ -514,6 +634,7 @@ impl Scene {
             background,
             outputs,
             sampling: Sampling::default(),
+            views: Vec::new(),
             unbounded,
             bvh,
         }
@@ -646,7 +767,22 @@ fn build_camera(c: &CameraDesc) -> Result<Camera, CameraError> {
             v
         }
     };
-    let camera = Camera::new(c.eye, direction, c.up, vfov, c.width, c.height)?;
+    let model = c.model.as_ref().map(ModelDesc::build).transpose()?;
+    if let Some(model) = &model {
+        if !matches!(model, Model::Perspective(_)) && (c.vfov_deg.is_some() || c.hfov_deg.is_some()) {
+            return Err(CameraError {
+                field: if c.vfov_deg.is_some() { "vfov_deg" } else { "hfov_deg" },
+                problem: format!(
+                    "is a Perspective setting; the {} model takes its field in `model`",
+                    model.name()
+                ),
+            });
+        }
+    }
+    let mut camera = Camera::new(c.eye, direction, c.up, vfov, c.width, c.height)?;
+    if let Some(model) = model {
+        camera = camera.with_model(model)?;
+    }
     let focus = match (c.focus_distance, c.look_at) {
         (Some(f), _) => f,
         (None, Some(target)) => (target - c.eye).dot(camera.forward),

@@ -55,3 +55,38 @@ fn pinhole_renders_hash_to_the_checksums_recorded_before_camera_models() {
         assert_eq!(got, expected, "{file} {w}x{h}: {got:#018x}");
     }
 }
+
+/// The pre-models pixel ray, written out from the old `Camera::ray_through`.
+fn old_formula(camera: &zeroset::camera::Camera, i: u32, j: u32) -> (DVec3, DVec3) {
+    let (x, y) = (f64::from(i) + 0.5, f64::from(j) + 0.5);
+    let tan_half_hfov = camera.tan_half_vfov * f64::from(camera.width) / f64::from(camera.height);
+    let sx = (x / f64::from(camera.width) * 2.0 - 1.0) * tan_half_hfov;
+    let sy = (1.0 - y / f64::from(camera.height) * 2.0) * camera.tan_half_vfov;
+    (camera.eye, (camera.forward + sx * camera.right + sy * camera.up).normalize())
+}
+
+#[test]
+fn default_pinhole_rays_equal_the_old_formula_bit_for_bit() {
+    let scene = Scene::from_ron(
+        "Scene(camera: (eye: (0.3, 2.5, -7.1), look_at: (0.1, 0.8, 0.2), up: (0.05, 1, 0), vfov_deg: 37.5, \
+         width: 123, height: 77))",
+        "inline.ron",
+    )
+    .unwrap();
+    for camera in [
+        scene.camera.clone(),
+        scene.camera.with_resolution(64, 100).unwrap(),
+        Scene::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/default.ron"))
+            .unwrap()
+            .camera,
+    ] {
+        for j in 0..camera.height {
+            for i in 0..camera.width {
+                let ray = camera.pixel_ray(i, j).unwrap();
+                let (origin, dir) = old_formula(&camera, i, j);
+                assert_eq!(ray.origin.to_array().map(f64::to_bits), origin.to_array().map(f64::to_bits));
+                assert_eq!(ray.dir.to_array().map(f64::to_bits), dir.to_array().map(f64::to_bits), "({i}, {j})");
+            }
+        }
+    }
+}
