@@ -59,7 +59,10 @@ pub fn pixel_rays(text: &str, path: &str, cameras: &[&Camera]) -> Result<Vec<Que
             return Err(err(format!("expected numbers `x,y[,view]`, got `{trimmed}`")));
         };
         if numbers.len() != 2 && numbers.len() != 3 {
-            return Err(err(format!("expected 2 or 3 fields `x,y[,view]`, got {}", numbers.len())));
+            return Err(err(format!(
+                "expected 2 or 3 fields `x,y[,view]`, got {}",
+                numbers.len()
+            )));
         }
         let (x, y) = (numbers[0], numbers[1]);
         if !(x.is_finite() && y.is_finite()) {

@@ -253,7 +253,16 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
                 });
                 let mut rest = &mut pixel[..];
                 for aov in &aovs {
-                    let n = write_aov(rest, scene, camera, *aov, &ray, hit.as_ref(), &world_to_camera, options.depth_miss);
+                    let n = write_aov(
+                        rest,
+                        scene,
+                        camera,
+                        *aov,
+                        &ray,
+                        hit.as_ref(),
+                        &world_to_camera,
+                        options.depth_miss,
+                    );
                     rest = &mut rest[n..];
                 }
             }

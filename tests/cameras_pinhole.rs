@@ -62,7 +62,10 @@ fn old_formula(camera: &zeroset::camera::Camera, i: u32, j: u32) -> (DVec3, DVec
     let tan_half_hfov = camera.tan_half_vfov * f64::from(camera.width) / f64::from(camera.height);
     let sx = (x / f64::from(camera.width) * 2.0 - 1.0) * tan_half_hfov;
     let sy = (1.0 - y / f64::from(camera.height) * 2.0) * camera.tan_half_vfov;
-    (camera.eye, (camera.forward + sx * camera.right + sy * camera.up).normalize())
+    (
+        camera.eye,
+        (camera.forward + sx * camera.right + sy * camera.up).normalize(),
+    )
 }
 
 #[test]
@@ -84,8 +87,15 @@ fn default_pinhole_rays_equal_the_old_formula_bit_for_bit() {
             for i in 0..camera.width {
                 let ray = camera.pixel_ray(i, j).unwrap();
                 let (origin, dir) = old_formula(&camera, i, j);
-                assert_eq!(ray.origin.to_array().map(f64::to_bits), origin.to_array().map(f64::to_bits));
-                assert_eq!(ray.dir.to_array().map(f64::to_bits), dir.to_array().map(f64::to_bits), "({i}, {j})");
+                assert_eq!(
+                    ray.origin.to_array().map(f64::to_bits),
+                    origin.to_array().map(f64::to_bits)
+                );
+                assert_eq!(
+                    ray.dir.to_array().map(f64::to_bits),
+                    dir.to_array().map(f64::to_bits),
+                    "({i}, {j})"
+                );
             }
         }
     }

@@ -218,7 +218,10 @@ impl Camera {
             }
             Model::Orthographic(o) => {
                 if !(o.width.is_finite() && o.width > 0.0) {
-                    return Err(err("model", format!("Orthographic width must be finite and > 0, got {}", o.width)));
+                    return Err(err(
+                        "model",
+                        format!("Orthographic width must be finite and > 0, got {}", o.width),
+                    ));
                 }
             }
             Model::Equirectangular(e) => e.validate().map_err(|m| err("model", format!("Equirectangular {m}")))?,
@@ -226,7 +229,10 @@ impl Camera {
                 if !(f.half_fov > 0.0 && f.half_fov <= std::f64::consts::PI) {
                     return Err(err(
                         "model",
-                        format!("Fisheye fov_deg must lie in (0, 360], got {}", 2.0 * f.half_fov.to_degrees()),
+                        format!(
+                            "Fisheye fov_deg must lie in (0, 360], got {}",
+                            2.0 * f.half_fov.to_degrees()
+                        ),
                     ));
                 }
             }
@@ -241,7 +247,10 @@ impl Camera {
         if self.aperture > 0.0 && !matches!(self.model, Model::Perspective(_)) {
             return Err(err(
                 "aperture",
-                format!("the thin lens is only modelled for Perspective, not {}", self.model.name()),
+                format!(
+                    "the thin lens is only modelled for Perspective, not {}",
+                    self.model.name()
+                ),
             ));
         }
         Ok(())
@@ -481,7 +490,10 @@ impl Camera {
                     ..self.clone()
                 };
                 let offset = DVec2::new(m.cx + 0.5 - 0.5 * w, m.cy + 0.5 - 0.5 * h);
-                let mut projection = Perspective { principal_offset: offset }.projection(&pinhole, near, far);
+                let mut projection = Perspective {
+                    principal_offset: offset,
+                }
+                .projection(&pinhole, near, far);
                 // pinhole.tan_half_hfov() assumes square pixels: use fx for x
                 projection.x_axis.x = 2.0 * m.fx / w;
                 projection

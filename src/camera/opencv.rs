@@ -14,10 +14,14 @@
 //! **Rays.** The ray through `(u, v)` needs the undistorted `(x', y')` whose distortion is
 //! `d = ((u − cx)/fx, (v − cy)/fy)`. It is found by Newton's method on `D(x', y') − d = 0` with the
 //! analytic Jacobian, started at `d`, and accepted once the residual is at most `1e-12` px in
-//! both coordinates (`|fx·Δx''|`, `|fy·Δy''|`) and the Jacobian determinant there is positive (the
-//! root lies where the lens map keeps its orientation, not beyond a fold of a strongly
-//! distorting model). A pixel that fails either test within 50 iterations has no ray: it is
-//! counted, reported and written as a miss. With all coefficients zero the ray is the plain
+//! both coordinates (`|fx·Δx''|`, `|fy·Δy''|`) and the root lies in the lens's invertible region:
+//! the Jacobian determinant there is positive, and the radial map `r ↦ r·ρ(r²)` is still
+//! increasing all the way out to the root's radius, i.e. `g(s) = d(rρ)/dr = 1 + 3k1 s + 5k2 s² +
+//! 7k3 s³ > 0` for every `s = r²` up to the root's (checked exactly: at the ends and at the
+//! roots of `g'` in between). This rejects the spurious roots a strongly distorting model has
+//! beyond its fold (with `k1 < 0`, far-out points wrap around to the opposite side of the
+//! image). A pixel that fails within 50 iterations has no ray: it is counted, reported and
+//! written as a miss. With all coefficients zero the ray is the plain
 //! pinhole ray. The residual is evaluated in f64, whose rounding is about `3·10⁻¹⁶·fx` px, so
 //! the 1e-12 px tolerance holds comfortably up to focal lengths of a few thousand pixels.
 //!
@@ -52,7 +56,10 @@ impl OpenCv {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<(), String> {
         if !(self.fx.is_finite() && self.fx > 0.0 && self.fy.is_finite() && self.fy > 0.0) {
-            return Err(format!("fx and fy must be finite and > 0, got {} and {}", self.fx, self.fy));
+            return Err(format!(
+                "fx and fy must be finite and > 0, got {} and {}",
+                self.fx, self.fy
+            ));
         }
         if !(self.cx.is_finite() && self.cy.is_finite()) {
             return Err(format!("cx and cy must be finite, got {} and {}", self.cx, self.cy));
@@ -87,6 +94,36 @@ impl OpenCv {
         (DVec2::new(xd, yd), jacobian)
     }
 
+    /// Whether `g(s) = 1 + 3k1 s + 5k2 s² + 7k3 s³`, the radial map's slope, is positive on
+    /// `[0, s_max]` (module docs): checked at `s_max` and at the stationary points of `g` inside.
+    #[must_use]
+    pub fn radially_increasing_up_to(&self, s_max: f64) -> bool {
+        let [k1, k2, _, _, k3] = self.distortion;
+        let g = |s: f64| 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3));
+        if g(s_max) <= 0.0 {
+            return false;
+        }
+        // g'(s) = 3k1 + 10k2 s + 21k3 s²
+        let (a, b, c) = (21.0 * k3, 10.0 * k2, 3.0 * k1);
+        let mut stationary = Vec::with_capacity(2);
+        if a == 0.0 {
+            if b != 0.0 {
+                stationary.push(-c / b);
+            }
+        } else {
+            let disc = b * b - 4.0 * a * c;
+            if disc >= 0.0 {
+                let root = disc.sqrt();
+                stationary.push((-b - root) / (2.0 * a));
+                stationary.push((-b + root) / (2.0 * a));
+            }
+        }
+        stationary
+            .into_iter()
+            .filter(|s| *s > 0.0 && *s < s_max)
+            .all(|s| g(s) > 0.0)
+    }
+
     /// The undistorted normalised coordinates `(x', y')` seen at distorted `target`, or `None`
     /// where Newton's method does not meet the module's acceptance test.
     #[must_use]
@@ -100,7 +137,7 @@ impl OpenCv {
             let e = d - target;
             let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
             if (e.x * self.fx).abs() <= UNDISTORT_TOLERANCE_PX && (e.y * self.fy).abs() <= UNDISTORT_TOLERANCE_PX {
-                return (det > 0.0).then_some(p);
+                return (det > 0.0 && self.radially_increasing_up_to(p.length_squared())).then_some(p);
             }
             if !(det.is_finite() && det != 0.0) {
                 return None;
@@ -134,10 +171,7 @@ impl OpenCv {
             return None;
         }
         let (d, _) = self.distort(local.x / local.z, -local.y / local.z);
-        Some(DVec2::new(
-            self.fx * d.x + self.cx + 0.5,
-            self.fy * d.y + self.cy + 0.5,
-        ))
+        Some(DVec2::new(self.fx * d.x + self.cx + 0.5, self.fy * d.y + self.cy + 0.5))
     }
 
     /// `K`.

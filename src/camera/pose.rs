@@ -75,7 +75,10 @@ pub fn pose_from_matrix(rows: &[Vec<f64>], axes: Axes) -> Result<(DVec3, DVec3, 
     let column = |k: usize| DVec3::new(rows[0][k], rows[1][k], rows[2][k]);
     let rotation = DMat3::from_cols(column(0), column(1), column(2));
     let gram = rotation.transpose() * rotation;
-    let off = (gram - DMat3::IDENTITY).to_cols_array().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let off = (gram - DMat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
     if off > 1e-6 || rotation.determinant() <= 0.0 {
         return Err(format!(
             "the rotation part must be orthonormal and right-handed (|RᵀR − I| = {off:.2e}, det = {:.6})",
@@ -111,7 +114,11 @@ pub fn parse_pose_file(text: &str, path: &str) -> Result<Vec<(DVec3, DVec3, DVec
                 let rows: Vec<Vec<f64>> = numbers.chunks(4).map(<[f64]>::to_vec).collect();
                 poses.push(pose_from_matrix(&rows, Axes::OpenGl).map_err(at)?);
             }
-            n => return Err(at(format!("expected 9 numbers (eye look_at up) or 16 (a 4×4 matrix), got {n}"))),
+            n => {
+                return Err(at(format!(
+                    "expected 9 numbers (eye look_at up) or 16 (a 4×4 matrix), got {n}"
+                )))
+            }
         }
     }
     if poses.is_empty() {
@@ -200,12 +207,21 @@ mod tests {
             vec![0.0, 0.0, 1.0, 0.0],
             vec![0.0, 0.0, 0.0, 1.0],
         ];
-        assert!(pose_from_matrix(&scaled, Axes::OpenGl).unwrap_err().contains("orthonormal"));
-        assert!(pose_from_matrix(&scaled[..3], Axes::OpenGl).unwrap_err().contains("4 rows"));
+        assert!(pose_from_matrix(&scaled, Axes::OpenGl)
+            .unwrap_err()
+            .contains("orthonormal"));
+        assert!(pose_from_matrix(&scaled[..3], Axes::OpenGl)
+            .unwrap_err()
+            .contains("4 rows"));
         let e = parse_pose_file("# orbit\n0 0 -5 0 0 0 0 1 0\n1 2 3\n", "p.txt").unwrap_err();
         assert!(e.starts_with("p.txt:3:"), "{e}");
         let e = parse_pose_file("0 0 -5 0 0 x 0 1 0\n", "p.txt").unwrap_err();
         assert!(e.contains("p.txt:1:") && e.contains("`x`"), "{e}");
-        assert_eq!(parse_pose_file("0,0,-5, 0,0,0, 0,1,0 # a comment\n", "p").unwrap().len(), 1);
+        assert_eq!(
+            parse_pose_file("0,0,-5, 0,0,0, 0,1,0 # a comment\n", "p")
+                .unwrap()
+                .len(),
+            1
+        );
     }
 }

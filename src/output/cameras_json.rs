@@ -30,12 +30,16 @@ use serde_json::{json, Value};
 
 /// Rows of a 3×3 matrix.
 fn rows3(m: &DMat3) -> Value {
-    json!((0..3).map(|r| (0..3).map(|c| m.col(c)[r]).collect::<Vec<_>>()).collect::<Vec<_>>())
+    json!((0..3)
+        .map(|r| (0..3).map(|c| m.col(c)[r]).collect::<Vec<_>>())
+        .collect::<Vec<_>>())
 }
 
 /// Rows of a 4×4 matrix.
 fn rows4(m: &DMat4) -> Value {
-    json!((0..4).map(|r| (0..4).map(|c| m.col(c)[r]).collect::<Vec<_>>()).collect::<Vec<_>>())
+    json!((0..4)
+        .map(|r| (0..4).map(|c| m.col(c)[r]).collect::<Vec<_>>())
+        .collect::<Vec<_>>())
 }
 
 /// What `Z` holds for `camera`'s model, in words.
@@ -178,11 +182,13 @@ pub fn exr_camera_attributes(camera: &Camera, view: usize, exr: &str) -> Vec<(St
     ];
     if let Some(k) = camera.intrinsics() {
         let rows = k.transpose().to_cols_array().map(|v| v as f32);
-        attributes.push((
-            "zeroset/camera/K".to_string(),
-            AttributeValue::Matrix3x3(rows),
-        ));
-        for (name, value) in [("fx", k.x_axis.x), ("fy", k.y_axis.y), ("cx", k.z_axis.x), ("cy", k.z_axis.y)] {
+        attributes.push(("zeroset/camera/K".to_string(), AttributeValue::Matrix3x3(rows)));
+        for (name, value) in [
+            ("fx", k.x_axis.x),
+            ("fy", k.y_axis.y),
+            ("cx", k.z_axis.x),
+            ("cy", k.z_axis.y),
+        ] {
             attributes.push((format!("zeroset/camera/{name}"), AttributeValue::F64(value)));
         }
     }
