@@ -249,7 +249,15 @@ fn opencv_without_distortion_is_the_perspective_with_the_same_k() {
         let rb = b.camera.pixel_ray(i, j).unwrap();
         assert!((ra.dir - rb.dir).length() < 1e-15, "({i}, {j})");
     }
-    assert_eq!(b.camera.world_to_ndc(0.1, 10.0).is_some(), true);
+    // and so is its worldToNDC matrix (the pinhole with the same K)
+    let (na, nb) = (
+        a.camera.world_to_ndc(0.1, 10.0).unwrap(),
+        b.camera.world_to_ndc(0.1, 10.0).unwrap(),
+    );
+    assert!(
+        (na - nb).abs().to_cols_array().iter().all(|v| *v < 1e-12),
+        "{na} vs {nb}"
+    );
 }
 
 #[test]
