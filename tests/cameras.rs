@@ -324,3 +324,33 @@ fn resolution_changes_keep_each_models_field() {
     let full = s.camera.project(p).unwrap();
     assert!((half.project(p).unwrap() - full * 0.5).length() < 1e-12);
 }
+
+#[test]
+fn world_to_ndc_agrees_with_the_projection_for_the_linear_models() {
+    for camera in [
+        "vfov_deg: 50, width: 160, height: 100, model: Perspective(principal_offset: (37.5, -21.25))",
+        "width: 120, height: 90, model: Orthographic(width: 7.5)",
+        "width: 160, height: 120, model: OpenCv(fx: 150, fy: 146, cx: 81.3, cy: 57.9)",
+    ] {
+        let scene = scene(camera);
+        let c = &scene.camera;
+        let ndc = c.world_to_ndc(0.1, 100.0).unwrap();
+        for (a, b, d) in [(0.3, -0.2, 4.0), (-1.1, 0.7, 9.0), (0.0, 0.0, 2.5)] {
+            let p = c.eye + d * c.forward + a * c.right + b * c.up;
+            let image = c.project(p).unwrap();
+            let n = ndc.project_point3(p);
+            let expected = DVec2::new(
+                2.0 * image.x / f64::from(c.width) - 1.0,
+                1.0 - 2.0 * image.y / f64::from(c.height),
+            );
+            assert!(
+                (n.truncate() - expected).length() < 1e-12,
+                "{camera}: {n} vs {expected}"
+            );
+        }
+    }
+    assert!(scene("width: 64, height: 32, model: Equirectangular()")
+        .camera
+        .world_to_ndc(0.1, 100.0)
+        .is_none());
+}
