@@ -26,12 +26,9 @@
 //! `x = ((i + ½)/W·2 − 1)·tan(θv/2)·W/H` and `y = (1 − (j + ½)/H·2)·tan(θv/2)`,
 //! normalised. Pixels are square: `tan(θv/2)/tan(θh/2) = H/W`.
 //!
-//! **Thin lens** (perspective only). With `aperture > 0` a sample also picks a point on the lens
-//! disk of that radius (centred on the eye, spanned by `right` and `up`); the primary ray starts
-//! there and passes through the point where the pinhole ray meets the focus plane (the plane
-//! perpendicular to `forward` at `focus_distance` from the eye), so everything on the focus
-//! plane stays sharp. With `aperture = 0` [`Camera::lens_ray`] returns the pinhole ray itself,
-//! bit for bit.
+//! **Thin lens** (perspective only, [`lens`]): with `aperture > 0` rays start on a lens disk
+//! and meet on the focus plane; with `aperture = 0` [`Camera::lens_ray`] returns the pinhole ray
+//! itself, bit for bit.
 //!
 //! **Shutter.** The shutter is open over the frame times `[open, close]` (default `[0, 1]`);
 //! moving objects are keyed at frame times 0 and 1 (see `scene.rs`).
@@ -41,8 +38,10 @@
 //! NeRF's). For camera files ([`crate::output::cameras_json`]): the OpenCV convention, `+x`
 //! right, `+y` down, `+z` forward ([`Camera::opencv_extrinsics`]).
 
+pub mod desc;
 pub mod equirectangular;
 pub mod fisheye;
+pub mod lens;
 pub mod opencv;
 pub mod orthographic;
 pub mod perspective;
@@ -50,6 +49,7 @@ pub mod pose;
 
 pub use equirectangular::Equirectangular;
 pub use fisheye::Fisheye;
+pub use lens::concentric_disk;
 pub use opencv::OpenCv;
 pub use orthographic::Orthographic;
 pub use perspective::Perspective;
@@ -147,7 +147,7 @@ pub struct CameraError {
     pub problem: String,
 }
 
-fn err(field: &'static str, problem: impl Into<String>) -> CameraError {
+pub(crate) fn err(field: &'static str, problem: impl Into<String>) -> CameraError {
     CameraError {
         field,
         problem: problem.into(),
@@ -243,7 +243,7 @@ impl Camera {
         Ok(self)
     }
 
-    fn check_lens_model(&self) -> Result<(), CameraError> {
+    pub(crate) fn check_lens_model(&self) -> Result<(), CameraError> {
         if self.aperture > 0.0 && !matches!(self.model, Model::Perspective(_)) {
             return Err(err(
                 "aperture",
@@ -274,25 +274,6 @@ impl Camera {
             up: posed.up,
             ..self.clone()
         })
-    }
-
-    /// The same camera with a thin lens of radius `aperture` (0: pinhole) focused at
-    /// `focus_distance` along the view axis; errors on a negative or non-finite aperture or a
-    /// non-positive focus distance.
-    pub fn with_lens(mut self, aperture: f64, focus_distance: f64) -> Result<Self, CameraError> {
-        if !(aperture.is_finite() && aperture >= 0.0) {
-            return Err(err("aperture", format!("must be finite and ≥ 0, got {aperture}")));
-        }
-        if !(focus_distance.is_finite() && focus_distance > 0.0) {
-            return Err(err(
-                "focus_distance",
-                format!("must be finite and > 0, got {focus_distance}"),
-            ));
-        }
-        self.aperture = aperture;
-        self.focus_distance = focus_distance;
-        self.check_lens_model()?;
-        Ok(self)
     }
 
     /// The same camera with the shutter open over frame times `[open, close]`.
@@ -357,23 +338,6 @@ impl Camera {
             Model::Fisheye(f) => f.ray(self, x, y).ok_or(NoRay::OutsideField),
             Model::OpenCv(c) => c.ray(self, x, y).ok_or(NoRay::NotConverged),
         }
-    }
-
-    /// The primary ray through image position `(x, y)` for the lens sample `lens ∈ [0, 1)²`
-    /// (mapped to the lens disk by [`concentric_disk`]). With `aperture = 0` this is exactly
-    /// [`Camera::ray_through`] (the same bits); otherwise the ray starts at the lens point and
-    /// passes through the pinhole ray's point on the focus plane, and is unit length.
-    #[inline]
-    pub fn lens_ray(&self, x: f64, y: f64, lens: (f64, f64)) -> Result<Ray, NoRay> {
-        let pinhole = self.ray_through(x, y)?;
-        if self.aperture == 0.0 {
-            return Ok(pinhole);
-        }
-        // where the pinhole ray crosses the focus plane ⟨p − eye, forward⟩ = focus_distance
-        let focus = self.eye + pinhole.dir * (self.focus_distance / pinhole.dir.dot(self.forward));
-        let (dx, dy) = concentric_disk(lens.0, lens.1);
-        let origin = self.eye + self.aperture * (dx * self.right + dy * self.up);
-        Ok(Ray::new(origin, (focus - origin).normalize()))
     }
 
     /// The ray through the centre of pixel `(i, j)`.
@@ -482,43 +446,11 @@ impl Camera {
         let projection = match &self.model {
             Model::Perspective(m) => m.projection(self, near, far),
             Model::Orthographic(m) => m.projection(self, near, far),
-            Model::OpenCv(m) => {
-                // the pinhole with the same K: tan(θ/2) = (W/2)/fx, offset from K's centre
-                let (w, h) = (f64::from(self.width), f64::from(self.height));
-                let pinhole = Self {
-                    tan_half_vfov: 0.5 * h / m.fy,
-                    ..self.clone()
-                };
-                let offset = DVec2::new(m.cx + 0.5 - 0.5 * w, m.cy + 0.5 - 0.5 * h);
-                let mut projection = Perspective {
-                    principal_offset: offset,
-                }
-                .projection(&pinhole, near, far);
-                // pinhole.tan_half_hfov() assumes square pixels: use fx for x
-                projection.x_axis.x = 2.0 * m.fx / w;
-                projection
-            }
+            Model::OpenCv(m) => m.projection(self, near, far),
             Model::Equirectangular(_) | Model::Fisheye(_) => return None,
         };
         Some(projection * self.world_to_camera())
     }
-}
-
-/// Shirley and Chiu's concentric map of the unit square `[0, 1)²` onto the unit disk: area
-/// preserving (uniform samples stay uniform, strata stay compact), `(½, ½)` ↦ the centre.
-#[must_use]
-pub fn concentric_disk(u: f64, v: f64) -> (f64, f64) {
-    let a = 2.0 * u - 1.0;
-    let b = 2.0 * v - 1.0;
-    if a == 0.0 && b == 0.0 {
-        return (0.0, 0.0);
-    }
-    let (r, theta) = if a.abs() > b.abs() {
-        (a, std::f64::consts::FRAC_PI_4 * (b / a))
-    } else {
-        (b, std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (a / b))
-    };
-    (r * theta.cos(), r * theta.sin())
 }
 
 #[cfg(test)]
@@ -546,38 +478,6 @@ mod tests {
         assert!((r.dir - expected).length() < 1e-15, "{r:?}");
         let even = Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 60.0, 3, 3).unwrap();
         assert!((even.pixel_ray(1, 1).unwrap().dir - DVec3::Z).length() < 1e-15);
-    }
-
-    #[test]
-    fn zero_aperture_lens_rays_are_the_pinhole_rays_bit_for_bit() {
-        let c = camera().with_lens(0.0, 3.0).unwrap();
-        for k in 0..200u32 {
-            let x = f64::from(k * 37 % 1280) + f64::from(k) / 200.0;
-            let y = f64::from(k * 11 % 720) + 0.25;
-            let lens = (f64::from(k) / 200.0, f64::from((k * 7) % 200) / 200.0);
-            let a = c.lens_ray(x, y, lens).unwrap();
-            let b = c.ray_through(x, y).unwrap();
-            assert_eq!(
-                a.origin.to_array().map(f64::to_bits),
-                b.origin.to_array().map(f64::to_bits)
-            );
-            assert_eq!(a.dir.to_array().map(f64::to_bits), b.dir.to_array().map(f64::to_bits));
-        }
-    }
-
-    #[test]
-    fn lens_rays_meet_on_the_focus_plane() {
-        let c = camera().with_lens(0.2, 7.0).unwrap();
-        let centre = c.ray_through(300.5, 200.5).unwrap();
-        let focus = centre.at(7.0 / centre.dir.dot(c.forward));
-        for (u, v) in [(0.1, 0.9), (0.5, 0.5), (0.99, 0.01), (0.3, 0.6)] {
-            let r = c.lens_ray(300.5, 200.5, (u, v)).unwrap();
-            assert!(((r.origin - c.eye).length()) <= 0.2 + 1e-12);
-            let t = (focus - r.origin).length();
-            assert!((r.at(t) - focus).length() < 1e-9, "{u} {v}");
-        }
-        let (x, y) = concentric_disk(1.0, 0.5);
-        assert!((x - 1.0).abs() < 1e-15 && y.abs() < 1e-15);
     }
 
     #[test]

@@ -28,8 +28,8 @@
 //! Depth `Z` is planar, along the optical axis (`forward`).
 
 use super::perspective::intrinsic_matrix;
-use super::Camera;
-use glam::{DMat3, DVec2, DVec3};
+use super::{Camera, Perspective};
+use glam::{DMat3, DMat4, DVec2, DVec3};
 use zeroset_primitives::Ray;
 
 /// Largest accepted undistortion residual, pixels.
@@ -178,6 +178,25 @@ impl OpenCv {
     #[must_use]
     pub fn intrinsics(&self) -> DMat3 {
         intrinsic_matrix(self.fx, self.fy, self.cx, self.cy)
+    }
+
+    /// The OpenGL projection (camera space → clip space) of the undistorted pinhole with this
+    /// `K`: the perspective's with `tan(θv/2) = (H/2)/fy`, `x` scaled by `2fx/W` and the principal
+    /// offset `(cx + ½ − W/2, cy + ½ − H/2)`.
+    #[must_use]
+    pub fn projection(&self, camera: &Camera, near: f64, far: f64) -> DMat4 {
+        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
+        let pinhole = Camera {
+            tan_half_vfov: 0.5 * h / self.fy,
+            ..camera.clone()
+        };
+        let offset = DVec2::new(self.cx + 0.5 - 0.5 * w, self.cy + 0.5 - 0.5 * h);
+        let mut projection = Perspective {
+            principal_offset: offset,
+        }
+        .projection(&pinhole, near, far);
+        projection.x_axis.x = 2.0 * self.fx / w;
+        projection
     }
 
     /// The same camera for an image scaled by `(sx, sy)` (pixel edges scale, so centres move by
