@@ -441,3 +441,39 @@ fn bad_views_are_errors_naming_file_and_entry() {
         assert_fails(&o, &needles, views);
     }
 }
+
+#[test]
+fn non_converging_pixels_are_reported_by_render_and_refused_by_query() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("strong.ron");
+    std::fs::write(
+        &scene,
+        "Scene(camera: (width: 80, height: 60, model: OpenCv(fx: 60, fy: 60, cx: 39.5, cy: 29.5, \
+         distortion: [-0.6, 0, 0, 0])), objects: [(shape: Plane(normal: (0, 0, -1), offset: -3))])",
+    )
+    .unwrap();
+    let o = run(&["render", p(&scene), "-o", p(dir.path()), "--no-previews"]);
+    assert_ok(&o, "strong distortion");
+    let err = String::from_utf8_lossy(&o.stderr);
+    let line = err
+        .lines()
+        .find(|l| l.contains("did not converge"))
+        .unwrap_or_else(|| panic!("{err}"));
+    let count: u64 = line
+        .split_whitespace()
+        .find_map(|w| w.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    assert!(count > 100, "{line}");
+    // those pixels hold the miss values; the centre does not
+    let z = read_channel(&dir.path().join("strong.exr"), "Z");
+    assert_eq!(z[0], f32::INFINITY);
+    assert!((z[30 * 80 + 40] - 8.0).abs() < 1e-5, "{}", z[30 * 80 + 40]);
+    assert_eq!(z.iter().filter(|v| v.is_infinite()).count() as u64, count);
+    let pixels = dir.path().join("corner.csv");
+    std::fs::write(&pixels, "40.5,30.5\n0.5,0.5\n").unwrap();
+    assert_fails(
+        &run(&["query", p(&scene), "--pixels", p(&pixels)]),
+        &["corner.csv:2", "does not converge"],
+        "query at a non-converging pixel",
+    );
+}
