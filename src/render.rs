@@ -2,7 +2,10 @@
 //! computed for it.
 //!
 //! With one sample per pixel and no moving object, one ray goes through each pixel centre (the
-//! pinhole ray; the lens centre) and the AOVs are that ray's. Otherwise each pixel traces the
+//! camera model's ray; for a thin lens, through the lens centre) and the AOVs are that ray's. A
+//! pixel (or sample) where the model has no ray (outside a fisheye's image circle, or where the
+//! OpenCV undistortion does not converge) gets the miss values and is counted in [`Frame`].
+//! [`render`] traces the scene's camera, [`render_view`] any other (the scene's `views`). Otherwise each pixel traces the
 //! samples of [`crate::sampling`] (position, lens point, time) and resolves them per AOV:
 //!
 //! | AOV | rule over the pixel's samples |
