@@ -2,11 +2,9 @@
 //! computed for it.
 //!
 //! With one sample per pixel and no moving object, one ray goes through each pixel centre (the
-//! camera model's ray; for a thin lens, through the lens centre) and the AOVs are that ray's. A
-//! pixel (or sample) where the model has no ray (outside a fisheye's image circle, or where the
-//! OpenCV undistortion does not converge) gets the miss values and is counted in [`Frame`].
-//! [`render`] traces the scene's camera, [`render_view`] any other (the scene's `views`). Otherwise each pixel traces the
-//! samples of [`crate::sampling`] (position, lens point, time) and resolves them per AOV:
+//! camera model's ray; for a thin lens, through the lens centre) and the AOVs are that ray's.
+//! Otherwise each pixel traces the samples of [`crate::sampling`] (position, lens point, time)
+//! and resolves them per AOV:
 //!
 //! | AOV | rule over the pixel's samples |
 //! |---|---|
@@ -17,8 +15,12 @@
 //! | `Normal`, `CameraNormal`, `ShadingNormal` | mean over the samples that hit that object, renormalised |
 //! | `Uv` | mean over the same samples as the normal |
 //!
-//! and a pixel no sample hits gets the miss values. Rows are distributed over rayon's threads in
-//! bands; every pixel is computed independently from the scene and its own samples (a hash of
+//! and a pixel no sample hits gets the miss values. A pixel (or sample) where the camera model
+//! has no ray (outside a fisheye's image circle, or where the OpenCV undistortion does not
+//! converge) sees nothing, like a miss, and is counted in [`Frame`]. [`render`] traces the
+//! scene's camera, [`render_view`] any other (such as one of the scene's `views`).
+//!
+//! Rows are distributed over rayon's threads in bands; every pixel is computed independently from the scene and its own samples (a hash of
 //! seed, pixel and sample index), so the image is bit-identical whatever the thread count. The
 //! loop knows nothing about any particular primitive: it calls [`Scene::intersect`] (or
 //! [`Scene::intersect_at`]) and [`SurfaceHit::complete`].
