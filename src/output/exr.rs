@@ -76,7 +76,7 @@ pub fn write_exr(frame: &Frame, path: &Path, header: &ExrHeader) -> std::result:
     other.insert(
         Text::from("zeroset/depth"),
         AttributeValue::Text(Text::from(
-            "Z: camera-space planar depth along the view axis; distance: ray distance from the eye (unit-length rays)",
+            "Z: camera-space planar depth along the view axis (Perspective, OpenCv, Orthographic cameras; ray distance for Equirectangular, Fisheye: see zeroset/camera/depth); distance: ray distance from the eye (unit-length rays)",
         )),
     );
     other.insert(Text::from("zeroset/depthMiss"), AttributeValue::F32(header.depth_miss));
