@@ -55,7 +55,7 @@ fn bench_level(root: &Path, level: u32) -> Result<Ours, String> {
     let cam = &scene.camera;
     let rays: Vec<Ray> = (0..cam.height)
         .flat_map(|y| (0..cam.width).map(move |x| (x, y)))
-        .map(|(x, y)| cam.pixel_ray(x, y))
+        .map(|(x, y)| cam.pixel_ray(x, y).expect("the benchmark cameras are pinholes"))
         .collect();
     let n = rays.len() as f64;
     let mut out = vec![(f32::INFINITY, u32::MAX); rays.len()];

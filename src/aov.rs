@@ -4,7 +4,7 @@
 //! |----------------|-----------------------|-----------------------------------------------------|-----------|
 //! | `Beauty`       | `R, G, B`             | shaded colour (linear)                              | background |
 //! | `Alpha`        | `A`                   | 1                                                   | 0 |
-//! | `Depth`        | `Z`                   | camera-space planar depth along the view axis       | +∞ (or `--depth-miss`) |
+//! | `Depth`        | `Z`                   | planar depth along the view axis (ray distance for the panoramic camera models, see [`crate::camera`]) | +∞ (or `--depth-miss`) |
 //! | `Distance`     | `distance`            | ray distance `t` from the eye (unit-length rays)     | +∞ (or `--depth-miss`) |
 //! | `Normal`       | `N.X, N.Y, N.Z`       | world-space unit ∇Φ normal, outward, not flipped: the **geometric** normal (a mesh's face normal) | 0 |
 //! | `ShadingNormal` | `Ns.X, Ns.Y, Ns.Z`   | world-space **shading** normal (a mesh's interpolated vertex normals); equals `N` where a primitive has none | 0 |
@@ -26,7 +26,8 @@
 //! | `Uv` | mean over the same samples as the normal (not seam-aware) |
 //!
 //! A pixel no sample hits gets the miss values. `Distance` is measured from the sample's lens
-//! point (the eye for a pinhole); `Z` is always planar depth from the eye.
+//! point (the eye for a pinhole); `Z` is planar depth from the eye (ray distance for the
+//! panoramic camera models).
 
 use serde::Deserialize;
 

@@ -2,15 +2,19 @@
 //! primitive types and then run the same CLI (see `docs/adding-a-primitive.md`).
 
 use crate::aov::Aov;
+use crate::camera::Camera;
+use crate::output::cameras_json::{cameras_json, exr_camera_attributes, transforms_json};
 use crate::output::exr::{write_exr, ExrHeader};
 use crate::output::png::write_previews;
 use crate::query::{first_hits, format_hits, parse_rays};
-use crate::render::{render, RenderOptions, Window};
+use crate::render::{render_view, Frame, RenderOptions, Window};
 use crate::scene::Scene;
+use crate::views::{render_views, view_files};
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// zeroset: a ray caster for implicit surfaces with exact depth and normal AOVs.
@@ -68,6 +72,12 @@ pub struct RenderArgs {
     /// Samples per pixel (default: the scene's `sampling.spp`, itself 1 by default).
     #[arg(long)]
     pub spp: Option<u32>,
+    /// Render only view I of the scene's `views` (to `NAME.IIII.exr`).
+    #[arg(long, value_name = "I")]
+    pub view: Option<usize>,
+    /// Also write `transforms.json` (NeRF / instant-ngp convention) beside the EXRs.
+    #[arg(long)]
+    pub transforms: bool,
 }
 
 /// `zeroset query`.
@@ -76,8 +86,15 @@ pub struct QueryArgs {
     /// Scene file (RON).
     pub scene: PathBuf,
     /// Rays, one per line: `ox,oy,oz,dx,dy,dz[,tmin,tmax]`.
+    #[arg(long, required_unless_present = "pixels", conflicts_with = "pixels")]
+    pub rays: Option<PathBuf>,
+    /// Image positions instead of rays, one per line: `x,y[,view]` (pixel (i, j)'s centre is
+    /// (i + 0.5, j + 0.5)); rays from the scene's camera, or from `--camera`'s.
     #[arg(long)]
-    pub rays: PathBuf,
+    pub pixels: Option<PathBuf>,
+    /// Scene file whose camera (and views) turn `--pixels` into rays (default: the queried scene).
+    #[arg(long, requires = "pixels", value_name = "SCENE")]
+    pub camera: Option<PathBuf>,
     /// Output CSV (`-` for stdout).
     #[arg(short, long, default_value = "-")]
     pub output: PathBuf,
@@ -137,6 +154,11 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             .camera
             .with_resolution(w, h)
             .map_err(|e| anyhow::anyhow!("--width/--height: {e}"))?;
+        for view in &mut scene.views {
+            *view = view
+                .with_resolution(w, h)
+                .map_err(|e| anyhow::anyhow!("--width/--height: {e}"))?;
+        }
     }
     let crop = match &args.crop {
         None => None,
@@ -177,40 +199,100 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let (dir, stem) = output_location(&args.output, &args.scene)?;
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
 
+    let views = view_files(&scene, &stem);
+    write_camera_files(&views, &dir, &stem, args.transforms)?;
+    let selected: Vec<usize> = match args.view {
+        None => (0..views.len()).collect(),
+        Some(_) if scene.views.is_empty() => bail!("--view: {} has no `views`", args.scene.display()),
+        Some(i) if i >= views.len() => bail!("--view {i}: the scene has views 0 to {}", views.len() - 1),
+        Some(i) => vec![i],
+    };
     let options = RenderOptions {
         aovs,
         crop,
         depth_miss: args.depth_miss,
-        progress: true,
+        progress: selected.len() == 1,
     };
-    let frame = render(&scene, &options);
-
-    let exr_path = dir.join(format!("{stem}.exr"));
-    let header = ExrHeader {
-        world_to_camera: scene.camera.world_to_camera(),
-        world_to_ndc: scene.camera.world_to_ndc(0.01, 1000.0),
-        scene_file: args.scene.display().to_string(),
-        depth_miss: args.depth_miss,
+    let cameras: Vec<&Camera> = selected.iter().map(|&i| views[i].0).collect();
+    let start = Instant::now();
+    let write_view = |k: usize, frame: Frame| -> Result<Frame> {
+        let index = selected[k];
+        let (camera, file) = (views[index].0, &views[index].1);
+        let exr_path = dir.join(file);
+        let header = ExrHeader {
+            world_to_camera: camera.world_to_camera(),
+            world_to_ndc: camera.world_to_ndc(0.01, 1000.0),
+            scene_file: args.scene.display().to_string(),
+            depth_miss: args.depth_miss,
+            camera_attributes: exr_camera_attributes(camera, index, file),
+        };
+        write_exr(&frame, &exr_path, &header).with_context(|| format!("writing {}", exr_path.display()))?;
+        let mut written = vec![exr_path];
+        if scene.outputs.previews && !args.no_previews {
+            let preview_stem = file.trim_end_matches(".exr");
+            written.extend(write_previews(&frame, &dir, preview_stem).context("writing PNG previews")?);
+        }
+        for path in &written {
+            eprintln!("wrote {}", path.display());
+        }
+        if frame.not_converged > 0 {
+            eprintln!(
+                "warning: {file}: {} pixel samples had no ray because the lens undistortion did not converge to \
+                 1e-12 px there (strong distortion beyond its invertible region); they hold the miss values",
+                frame.not_converged
+            );
+        }
+        Ok(frame)
     };
-    write_exr(&frame, &exr_path, &header).with_context(|| format!("writing {}", exr_path.display()))?;
-    let mut written = vec![exr_path];
-    if scene.outputs.previews && !args.no_previews {
-        written.extend(write_previews(&frame, &dir, &stem).context("writing PNG previews")?);
+    if cameras.len() == 1 {
+        let frame = write_view(0, render_view(&scene, cameras[0], &options))?;
+        println!(
+            "rendered {}x{} at {} spp ({} objects, load+BVH {:.3} s) in {:.3} s: {:.2} Mrays/s on {} threads",
+            frame.window.width(),
+            frame.window.height(),
+            scene.sampling.spp,
+            scene.objects.len(),
+            load_time.as_secs_f64(),
+            frame.elapsed.as_secs_f64(),
+            frame.mrays_per_second(),
+            rayon::current_num_threads()
+        );
+        return Ok(());
     }
-    for path in &written {
-        eprintln!("wrote {}", path.display());
-    }
+    let rays = AtomicU64::new(0);
+    render_views(&scene, &cameras, &options, |k, frame| {
+        let frame = write_view(k, frame)?;
+        let pixels = u64::from(frame.window.width()) * u64::from(frame.window.height());
+        rays.fetch_add(pixels * u64::from(frame.spp), Ordering::Relaxed);
+        Ok::<(), anyhow::Error>(())
+    })?;
+    let elapsed = start.elapsed().as_secs_f64();
     println!(
-        "rendered {}x{} at {} spp ({} objects, load+BVH {:.3} s) in {:.3} s: {:.2} Mrays/s on {} threads",
-        frame.window.width(),
-        frame.window.height(),
+        "rendered {} views at {} spp ({} objects, load+BVH {:.3} s) in {:.3} s ({:.4} s per view, files included): \
+         {:.2} Mrays/s on {} threads",
+        cameras.len(),
         scene.sampling.spp,
         scene.objects.len(),
         load_time.as_secs_f64(),
-        frame.elapsed.as_secs_f64(),
-        frame.mrays_per_second(),
+        elapsed,
+        elapsed / cameras.len() as f64,
+        rays.into_inner() as f64 / elapsed.max(1e-12) / 1e6,
         rayon::current_num_threads()
     );
+    Ok(())
+}
+
+/// Writes `NAME.cameras.json` for every view (and `transforms.json` when asked) into `dir`.
+fn write_camera_files(views: &[(&Camera, String)], dir: &Path, stem: &str, transforms: bool) -> Result<()> {
+    let path = dir.join(format!("{stem}.cameras.json"));
+    std::fs::write(&path, cameras_json(views)).with_context(|| format!("writing {}", path.display()))?;
+    eprintln!("wrote {}", path.display());
+    if transforms {
+        let text = transforms_json(views).map_err(|m| anyhow::anyhow!("--transforms: {m}"))?;
+        let path = dir.join("transforms.json");
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
     Ok(())
 }
 
@@ -243,8 +325,14 @@ fn output_location(output: &Path, scene: &Path) -> Result<(PathBuf, String)> {
 
 fn query_command(args: &QueryArgs) -> Result<()> {
     let scene = Scene::load(&args.scene)?;
-    let text = std::fs::read_to_string(&args.rays).with_context(|| format!("reading {}", args.rays.display()))?;
-    let rays = parse_rays(&text, &args.rays.display().to_string())?;
+    let rays = match (&args.rays, &args.pixels) {
+        (Some(file), _) => {
+            let text = std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
+            parse_rays(&text, &file.display().to_string())?
+        }
+        (None, Some(pixels)) => crate::pixels::pixel_rays_from_files(&scene, args.camera.as_deref(), pixels)?,
+        (None, None) => bail!("give --rays or --pixels"),
+    };
     let start = Instant::now();
     let hits = first_hits(&scene, &rays);
     let elapsed = start.elapsed();

@@ -2,9 +2,10 @@
 //!
 //! Scenes are RON files ([`scene`]), primitives come from the `zeroset-primitives` kernel or
 //! from user types registered in the [`registry`]; the renderer ([`render`]) casts one ray per
-//! pixel through the pixel centre of a pinhole [`camera`] (or several per pixel through a thin
+//! pixel through the pixel centre of a [`camera`] model (or several per pixel through a thin
 //! lens over a shutter interval: [`sampling`], [`motion`]), keeps the first hit, and writes the
-//! requested [`aov`]s to EXR and PNG ([`output`]). [`query`] answers batches of rays.
+//! requested [`aov`]s to EXR and PNG and the cameras to JSON ([`output`]), for one view or many
+//! ([`views`]). [`query`] answers batches of rays, which [`pixels`] makes from image positions.
 
 pub mod aov;
 pub mod camera;
@@ -13,11 +14,13 @@ pub mod combinators;
 pub mod mesh_io;
 pub mod motion;
 pub mod output;
+pub mod pixels;
 pub mod query;
 pub mod registry;
 pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod shapes;
+pub mod views;
 
 pub use zeroset_primitives as primitives;

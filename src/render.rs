@@ -2,8 +2,9 @@
 //! computed for it.
 //!
 //! With one sample per pixel and no moving object, one ray goes through each pixel centre (the
-//! pinhole ray; the lens centre) and the AOVs are that ray's. Otherwise each pixel traces the
-//! samples of [`crate::sampling`] (position, lens point, time) and resolves them per AOV:
+//! camera model's ray; for a thin lens, through the lens centre) and the AOVs are that ray's.
+//! Otherwise each pixel traces the samples of [`crate::sampling`] (position, lens point, time)
+//! and resolves them per AOV:
 //!
 //! | AOV | rule over the pixel's samples |
 //! |---|---|
@@ -14,19 +15,24 @@
 //! | `Normal`, `CameraNormal`, `ShadingNormal` | mean over the samples that hit that object, renormalised |
 //! | `Uv` | mean over the same samples as the normal |
 //!
-//! and a pixel no sample hits gets the miss values. Rows are distributed over rayon's threads in
-//! bands; every pixel is computed independently from the scene and its own samples (a hash of
+//! and a pixel no sample hits gets the miss values. A pixel (or sample) where the camera model
+//! has no ray (outside a fisheye's image circle, or where the OpenCV undistortion does not
+//! converge) sees nothing, like a miss, and is counted in [`Frame`]. [`render`] traces the
+//! scene's camera, [`render_view`] any other (such as one of the scene's `views`).
+//!
+//! Rows are distributed over rayon's threads in bands; every pixel is computed independently from the scene and its own samples (a hash of
 //! seed, pixel and sample index), so the image is bit-identical whatever the thread count. The
 //! loop knows nothing about any particular primitive: it calls [`Scene::intersect`] (or
 //! [`Scene::intersect_at`]) and [`SurfaceHit::complete`].
 
 use crate::aov::Aov;
+use crate::camera::{Camera, NoRay};
 use crate::sampling::{pixel_samples, PixelSample};
 use crate::scene::{Light, Scene};
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
 
@@ -98,6 +104,12 @@ pub struct Frame {
     pub elapsed: Duration,
     /// Primary rays per pixel (samples per pixel).
     pub spp: u32,
+    /// Pixel samples with no ray because they lie outside the camera's field (a fisheye's
+    /// image circle); such pixels get the miss values.
+    pub outside_field: u64,
+    /// Pixel samples with no ray because the OpenCV undistortion did not converge there
+    /// ([`crate::camera::opencv`]); such pixels get the miss values.
+    pub not_converged: u64,
 }
 
 impl Frame {
@@ -149,10 +161,32 @@ impl Frame {
     }
 }
 
-/// Renders `scene` as `options` ask (on the current rayon pool).
+/// Renders `scene` through its camera as `options` ask (on the current rayon pool).
 #[must_use]
 pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
-    let camera = &scene.camera;
+    render_view(scene, &scene.camera, options)
+}
+
+/// Counts of samples without a ray, by reason.
+#[derive(Default)]
+struct NoRayCounts {
+    outside_field: AtomicU64,
+    not_converged: AtomicU64,
+}
+
+impl NoRayCounts {
+    fn add(&self, reason: NoRay) {
+        match reason {
+            NoRay::OutsideField => &self.outside_field,
+            NoRay::NotConverged => &self.not_converged,
+        }
+        .fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+/// Renders `scene` through `camera` (one of its views, or any other camera) as `options` ask.
+#[must_use]
+pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> Frame {
     let window = options.crop.unwrap_or(Window {
         x0: 0,
         y0: 0,
@@ -193,6 +227,8 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         channels,
         world_to_camera,
         depth_miss: options.depth_miss,
+        camera,
+        no_ray: NoRayCounts::default(),
     };
 
     samples.par_chunks_mut(row_len).enumerate().for_each(|(row, out)| {
@@ -202,7 +238,14 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         } else {
             for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
                 let x = window.x0 + column as u32;
-                let ray = camera.pixel_ray(x, y);
+                let ray = match camera.pixel_ray(x, y) {
+                    Ok(ray) => ray,
+                    Err(reason) => {
+                        context.no_ray.add(reason);
+                        write_miss(pixel, scene, &context);
+                        continue;
+                    }
+                };
                 let hit = scene.intersect(&ray, Interval::POSITIVE).map(|(object, raw)| {
                     let primitive = &*scene.objects[object as usize].primitive;
                     let hit = SurfaceHit::complete(primitive, &ray, &raw, request);
@@ -218,6 +261,7 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
                     let n = write_aov(
                         rest,
                         scene,
+                        camera,
                         *aov,
                         &ray,
                         hit.as_ref(),
@@ -239,6 +283,10 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         }
     });
     bar.finish_and_clear();
+    let (outside_field, not_converged) = (
+        context.no_ray.outside_field.into_inner(),
+        context.no_ray.not_converged.into_inner(),
+    );
     Frame {
         width: camera.width,
         height: camera.height,
@@ -247,6 +295,27 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         samples,
         elapsed: start.elapsed(),
         spp: scene.sampling.spp.max(1),
+        outside_field,
+        not_converged,
+    }
+}
+
+/// Writes the miss values of every AOV of `context` into `pixel`.
+fn write_miss(pixel: &mut [f32], scene: &Scene, context: &RowContext) {
+    let camera = context.camera;
+    let mut rest = pixel;
+    for aov in context.aovs {
+        let n = write_aov(
+            rest,
+            scene,
+            camera,
+            *aov,
+            &Ray::new(camera.eye, camera.forward),
+            None,
+            &context.world_to_camera,
+            context.depth_miss,
+        );
+        rest = &mut rest[n..];
     }
 }
 
@@ -259,6 +328,8 @@ struct RowContext<'a> {
     channels: usize,
     world_to_camera: glam::DMat4,
     depth_miss: f32,
+    camera: &'a Camera,
+    no_ray: NoRayCounts,
 }
 
 /// One sample's hit: the object, its record, shading normal, planar depth and ray.
@@ -273,7 +344,7 @@ struct SampleHit {
 /// Renders row `y` from column `x0` with the scene's samples per pixel, resolving each pixel's
 /// samples per AOV as the module table says.
 fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out: &mut [f32]) {
-    let camera = &scene.camera;
+    let camera = context.camera;
     let filter = scene.sampling.filter;
     let mut points: Vec<PixelSample> = Vec::new();
     let mut scratch = Vec::new();
@@ -289,7 +360,17 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
         for sample in &points {
             let w = filter.weight(sample.x - cx, sample.y - cy);
             weights += w;
-            let ray = camera.lens_ray(sample.x, sample.y, sample.lens);
+            // a sample with no ray (outside the field) sees nothing, like a miss
+            let ray = match camera.lens_ray(sample.x, sample.y, sample.lens) {
+                Ok(ray) => ray,
+                Err(reason) => {
+                    context.no_ray.add(reason);
+                    if context.beauty {
+                        colour += w * scene.background;
+                    }
+                    continue;
+                }
+            };
             let Some((object, raw)) = scene.intersect_at(&ray, Interval::POSITIVE, sample.time) else {
                 if context.beauty {
                     colour += w * scene.background;
@@ -313,25 +394,14 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
                 object,
                 hit,
                 shading_normal,
-                depth: camera.planar_depth(hit.point),
+                depth: camera.depth(hit.point, hit.t),
                 ray,
             });
         }
         let mut rest = &mut pixel[..];
         // the nearest hit sample (the first of equals), for depth, distance and position
         let Some(nearest) = hits.iter().min_by(|a, b| a.depth.total_cmp(&b.depth)) else {
-            for aov in context.aovs {
-                let n = write_aov(
-                    rest,
-                    scene,
-                    *aov,
-                    &Ray::new(camera.eye, camera.forward),
-                    None,
-                    &context.world_to_camera,
-                    context.depth_miss,
-                );
-                rest = &mut rest[n..];
-            }
+            write_miss(rest, scene, context);
             continue;
         };
         // the object most samples hit (ties: the nearest), for id, normals and uv
@@ -385,6 +455,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
                 _ => write_aov(
                     rest,
                     scene,
+                    camera,
                     *aov,
                     &nearest.ray,
                     Some(&merged),
@@ -399,9 +470,11 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
 
 /// Writes one AOV's channels for one pixel at the start of `out`; returns how many it wrote.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn write_aov(
     out: &mut [f32],
     scene: &Scene,
+    camera: &Camera,
     aov: Aov,
     ray: &Ray,
     hit: Option<&(u32, SurfaceHit, Option<DVec3>)>,
@@ -450,7 +523,7 @@ fn write_aov(
             return 2;
         }
         Aov::Alpha => 1.0,
-        Aov::Depth => scene.camera.planar_depth(hit.point) as f32,
+        Aov::Depth => camera.depth(hit.point, hit.t) as f32,
         Aov::Distance => hit.t as f32,
         Aov::PrimitiveId => *object as f32,
     };

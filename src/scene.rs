@@ -6,7 +6,9 @@
 //! object (index and name) and field.
 
 use crate::aov::Aov;
-use crate::camera::{Camera, CameraError};
+use crate::camera::desc::ModelDesc;
+use crate::camera::pose::{build_views, ViewDesc};
+use crate::camera::{Camera, CameraError, Model};
 use crate::motion::{Moving, Placement};
 use crate::registry::{BuildContext, ShapeDesc};
 use crate::sampling::Sampling;
@@ -106,7 +108,7 @@ fn default_one() -> f64 {
 }
 
 /// `camera: (eye: …, look_at: … | direction: …, up: …, vfov_deg: … | hfov_deg: …, width, height,
-/// aperture: 0, focus_distance: …, shutter: (open: 0, close: 1))`.
+/// model: Perspective(), aperture: 0, focus_distance: …, shutter: (open: 0, close: 1))`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraDesc {
@@ -144,6 +146,10 @@ pub struct CameraDesc {
     /// Shutter interval in frame time; default `(open: 0, close: 1)`.
     #[serde(default)]
     pub shutter: Option<ShutterDesc>,
+    /// Projection model; default `Perspective()` (fields of view from `vfov_deg`/`hfov_deg`,
+    /// which the other models do not take).
+    #[serde(default)]
+    pub model: Option<ModelDesc>,
 }
 
 /// `material: (color: (r, g, b), specular: 0, shininess: 32)`.
@@ -295,6 +301,10 @@ pub struct SceneDesc {
     /// Samples per pixel, filter and seed; default one sample at each pixel centre.
     #[serde(default)]
     pub sampling: Sampling,
+    /// Camera poses to render, one image each, with the camera's model and resolution (see
+    /// [`crate::camera::pose`]); default none: the camera's own pose, one image.
+    #[serde(default)]
+    pub views: Vec<ViewDesc>,
 }
 
 /// A placed primitive with its material.
@@ -330,6 +340,9 @@ pub struct Scene {
     pub outputs: Outputs,
     /// Samples per pixel, filter and seed.
     pub sampling: Sampling,
+    /// The cameras of the scene's `views`, in order; empty when there are none (then `camera`
+    /// is the one view).
+    pub views: Vec<Camera>,
     /// Objects tested on every ray: those with infinite bounds, and a lone bounded object.
     unbounded: Vec<u32>,
     bvh: Bvh,
@@ -391,6 +404,7 @@ impl Scene {
     pub fn from_desc(desc: SceneDesc, context: &BuildContext) -> Result<Self, (String, String)> {
         let camera = build_camera(&desc.camera)
             .map_err(|e| ("camera".to_string(), format!("field `{}`: {}", e.field, e.problem)))?;
+        let views = build_views(&desc.views, &camera, &context.scene_dir)?;
         check_finite("scene", "ambient", desc.ambient)?;
         check_finite("scene", "background", desc.background)?;
         let mut objects = Vec::with_capacity(desc.objects.len());
@@ -473,6 +487,7 @@ impl Scene {
             desc.outputs,
         );
         scene.sampling = desc.sampling;
+        scene.views = views;
         Ok(scene)
     }
 
@@ -514,6 +529,7 @@ impl Scene {
             background,
             outputs,
             sampling: Sampling::default(),
+            views: Vec::new(),
             unbounded,
             bvh,
         }
@@ -646,7 +662,22 @@ fn build_camera(c: &CameraDesc) -> Result<Camera, CameraError> {
             v
         }
     };
-    let camera = Camera::new(c.eye, direction, c.up, vfov, c.width, c.height)?;
+    let model = c.model.as_ref().map(ModelDesc::build).transpose()?;
+    if let Some(model) = &model {
+        if !matches!(model, Model::Perspective(_)) && (c.vfov_deg.is_some() || c.hfov_deg.is_some()) {
+            return Err(CameraError {
+                field: if c.vfov_deg.is_some() { "vfov_deg" } else { "hfov_deg" },
+                problem: format!(
+                    "is a Perspective setting; the {} model takes its field in `model`",
+                    model.name()
+                ),
+            });
+        }
+    }
+    let mut camera = Camera::new(c.eye, direction, c.up, vfov, c.width, c.height)?;
+    if let Some(model) = model {
+        camera = camera.with_model(model)?;
+    }
     let focus = match (c.focus_distance, c.look_at) {
         (Some(f), _) => f,
         (None, Some(target)) => (target - c.eye).dot(camera.forward),

@@ -87,6 +87,7 @@ fn render_default_scene() {
         file_names(dir.path()),
         set(&[
             "default.exr",
+            "default.cameras.json",
             "default.beauty.png",
             "default.depth.png",
             "default.normal.png"
@@ -267,7 +268,11 @@ fn render_to_exr_path_with_depth_miss() {
         "--no-previews",
     ]);
     assert_ok(&o, "render -o shot.exr --depth-miss 0");
-    assert_eq!(file_names(&dir.path().join("sub")), set(&["shot.exr"]), "no previews");
+    assert_eq!(
+        file_names(&dir.path().join("sub")),
+        set(&["shot.exr", "shot.cameras.json"]),
+        "no previews"
+    );
     let channels = read_channels(&out);
     let get = |n: &str| channels.iter().find(|(name, _)| name == n).unwrap().1.clone();
     let (z, a) = (get("Z"), get("A"));

@@ -60,6 +60,7 @@ fn header(scene: &Scene, depth_miss: f32) -> ExrHeader {
         world_to_ndc: scene.camera.world_to_ndc(0.01, 1000.0),
         scene_file: "exr_test.ron".into(),
         depth_miss,
+        camera_attributes: Vec::new(),
     }
 }
 

@@ -226,7 +226,7 @@ fn run_one(path: &Path, runs: usize) -> SceneRow {
         .into_par_iter()
         .map(|i| {
             let (x, yy) = ((i % w as usize) as u32, (i / w as usize) as u32);
-            let ray = camera.pixel_ray(x, yy);
+            let ray = camera.pixel_ray(x, yy).expect("the benchmark cameras are pinholes");
             let px = frame.pixel(Aov::Distance, x, yy).unwrap()[0];
             let id = frame.pixel(Aov::PrimitiveId, x, yy).unwrap()[0];
             let f64_hit = scene.intersect(&ray, Interval::POSITIVE);

@@ -5,7 +5,8 @@
 //! whole image). Header attributes: `worldToCamera` and `worldToNDC` (the OpenEXR standard
 //! attributes, Imath row-vector convention, camera looking along −z; NDC near/far 0.01/1000),
 //! `zeroset/scene` (the scene file), `zeroset/depth` (the depth convention in words) and
-//! `zeroset/depthMiss` (the value written where nothing was hit).
+//! `zeroset/depthMiss` (the value written where nothing was hit), and the camera's intrinsics
+//! from [`crate::output::cameras_json::exr_camera_attributes`] (`zeroset/camera/…`).
 
 use crate::render::Frame;
 use exr::meta::attribute::{AttributeValue, IntegerBounds, Text};
@@ -18,12 +19,14 @@ use std::path::Path;
 pub struct ExrHeader {
     /// World → camera matrix.
     pub world_to_camera: DMat4,
-    /// World → NDC matrix.
-    pub world_to_ndc: DMat4,
+    /// World → NDC matrix (`None` for cameras without a linear projection: no attribute).
+    pub world_to_ndc: Option<DMat4>,
     /// The scene file.
     pub scene_file: String,
     /// Value written to depth channels on a miss.
     pub depth_miss: f32,
+    /// Further header attributes (the camera's intrinsics), by name.
+    pub camera_attributes: Vec<(String, AttributeValue)>,
 }
 
 /// The Imath (row-vector, row-major) layout of a column-vector matrix: the transpose, which is
@@ -47,7 +50,7 @@ pub fn write_exr(frame: &Frame, path: &Path, header: &ExrHeader) -> std::result:
     let attributes = LayerAttributes {
         layer_position: Vec2(window.x0 as i32, window.y0 as i32),
         world_to_camera: Some(imath_matrix(&header.world_to_camera)),
-        world_to_normalized_device: Some(imath_matrix(&header.world_to_ndc)),
+        world_to_normalized_device: header.world_to_ndc.as_ref().map(imath_matrix),
         ..LayerAttributes::default()
     };
     let encoding = Encoding {
@@ -73,9 +76,12 @@ pub fn write_exr(frame: &Frame, path: &Path, header: &ExrHeader) -> std::result:
     other.insert(
         Text::from("zeroset/depth"),
         AttributeValue::Text(Text::from(
-            "Z: camera-space planar depth along the view axis; distance: ray distance from the eye (unit-length rays)",
+            "Z: camera-space planar depth along the view axis (Perspective, OpenCv, Orthographic cameras; ray distance for Equirectangular, Fisheye: see zeroset/camera/depth); distance: ray distance from the eye (unit-length rays)",
         )),
     );
     other.insert(Text::from("zeroset/depthMiss"), AttributeValue::F32(header.depth_miss));
+    for (name, value) in &header.camera_attributes {
+        other.insert(Text::from(name.as_str()), value.clone());
+    }
     Image::new(image_attributes, layer).write().to_file(path)
 }

@@ -56,6 +56,7 @@ fn every_example_scene_renders_to_exr() {
             world_to_ndc: scene.camera.world_to_ndc(0.01, 1000.0),
             scene_file: name.into(),
             depth_miss: f32::INFINITY,
+            camera_attributes: Vec::new(),
         };
         write_exr(&frame, &path, &header).unwrap();
         let image = exr::prelude::read_all_flat_layers_from_file(&path).unwrap();
