@@ -17,12 +17,12 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use zeroset::aov::Aov;
-use zeroset::camera::Camera;
+use zeroset::camera::{Camera, Model, NoRay, OpenCv};
 use zeroset::output::exr::{write_exr as write_frame, ExrHeader};
 use zeroset::primitives::{Interval, Mesh, Primitive, Ray, Transformed};
 use zeroset::query::{first_hits, QueryRay};
 use zeroset::registry::BuildContext;
-use zeroset::render::{render as render_frame, Frame, RenderOptions, Window};
+use zeroset::render::{render_view, Frame, RenderOptions, Window};
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
 
 create_exception!(
@@ -401,7 +401,7 @@ impl PyScene {
         crop: Option<(u32, u32, u32, u32)>,
         spp: Option<u32>,
         depth_miss: f32,
-        view: Option<([f64; 3], [f64; 3], [f64; 3], f64)>,
+        view: Option<([f64; 3], [f64; 3], [f64; 3])>,
     ) -> PyResult<Bound<'py, PyDict>> {
         if depth_miss.is_nan() {
             return Err(error("depth_miss must be a number or ±inf, not NaN"));
@@ -415,17 +415,12 @@ impl PyScene {
             let aovs = parse_aovs(aovs, scene)?;
             let base = match view {
                 None => scene.camera.clone(),
-                Some((eye, look_at, up, vfov_deg)) => {
+                Some((eye, look_at, up)) => {
                     let eye = DVec3::from_array(eye);
-                    Camera::new(
-                        eye,
-                        DVec3::from_array(look_at) - eye,
-                        DVec3::from_array(up),
-                        vfov_deg,
-                        scene.camera.width,
-                        scene.camera.height,
-                    )
-                    .map_err(|e| error(format!("view: {e}")))?
+                    scene
+                        .camera
+                        .with_pose(eye, DVec3::from_array(look_at) - eye, DVec3::from_array(up))
+                        .map_err(|e| error(format!("view: {e}")))?
                 }
             };
             let camera = base
@@ -443,8 +438,7 @@ impl PyScene {
                     Some(Window { x0, y0, x1, y1 })
                 }
             };
-            // the scene's own camera and spp come back after this render (the lock is held)
-            let saved_camera = std::mem::replace(&mut scene.camera, camera);
+            // the scene's own spp comes back after this render (the lock is held)
             let saved_spp = scene.sampling.spp;
             if let Some(spp) = spp {
                 scene.sampling.spp = spp;
@@ -455,8 +449,7 @@ impl PyScene {
                 depth_miss,
                 progress: false,
             };
-            let frame = render_frame(scene, &options);
-            scene.camera = saved_camera;
+            let frame = render_view(scene, &camera, &options);
             scene.sampling.spp = saved_spp;
             Ok(frame)
         })?;
@@ -475,23 +468,26 @@ impl PyScene {
         out.set_item("width", c.width)?;
         out.set_item("height", c.height)?;
         out.set_item("world_to_camera_gl", rows(&c.world_to_camera()))?;
+        out.set_item("model", c.model.name())?;
+        let distortion = match &c.model {
+            Model::OpenCv(m) => m.distortion,
+            _ => [0.0; 5],
+        };
+        out.set_item("distortion", distortion)?;
         // OpenCV: +x right, +y down, +z forward; pixel (u, v)'s centre at the integer point (u, v)
-        let f = f64::from(c.height) / (2.0 * c.tan_half_vfov);
-        let k = [
-            [f, 0.0, f64::from(c.width) / 2.0 - 0.5],
-            [0.0, f, f64::from(c.height) / 2.0 - 0.5],
-            [0.0, 0.0, 1.0],
-        ];
-        out.set_item("intrinsics", k)?;
-        let r = [c.right, -c.up, c.forward];
-        let mut w2c = [[0.0; 4]; 4];
-        for (row, axis) in w2c.iter_mut().zip(r) {
-            *row = [axis.x, axis.y, axis.z, -axis.dot(c.eye)];
-        }
-        w2c[3] = [0.0, 0.0, 0.0, 1.0];
-        out.set_item("world_to_camera", w2c)?;
+        out.set_item("intrinsics", c.intrinsics().map(|k| rows3(&k)))?;
+        let (r, t) = c.opencv_extrinsics();
+        let mut w2c = DMat4::from_mat3(r);
+        w2c.w_axis = t.extend(1.0);
+        out.set_item("world_to_camera", rows(&w2c))?;
         Ok(out)
     }
+}
+
+/// A 3×3 matrix as row-major nested arrays.
+fn rows3(m: &DMat3) -> [[f64; 3]; 3] {
+    let t = m.transpose();
+    [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
 }
 
 /// A 4×4 matrix as row-major nested arrays.
@@ -500,46 +496,62 @@ fn rows(m: &DMat4) -> [[f64; 4]; 4] {
     [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array(), t.w_axis.to_array()]
 }
 
-/// Pixel-centre rays of an OpenCV pinhole camera (see `zeroset.rays_pinhole`).
+/// Pixel-centre rays of a calibrated OpenCV camera (see `zeroset.rays_pinhole`): the rays of
+/// zeroset's `OpenCv` camera model placed by the extrinsics.
 #[pyfunction]
+#[pyo3(signature = (intrinsics, extrinsics, width, height, distortion = [0.0; 5]))]
 fn rays_pinhole<'py>(
     py: Python<'py>,
     intrinsics: [[f64; 3]; 3],
     extrinsics: [[f64; 4]; 4],
     width: u32,
     height: u32,
+    distortion: [f64; 5],
 ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
     let [[fx, skew, cx], [zero, fy, cy], last] = intrinsics;
-    if !(fx.is_finite() && fy.is_finite() && fx > 0.0 && fy > 0.0 && cx.is_finite() && cy.is_finite() && skew.is_finite()) || zero != 0.0 || last != [0.0, 0.0, 1.0] {
+    if skew != 0.0 || zero != 0.0 || last != [0.0, 0.0, 1.0] {
         return Err(error(format!(
-            "intrinsics: expected [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with finite fx, fy > 0, got {intrinsics:?}"
+            "intrinsics: expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got {intrinsics:?}"
         )));
     }
-    if width == 0 || height == 0 {
-        return Err(error("width and height must be at least 1"));
-    }
     let camera_from_world = affine(extrinsics, "extrinsics")?;
-    if camera_from_world.matrix3.determinant() == 0.0 {
-        return Err(error("extrinsics: the 3×3 part is singular"));
+    let rotation = camera_from_world.matrix3;
+    let orthonormal = (rotation * rotation.transpose() - DMat3::IDENTITY).to_cols_array().iter().all(|x| x.abs() < 1e-9);
+    if !orthonormal || rotation.determinant() < 0.0 {
+        return Err(error("extrinsics: the 3×3 part must be a rotation (orthonormal, determinant +1)"));
     }
-    let world_from_camera = camera_from_world.inverse();
-    let eye = world_from_camera.translation;
+    // OpenCV rows of R: right, down, forward; the camera sits at −Rᵀt
+    let eye = -(rotation.transpose() * camera_from_world.translation);
+    let camera = Camera::new(eye, rotation.row(2), -rotation.row(1), 90.0, width, height)
+        .and_then(|c| {
+            c.with_model(Model::OpenCv(OpenCv {
+                fx,
+                fy,
+                cx,
+                cy,
+                distortion,
+            }))
+        })
+        .map_err(|e| error(format!("rays_pinhole: {e}")))?;
     let n = width as usize * height as usize;
-    let (origins, directions) = py.detach(|| {
-        let mut origins = Vec::with_capacity(3 * n);
-        let mut directions = Vec::with_capacity(3 * n);
-        for v in 0..height {
-            // OpenCV pixel coordinates: pixel (u, v)'s centre is the integer point (u, v)
-            let y = (f64::from(v) - cy) / fy;
-            for u in 0..width {
-                let x = (f64::from(u) - cx - skew * y) / fx;
-                let d = world_from_camera.transform_vector3(DVec3::new(x, y, 1.0)).normalize();
-                origins.extend_from_slice(&eye.to_array());
-                directions.extend_from_slice(&d.to_array());
-            }
-        }
-        (origins, directions)
+    let rays: Vec<Result<Ray, NoRay>> = py.detach(|| {
+        (0..n)
+            .into_par_iter()
+            .map(|k| camera.pixel_ray((k % width as usize) as u32, (k / width as usize) as u32))
+            .collect()
     });
+    let missing = rays.iter().filter(|r| r.is_err()).count();
+    if missing > 0 {
+        return Err(error(format!(
+            "rays_pinhole: {missing} of {n} pixels have no ray (the distortion cannot be inverted there)"
+        )));
+    }
+    let mut origins = Vec::with_capacity(3 * n);
+    let mut directions = Vec::with_capacity(3 * n);
+    for ray in rays.into_iter().flatten() {
+        origins.extend_from_slice(&ray.origin.to_array());
+        directions.extend_from_slice(&ray.dir.to_array());
+    }
     Ok((PyArray1::from_vec(py, origins), PyArray1::from_vec(py, directions)))
 }
 
@@ -593,6 +605,8 @@ fn write_exr(
         samples,
         elapsed: std::time::Duration::ZERO,
         spp: 1,
+        outside_field: 0,
+        not_converged: 0,
     };
     let w2c = match world_to_camera {
         None => DMat4::IDENTITY,
@@ -600,9 +614,10 @@ fn write_exr(
     };
     let header = ExrHeader {
         world_to_camera: w2c,
-        world_to_ndc: DMat4::IDENTITY,
+        world_to_ndc: None,
         scene_file,
         depth_miss,
+        camera_attributes: Vec::new(),
     };
     py.detach(|| write_frame(&frame, &path, &header))
         .map_err(|e| PyOSError::new_err(format!("writing {}: {e}", path.display())))

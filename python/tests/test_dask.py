@@ -65,7 +65,7 @@ def test_cast_rays_over_ray_blocks(client, repo):
 
 def test_render_views_stack(client, repo):
     path = str(repo / "scenes" / "default.ron")
-    views = [dict(eye=(0, 2.5, -7), look_at=(0, 0, 0)), dict(eye=(3, 2, -5), look_at=(0, 0.5, 0), vfov_deg=30)]
+    views = [dict(eye=(0, 2.5, -7), look_at=(0, 0, 0)), dict(eye=(3, 2, -5), look_at=(0, 0.5, 0))]
     stack = zdask.render_views(path, views, aovs=["Depth"], width=80, height=60)
     assert stack["Depth"].shape == (2, 60, 80)
     got = stack["Depth"].compute()

@@ -236,7 +236,8 @@ def test_pickle_rebuilds_identically():
         (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(width=0), "width"),
         (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(depth_miss=float("nan")), "NaN"),
         (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(view=dict(eye=(0, 0, 0), look_at=(0, 0, 0))), "view"),
-        (lambda: zeroset.rays_pinhole(np.eye(3) * [0, 1, 1], np.eye(4), 4, 4), "intrinsics"),
+        (lambda: zeroset.rays_pinhole(np.eye(3) * [0, 1, 1], np.eye(4), 4, 4), "fx"),
+        (lambda: zeroset.rays_pinhole([[1, 0.1, 0], [0, 1, 0], [0, 0, 1]], np.eye(4), 4, 4), "skew"),
         (lambda: zeroset.rays_pinhole(np.eye(3), np.zeros((4, 4)), 4, 4), "extrinsics"),
         (lambda: zeroset.write_exr("/tmp/x.exr", {"Depht": np.zeros((2, 2))}), "not an AOV"),
         (lambda: zeroset.write_exr("/tmp/x.exr", {"Normal": np.zeros((2, 2))}), "Normal"),
@@ -261,3 +262,19 @@ def test_same_message_as_the_cli(cli, tmp_path):
 def test_help_explains_conventions():
     doc = zeroset.Scene.cast_rays.__doc__
     assert "+inf" in doc and "primitive_id" in doc and "tmin" in doc
+
+
+def test_rays_pinhole_with_distortion_reproduce_an_opencv_render(repo):
+    scene = zeroset.Scene.load(repo / "scenes" / "cameras" / "opencv.ron")
+    cam = scene.camera
+    assert cam.model == "OpenCv" and np.any(cam.distortion() != 0)
+    w, h = 64, 48
+    k = cam.intrinsics() * [[w / cam.width], [h / cam.height], [1]]
+    k[0, 2] = (cam.intrinsics()[0, 2] + 0.5) * w / cam.width - 0.5
+    k[1, 2] = (cam.intrinsics()[1, 2] + 0.5) * h / cam.height - 0.5
+    origins, directions = zeroset.rays_pinhole(k, cam.world_to_camera(), w, h, distortion=cam.distortion())
+    hits = scene.cast_rays(origins, directions)
+    frame = scene.render(aovs=["Distance"], width=w, height=h)
+    assert hits["hit"].sum() > 100
+    np.testing.assert_array_equal(np.isfinite(frame["Distance"]), hits["hit"])
+    np.testing.assert_allclose(frame["Distance"][hits["hit"]], hits["t"][hits["hit"]], rtol=1e-6)

@@ -109,9 +109,21 @@ class Camera:
         self.up = np.array(info["up"])
         self.right = np.array(info["right"])
 
+    @property
+    def model(self) -> str:
+        """The projection model: Perspective, Orthographic, Equirectangular, Fisheye or OpenCv."""
+        return self._info["model"]
+
     def intrinsics(self) -> np.ndarray:
-        """3×3 K: ``[[f, 0, cx], [0, f, cy], [0, 0, 1]]`` (square pixels, centred principal point)."""
+        """3×3 K ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` (OpenCV: pixel centres at integers);
+        raises for the equirectangular model, which has none."""
+        if self._info["intrinsics"] is None:
+            raise ZerosetError(f"the {self.model} camera has no intrinsic matrix")
         return np.array(self._info["intrinsics"])
+
+    def distortion(self) -> np.ndarray:
+        """OpenCV's ``[k1, k2, p1, p2, k3]`` of an ``OpenCv`` camera (zeros for the other models)."""
+        return np.array(self._info["distortion"])
 
     def world_to_camera(self) -> np.ndarray:
         """4×4 world → camera (OpenCV: +x right, +y down, +z forward)."""
@@ -262,16 +274,16 @@ class Scene:
         ``aovs``: names as on the command line (``Beauty, Alpha, Depth, Distance, Normal,
         Position, CameraNormal, PrimitiveId, Uv, ShadingNormal``; default the scene's outputs).
         ``crop=(x0, y0, x1, y1)`` renders that window of the full frame (pixels, half-open),
-        exactly as the full render has it there. ``view=dict(eye=..., look_at=..., up=(0, 1, 0),
-        vfov_deg=45)`` replaces the scene camera's pose and field of view for this render.
+        exactly as the full render has it there. ``view=dict(eye=..., look_at=..., up=(0, 1, 0))``
+        places the scene's camera (its model, field of view and resolution kept) for this render.
         """
         pose = None
         if view is not None:
-            unknown = set(view) - {"eye", "look_at", "up", "vfov_deg"}
+            unknown = set(view) - {"eye", "look_at", "up"}
             if unknown:
                 raise ZerosetError(f"view: unknown fields {sorted(unknown)}")
             pose = (tuple(map(float, view["eye"])), tuple(map(float, view.get("look_at", (0, 0, 0)))),
-                    tuple(map(float, view.get("up", (0, 1, 0)))), float(view.get("vfov_deg", 45.0)))
+                    tuple(map(float, view.get("up", (0, 1, 0)))))
         return self._core.render(None if aovs is None else list(aovs), width, height,
                                  None if crop is None else tuple(int(c) for c in crop), spp, float(depth_miss),
                                  pose)
@@ -307,18 +319,24 @@ def _from_recipe(recipe: list) -> Scene:
     return scene
 
 
-def rays_pinhole(intrinsics: Any, extrinsics: Any, width: int, height: int) -> Tuple[np.ndarray, np.ndarray]:
-    """Pixel-centre rays of a pinhole camera in the OpenCV convention.
+def rays_pinhole(intrinsics: Any, extrinsics: Any, width: int, height: int,
+                 distortion: Optional[Sequence[float]] = None) -> Tuple[np.ndarray, np.ndarray]:
+    """Pixel-centre rays of a calibrated pinhole camera in the OpenCV convention.
 
-    ``intrinsics``: 3×3 K ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``; ``extrinsics``: 4×4
-    world → camera (+x right, +y down, +z forward). Pixel (u, v) — column u, row v — has its
-    centre at the integer point (u, v), as in OpenCV. Returns ``(origins, directions)``, each
-    float64 ``(height, width, 3)``, directions of unit length (so ``t`` is metric distance).
+    ``intrinsics``: 3×3 K ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``; ``extrinsics``: 4×4
+    world → camera (+x right, +y down, +z forward; the 3×3 part a rotation); ``distortion``:
+    OpenCV's ``[k1, k2, p1, p2, k3]`` (default none), inverted exactly as zeroset's ``OpenCv``
+    camera does. Pixel (u, v) — column u, row v — has its centre at the integer point (u, v), as
+    in OpenCV. Returns ``(origins, directions)``, each float64 ``(height, width, 3)``, directions
+    of unit length (so ``t`` is metric distance).
     """
     k = np.asarray(intrinsics, dtype=np.float64)
     if k.shape != (3, 3):
         raise ZerosetError(f"intrinsics: expected a 3×3 matrix, got shape {k.shape}")
-    o, d = _zeroset.rays_pinhole(k.tolist(), _matrix4(extrinsics, "extrinsics"), int(width), int(height))
+    dist = [0.0] * 5 if distortion is None else [float(x) for x in distortion]
+    if len(dist) != 5:
+        raise ZerosetError(f"distortion: expected [k1, k2, p1, p2, k3], got {len(dist)} values")
+    o, d = _zeroset.rays_pinhole(k.tolist(), _matrix4(extrinsics, "extrinsics"), int(width), int(height), dist)
     return o.reshape(height, width, 3), d.reshape(height, width, 3)
 
 

@@ -101,7 +101,7 @@ def render_views(scene: SceneLike, cameras: Iterable[Dict[str, Any]], aovs: Opti
                  width: Optional[int] = None, height: Optional[int] = None,
                  spp: Optional[int] = None) -> Dict[str, da.Array]:
     """Many views of one scene: ``{AOV name: dask.array}`` shaped ``(views, H, W[, C])``, one task
-    per view. Each camera is a dict ``eye, look_at, up (default +y), vfov_deg (default 45)``."""
+    per view. Each camera is a dict ``eye, look_at, up (default +y)`` placing the scene's camera."""
     s = _as_scene(scene)
     cam = s.camera
     w = width or cam.width
