@@ -69,7 +69,10 @@ fn vectors(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Vec<DVec3>
     if shape[1] != 3 {
         return Err(error(format!("{what}: expected shape (N, 3), got {shape:?}")));
     }
-    Ok(array.as_array().rows().into_iter().map(|r| DVec3::new(r[0], r[1], r[2])).collect())
+    match array.as_slice() {
+        Ok(flat) => Ok(flat.par_chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect()),
+        Err(_) => Ok(array.as_array().rows().into_iter().map(|r| DVec3::new(r[0], r[1], r[2])).collect()),
+    }
 }
 
 /// `world_from_local` from a 4×4 row-major affine matrix (last row `0 0 0 1`).
@@ -154,25 +157,26 @@ fn query_rays(
             return Err(error(format!("{name}: expected a scalar or {} values, got {}", o.len(), s.len())));
         }
     }
-    let mut rays = Vec::with_capacity(o.len());
-    for i in 0..o.len() {
-        let (origin, dir) = (o[i], d[i]);
-        let (lo, hi) = (range_at(i, tmin), range_at(i, tmax));
-        if !origin.is_finite() || !dir.is_finite() {
-            return Err(error(format!("ray {i}: origin and direction must be finite")));
-        }
-        if dir == DVec3::ZERO {
-            return Err(error(format!("ray {i}: direction must be non-zero")));
-        }
-        if lo.is_nan() || hi.is_nan() || lo > hi {
-            return Err(error(format!("ray {i}: invalid t range [{lo}, {hi}]")));
-        }
-        rays.push(QueryRay {
-            ray: Ray::new(origin, dir),
-            range: Interval::new(lo, hi),
-        });
-    }
-    Ok(rays)
+    (0..o.len())
+        .into_par_iter()
+        .map(|i| {
+            let (origin, dir) = (o[i], d[i]);
+            let (lo, hi) = (range_at(i, tmin), range_at(i, tmax));
+            if !origin.is_finite() || !dir.is_finite() {
+                return Err(error(format!("ray {i}: origin and direction must be finite")));
+            }
+            if dir == DVec3::ZERO {
+                return Err(error(format!("ray {i}: direction must be non-zero")));
+            }
+            if lo.is_nan() || hi.is_nan() || lo > hi {
+                return Err(error(format!("ray {i}: invalid t range [{lo}, {hi}]")));
+            }
+            Ok(QueryRay {
+                ray: Ray::new(origin, dir),
+                range: Interval::new(lo, hi),
+            })
+        })
+        .collect()
 }
 
 fn parse_aovs(names: Option<Vec<String>>, scene: &Scene) -> PyResult<Vec<Aov>> {
@@ -315,18 +319,21 @@ impl PyScene {
             let mut object = vec![-1i32; n];
             let mut uv = vec![0.0; 2 * n];
             let mut feature = vec![-1i64; n];
-            for (i, hit) in hits.iter().enumerate() {
-                if let Some((id, h)) = hit {
-                    t[i] = h.t;
-                    point[3 * i..3 * i + 3].copy_from_slice(&h.point.to_array());
-                    normal[3 * i..3 * i + 3].copy_from_slice(&h.normal.unwrap_or_default().to_array());
-                    object[i] = *id as i32;
-                    if let Some(p) = h.uv {
-                        uv[2 * i..2 * i + 2].copy_from_slice(&p.to_array());
+            (t.par_iter_mut(), object.par_iter_mut(), feature.par_iter_mut(), hits.par_iter())
+                .into_par_iter()
+                .zip(point.par_chunks_mut(3).zip(normal.par_chunks_mut(3)).zip(uv.par_chunks_mut(2)))
+                .for_each(|((t, object, feature, hit), ((point, normal), uv))| {
+                    if let Some((id, h)) = hit {
+                        *t = h.t;
+                        *object = *id as i32;
+                        *feature = i64::from(h.feature);
+                        point.copy_from_slice(&h.point.to_array());
+                        normal.copy_from_slice(&h.normal.unwrap_or_default().to_array());
+                        if let Some(p) = h.uv {
+                            uv.copy_from_slice(&p.to_array());
+                        }
                     }
-                    feature[i] = i64::from(h.feature);
-                }
-            }
+                });
             (t, point, normal, object, uv, feature)
         });
         let out = PyDict::new(py);
@@ -339,6 +346,20 @@ impl PyScene {
         out.set_item("uv", PyArray1::from_vec(py, uv).reshape([n, 2])?)?;
         out.set_item("primitive_id", PyArray1::from_vec(py, feature))?;
         Ok(out)
+    }
+
+    /// Seconds the Rust query path (`zeroset::query::first_hits`) alone takes on these rays,
+    /// for the benchmark's Python-overhead column.
+    fn time_first_hits(&self, py: Python<'_>, origins: PyReadonlyArray2<'_, f64>, directions: PyReadonlyArray2<'_, f64>) -> PyResult<f64> {
+        let rays = query_rays(&origins, &directions, &PyArray1::from_vec(py, vec![0.0]).readonly(), &PyArray1::from_vec(py, vec![f64::INFINITY]).readonly())?;
+        Ok(self.with(py, |state| {
+            let scene = state.built();
+            let start = std::time::Instant::now();
+            let hits = first_hits(scene, &rays);
+            let seconds = start.elapsed().as_secs_f64();
+            drop(hits);
+            seconds
+        }))
     }
 
     /// Whether anything is hit within each ray's range.

@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""zeroset.Scene.cast_rays beside Open3D's RaycastingScene.cast_rays on the benchmark meshes,
+10⁶ random rays each, and the Python overhead against the Rust query path on the same batch.
+
+    bash scenes/bench/make_meshes.sh            # the meshes (needs numpy, trimesh)
+    pip install ./python open3d
+    python3 python/bench/cast_rays.py [--rays 1000000] [--runs 5] [--threads 2]
+
+Prints one row per scene: Mrays/s medians of --runs (min–max in brackets) for zeroset's
+cast_rays, the Rust `first_hits` alone on the same rays, and Open3D cast_rays; their ratios; and
+the hit counts (which must agree but for a few grazing rays).
+"""
+import argparse
+import os
+import pathlib
+import statistics
+import time
+
+import numpy as np
+
+import zeroset
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+
+def timed(f, runs):
+    out = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        f()
+        out.append(time.perf_counter() - t0)
+    return out
+
+
+def mrays(n, seconds):
+    rates = [n / s / 1e6 for s in seconds]
+    return statistics.median(rates), min(rates), max(rates)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rays", type=int, default=1_000_000)
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--threads", type=int, default=os.cpu_count())
+    ap.add_argument("--levels", type=int, nargs="+", default=[4, 6, 8])
+    a = ap.parse_args()
+    try:
+        import open3d as o3d
+    except ImportError:
+        o3d = None
+        print("open3d not installed: its column is empty")
+    rng = np.random.default_rng(2026)
+    origins = rng.uniform(-2.5, 2.5, (a.rays, 3))
+    directions = rng.normal(size=(a.rays, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    print(f"{a.rays} random rays, {a.threads} threads, medians of {a.runs} (Mrays/s)")
+    print("| scene | zeroset cast_rays | Rust first_hits | Open3D cast_rays | Python overhead | ratio to Open3D | hits zeroset / Open3D |")
+    print("|---|---|---|---|---|---|---|")
+    for level in a.levels:
+        path = REPO / "scenes" / "bench" / f"mesh{level}.ron"
+        scene = zeroset.Scene.load(path)
+        z = timed(lambda: scene.cast_rays(origins, directions), a.runs)
+        rust = [scene._core.time_first_hits(origins, directions) for _ in range(a.runs)]
+        hits = int(scene.cast_rays(origins, directions)["hit"].sum())
+        row = [f"mesh{level}", "%.2f [%.2f–%.2f]" % mrays(a.rays, z), "%.2f [%.2f–%.2f]" % mrays(a.rays, rust)]
+        if o3d is not None:
+            mesh = o3d.io.read_triangle_mesh(str(REPO / "scenes" / "bench" / "meshes" / f"mesh{level}.ply"))
+            o_scene = o3d.t.geometry.RaycastingScene()
+            o_scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)),
+                                  o3d.core.Tensor(np.asarray(mesh.triangles, np.uint32)))
+            rays = o3d.core.Tensor(np.hstack([origins, directions]).astype(np.float32))
+            o_scene.cast_rays(rays, nthreads=a.threads)
+            o = timed(lambda: o_scene.cast_rays(rays, nthreads=a.threads), a.runs)
+            o_hits = int(np.isfinite(o_scene.cast_rays(rays, nthreads=a.threads)["t_hit"].numpy()).sum())
+            row.append("%.2f [%.2f–%.2f]" % mrays(a.rays, o))
+        else:
+            o, o_hits = None, None
+            row.append("–")
+        overhead = statistics.median(z) / statistics.median(rust) - 1
+        row.append(f"{overhead * 100:+.1f} %")
+        row.append("–" if o is None else f"{statistics.median(o) / statistics.median(z):.2f}")
+        row.append(f"{hits} / {o_hits}")
+        print("| " + " | ".join(row) + " |")
+
+
+if __name__ == "__main__":
+    main()
