@@ -198,26 +198,51 @@ fn parse_aovs(names: Option<Vec<String>>, scene: &Scene) -> PyResult<Vec<Aov>> {
     }
 }
 
-/// Splits a frame's interleaved samples into one `(H, W)` or `(H, W, C)` float32 array per AOV.
-fn frame_arrays<'py>(py: Python<'py>, frame: &Frame) -> PyResult<Bound<'py, PyDict>> {
-    let out = PyDict::new(py);
-    let (w, h) = (frame.window.width() as usize, frame.window.height() as usize);
-    let stride = frame.channel_count();
-    let mut offset = 0;
-    for aov in &frame.aovs {
-        let c = aov.channels().len();
-        let mut data = Vec::with_capacity(w * h * c);
-        for pixel in frame.samples.chunks_exact(stride) {
-            data.extend_from_slice(&pixel[offset..offset + c]);
+/// The requested AOVs of `window`, one plane per AOV (pixels row-major, channels interleaved
+/// within the AOV), rendered in bands of about a million pixels: the interleaved frame of the
+/// renderer never holds more than one band, so the peak memory is the returned planes plus one
+/// band. Crops are exact, so the planes equal a single render of the window bit for bit.
+fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window: Window) -> (Vec<Aov>, Vec<Vec<f32>>) {
+    let (w, h) = (window.width() as usize, window.height() as usize);
+    let band_rows = ((1usize << 20) / w).clamp(1, h) as u32;
+    let mut aovs = Vec::new();
+    let mut planes: Vec<Vec<f32>> = Vec::new();
+    let mut y0 = window.y0;
+    while y0 < window.y1 {
+        let y1 = (y0 + band_rows).min(window.y1);
+        let band = RenderOptions {
+            crop: Some(Window { y0, y1, ..window }),
+            ..options.clone()
+        };
+        let frame = render_view(scene, camera, &band);
+        if planes.is_empty() {
+            aovs.clone_from(&frame.aovs);
+            planes = aovs.iter().map(|a| Vec::with_capacity(w * h * a.channels().len())).collect();
         }
-        offset += c;
+        let stride = frame.channel_count();
+        let mut offset = 0;
+        for (aov, plane) in aovs.iter().zip(&mut planes) {
+            let c = aov.channels().len();
+            for pixel in frame.samples.chunks_exact(stride) {
+                plane.extend_from_slice(&pixel[offset..offset + c]);
+            }
+            offset += c;
+        }
+        y0 = y1;
+    }
+    (aovs, planes)
+}
+
+/// AOV planes as `(H, W)` or `(H, W, C)` float32 arrays keyed by AOV name (no copy).
+fn plane_arrays<'py>(py: Python<'py>, (w, h): (usize, usize), aovs: Vec<Aov>, planes: Vec<Vec<f32>>) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    for (aov, data) in aovs.into_iter().zip(planes) {
+        let c = aov.channels().len();
         let name = format!("{aov:?}");
         if c == 1 {
-            let a = Array2::from_shape_vec((h, w), data).map_err(error)?;
-            out.set_item(name, a.into_pyarray(py))?;
+            out.set_item(name, Array2::from_shape_vec((h, w), data).map_err(error)?.into_pyarray(py))?;
         } else {
-            let a = Array3::from_shape_vec((h, w, c), data).map_err(error)?;
-            out.set_item(name, a.into_pyarray(py))?;
+            out.set_item(name, Array3::from_shape_vec((h, w, c), data).map_err(error)?.into_pyarray(py))?;
         }
     }
     Ok(out)
@@ -430,7 +455,7 @@ impl PyScene {
         if spp == Some(0) {
             return Err(error("spp must be at least 1"));
         }
-        let frame = self.with(py, |state| -> PyResult<Frame> {
+        let frame = self.with(py, |state| -> PyResult<((usize, usize), Vec<Aov>, Vec<Vec<f32>>)> {
             state.built();
             let scene = &mut state.scene;
             let aovs = parse_aovs(aovs, scene)?;
@@ -447,8 +472,13 @@ impl PyScene {
             let camera = base
                 .with_resolution(width.unwrap_or(scene.camera.width), height.unwrap_or(scene.camera.height))
                 .map_err(|e| error(format!("width/height: {e}")))?;
-            let crop = match crop {
-                None => None,
+            let window = match crop {
+                None => Window {
+                    x0: 0,
+                    y0: 0,
+                    x1: camera.width,
+                    y1: camera.height,
+                },
                 Some((x0, y0, x1, y1)) => {
                     if x0 >= x1 || y0 >= y1 || x1 > camera.width || y1 > camera.height {
                         return Err(error(format!(
@@ -456,7 +486,7 @@ impl PyScene {
                             camera.width, camera.height
                         )));
                     }
-                    Some(Window { x0, y0, x1, y1 })
+                    Window { x0, y0, x1, y1 }
                 }
             };
             // the scene's own spp comes back after this render (the lock is held)
@@ -466,15 +496,15 @@ impl PyScene {
             }
             let options = RenderOptions {
                 aovs,
-                crop,
+                crop: None,
                 depth_miss,
                 progress: false,
             };
-            let frame = render_view(scene, &camera, &options);
+            let (aovs, planes) = render_planes(scene, &camera, &options, window);
             scene.sampling.spp = saved_spp;
-            Ok(frame)
+            Ok(((window.width() as usize, window.height() as usize), aovs, planes))
         })?;
-        frame_arrays(py, &frame)
+        plane_arrays(py, frame.0, frame.1, frame.2)
     }
 
     /// The camera: pose, field of view, resolution and its matrices (see `zeroset.Camera`).
