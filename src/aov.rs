@@ -2,7 +2,7 @@
 //!
 //! | AOV            | channels              | value on a hit                                      | on a miss |
 //! |----------------|-----------------------|-----------------------------------------------------|-----------|
-//! | `Beauty`       | `R, G, B`             | shaded colour (linear)                              | background |
+//! | `Beauty`       | `R, G, B`             | shaded colour (linear), premultiplied by `A`        | 0 (the background with `--background`) |
 //! | `Alpha`        | `A`                   | 1                                                   | 0 |
 //! | `Depth`        | `Z`                   | camera-space planar depth along the view axis       | +∞ (or `--depth-miss`) |
 //! | `Distance`     | `distance`            | ray distance `t` from the eye (unit-length rays)     | +∞ (or `--depth-miss`) |
@@ -18,7 +18,7 @@
 //!
 //! | AOV | rule over the pixel's samples |
 //! |---|---|
-//! | `Beauty` | filter-weighted mean of the samples' colours (background for misses) |
+//! | `Beauty` | filter-weighted mean of the samples' colours, misses counting as black (premultiplied: `R, G, B` already carry the coverage `A`; with `--background` misses count as the background) |
 //! | `Alpha` | coverage: filter-weighted fraction of samples that hit (with `Box`, hits / spp) |
 //! | `Depth`, `Distance`, `Position` | all three from the **nearest** hit sample (smallest `Z`; the first of equals), never averaged across a silhouette |
 //! | `PrimitiveId` | the object hit by the most samples; ties go to the one with the nearest sample |
@@ -60,6 +60,20 @@ pub enum Aov {
 impl Aov {
     /// The default outputs: beauty, coverage, depth and normals.
     pub const DEFAULT: [Aov; 4] = [Aov::Beauty, Aov::Alpha, Aov::Depth, Aov::Normal];
+
+    /// Every AOV, in the order of the module table (`--aov all`).
+    pub const ALL: [Aov; 10] = [
+        Aov::Beauty,
+        Aov::Alpha,
+        Aov::Depth,
+        Aov::Distance,
+        Aov::Normal,
+        Aov::ShadingNormal,
+        Aov::Position,
+        Aov::CameraNormal,
+        Aov::PrimitiveId,
+        Aov::Uv,
+    ];
 
     /// EXR channel names, in order.
     #[must_use]

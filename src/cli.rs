@@ -2,13 +2,19 @@
 //! primitive types and then run the same CLI (see `docs/adding-a-primitive.md`).
 
 use crate::aov::Aov;
-use crate::output::exr::{write_exr, ExrHeader};
+use crate::output::atomic::{check_destination, AtomicFile};
+use crate::output::exr::{size_estimate, write_exr_with, ExrCompression, ExrHeader};
+use crate::output::merge::merge_crops;
 use crate::output::png::write_previews;
-use crate::query::{first_hits, format_hits, parse_rays};
+use crate::query::{
+    run_batch, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, CHUNK_RAYS,
+};
 use crate::render::{render, RenderOptions, Window};
+use crate::resources::{capped_threads, check_memory, render_memory_estimate};
 use crate::scene::Scene;
 use anyhow::{bail, Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
+use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -27,8 +33,10 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene to EXR (all requested AOVs) and PNG previews.
     Render(RenderArgs),
-    /// First hits of a batch of rays (CSV in, CSV out).
+    /// First hits of a batch of rays (CSV or NumPy .npy in and out, streamed).
     Query(QueryArgs),
+    /// Assemble crops (renders with `--crop`) into the full frame, bit for bit.
+    Merge(MergeArgs),
     /// List the primitive names scene files may use.
     Primitives,
 }
@@ -38,7 +46,8 @@ pub enum Command {
 pub struct RenderArgs {
     /// Scene file (RON).
     pub scene: PathBuf,
-    /// Output: a directory (files named after the scene) or a path ending in `.exr`.
+    /// Output: a directory (files named after the scene) or a path ending in `.exr`; any other
+    /// extension is an error unless the path is an existing directory.
     #[arg(short, long, default_value = "out")]
     pub output: PathBuf,
     /// Override the image width (the vertical field of view is kept).
@@ -47,15 +56,16 @@ pub struct RenderArgs {
     /// Override the image height.
     #[arg(long)]
     pub height: Option<u32>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads (default: all cores; at most 4 × the cores).
+    #[arg(short = 't', long)]
     pub threads: Option<usize>,
-    /// AOVs to write, comma-separated (default: the scene's `outputs.aovs`).
-    #[arg(long, value_delimiter = ',', value_enum, ignore_case = true)]
-    pub aov: Option<Vec<Aov>>,
+    /// AOVs to write, comma-separated, or `all` (default: the scene's `outputs.aovs`).
+    #[arg(long, value_delimiter = ',')]
+    pub aov: Option<Vec<String>>,
     /// Render only the pixel window `x0,y0,x1,y1` (half-open): the EXR keeps the full display
-    /// window with this data window, so crops of one frame can be stitched (e.g. `oiiotool
-    /// a.exr b.exr --over -o full.exr`, or any EXR tool honouring data windows).
+    /// window with this data window. Stitch crops with `zeroset merge a.exr b.exr -o full.exr`
+    /// (exact); with oiiotool use `--add` (`oiiotool a.exr b.exr --add -o full.exr`, exact for
+    /// crops that do not overlap), never `--over` (it turns the misses' `Z = inf` into 0).
     #[arg(long, value_delimiter = ',')]
     pub crop: Option<Vec<u32>>,
     /// Value for `Z` and `distance` where nothing was hit (default `inf`; e.g. 0 for pipelines
@@ -68,6 +78,45 @@ pub struct RenderArgs {
     /// Samples per pixel (default: the scene's `sampling.spp`, itself 1 by default).
     #[arg(long)]
     pub spp: Option<u32>,
+    /// EXR compression (lossless): none, rle, zips (default: fastest to write for its size, see
+    /// the README's table), zip, piz.
+    #[arg(long, value_enum, default_value_t = ExrCompression::default(), ignore_case = true)]
+    pub compression: ExrCompression,
+    /// Fill the uncovered part of pixels with the scene background in `Beauty` (default: black,
+    /// `R, G, B` premultiplied by `A` as EXR expects).
+    #[arg(long)]
+    pub background: bool,
+}
+
+/// `zeroset merge`.
+#[derive(Debug, clap::Args)]
+pub struct MergeArgs {
+    /// Crops of one frame (EXR files written with `--crop`) that tile its display window.
+    #[arg(required = true)]
+    pub crops: Vec<PathBuf>,
+    /// The full frame (EXR).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// Formats of `zeroset query` input and output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BatchFormat {
+    /// Comma-separated text.
+    Csv,
+    /// NumPy `.npy` array.
+    Npy,
+}
+
+impl BatchFormat {
+    /// The format a path's extension names (`.npy`), CSV otherwise.
+    fn of(path: &Path) -> Self {
+        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy")) {
+            Self::Npy
+        } else {
+            Self::Csv
+        }
+    }
 }
 
 /// `zeroset query`.
@@ -75,14 +124,21 @@ pub struct RenderArgs {
 pub struct QueryArgs {
     /// Scene file (RON).
     pub scene: PathBuf,
-    /// Rays, one per line: `ox,oy,oz,dx,dy,dz[,tmin,tmax]`.
+    /// Rays: CSV `ox,oy,oz,dx,dy,dz[,tmin,tmax]` per line, or a `.npy` array of shape (N, 6) or
+    /// (N, 8); `-` for stdin.
     #[arg(long)]
     pub rays: PathBuf,
-    /// Output CSV (`-` for stdout).
+    /// Format of `--rays` (default: from its extension, `.npy` or CSV).
+    #[arg(long, value_enum, ignore_case = true)]
+    pub rays_format: Option<BatchFormat>,
+    /// Output (`-` for stdout): CSV, or `.npy` (f8, shape (N, 11)).
     #[arg(short, long, default_value = "-")]
     pub output: PathBuf,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Format of the output (default: from its extension, `.npy` or CSV).
+    #[arg(long, value_enum, ignore_case = true)]
+    pub format: Option<BatchFormat>,
+    /// Worker threads (default: all cores; at most 4 × the cores).
+    #[arg(short = 't', long)]
     pub threads: Option<usize>,
 }
 
@@ -94,7 +150,7 @@ pub fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_message(&e));
             ExitCode::FAILURE
         }
     }
@@ -105,6 +161,11 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => with_threads(args.threads, || render_command(&args)),
         Command::Query(args) => with_threads(args.threads, || query_command(&args)),
+        Command::Merge(args) => {
+            merge_crops(&args.crops, &args.output)?;
+            eprintln!("wrote {}", args.output.display());
+            Ok(())
+        }
         Command::Primitives => {
             for name in crate::registry::registered_names() {
                 println!("{name}");
@@ -114,7 +175,32 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
+/// An error and its causes on one line, each cause only if its text is not already there (a
+/// message that quotes its OS error is not followed by the same OS error again).
+#[must_use]
+pub fn error_message(error: &anyhow::Error) -> String {
+    let mut message = String::new();
+    for cause in error.chain() {
+        let text = cause.to_string();
+        if message.contains(&text) {
+            continue;
+        }
+        if !message.is_empty() {
+            message.push_str(": ");
+        }
+        message.push_str(&text);
+    }
+    message
+}
+
 fn with_threads(threads: Option<usize>, f: impl FnOnce() -> Result<()> + Send) -> Result<()> {
+    let threads = threads.map(|requested| {
+        let (n, warning) = capped_threads(requested);
+        if let Some(w) = warning {
+            eprintln!("{w}");
+        }
+        n
+    });
     match threads {
         None => f(),
         Some(0) => bail!("--threads must be at least 1"),
@@ -126,10 +212,29 @@ fn with_threads(threads: Option<usize>, f: impl FnOnce() -> Result<()> + Send) -
     }
 }
 
+/// The AOVs `--aov` names: names of [`Aov`] (any case) or `all`.
+fn parse_aovs(names: &[String]) -> Result<Vec<Aov>> {
+    let mut aovs = Vec::new();
+    for name in names {
+        if name.trim().eq_ignore_ascii_case("all") {
+            aovs.extend(Aov::ALL);
+            continue;
+        }
+        match Aov::from_str(name.trim(), true) {
+            Ok(aov) => aovs.push(aov),
+            Err(_) => {
+                let known: Vec<String> = Aov::ALL.iter().map(|a| format!("{a:?}")).collect();
+                bail!("--aov {name}: unknown AOV; use {} or all", known.join(", "));
+            }
+        }
+    }
+    Ok(aovs)
+}
+
 fn render_command(args: &RenderArgs) -> Result<()> {
-    let load_start = Instant::now();
+    let wall = Instant::now();
     let mut scene = Scene::load(&args.scene)?;
-    let load_time = load_start.elapsed();
+    let load_time = wall.elapsed();
     if args.width.is_some() || args.height.is_some() {
         let w = args.width.unwrap_or(scene.camera.width);
         let h = args.height.unwrap_or(scene.camera.height);
@@ -173,93 +278,187 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     if args.depth_miss.is_nan() {
         bail!("--depth-miss must be a number or ±inf, not NaN");
     }
-    let aovs = args.aov.clone().unwrap_or_else(|| scene.outputs.aovs.clone());
+    let aovs = match &args.aov {
+        Some(names) => parse_aovs(names)?,
+        None => scene.outputs.aovs.clone(),
+    };
     let (dir, stem) = output_location(&args.output, &args.scene)?;
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let previews = scene.outputs.previews && !args.no_previews;
+
+    // resources, before any tracing: memory for the buffers, a writable directory with room
+    let window = crop.unwrap_or(Window {
+        x0: 0,
+        y0: 0,
+        x1: scene.camera.width,
+        y1: scene.camera.height,
+    });
+    let pixels = u64::from(window.width()) * u64::from(window.height());
+    let mut distinct = aovs.clone();
+    distinct.sort();
+    distinct.dedup();
+    let channels: u64 = distinct.iter().map(|a| a.channels().len() as u64).sum();
+    let preview_count = if previews {
+        distinct
+            .iter()
+            .filter(|a| matches!(a, Aov::Beauty | Aov::Depth | Aov::Normal))
+            .count() as u64
+    } else {
+        0
+    };
+    let memory = render_memory_estimate(
+        pixels,
+        channels,
+        preview_count,
+        u64::from(scene.sampling.spp),
+        rayon::current_num_threads() as u64,
+    );
+    check_memory(
+        &format!(
+            "rendering {}x{} with {channels} channels at {} spp",
+            window.width(),
+            window.height(),
+            scene.sampling.spp
+        ),
+        memory,
+    )?;
+    let disk = size_estimate(pixels, channels, u64::from(window.height())) + pixels * 3 * preview_count;
+    check_destination(&dir, disk)?;
 
     let options = RenderOptions {
         aovs,
         crop,
         depth_miss: args.depth_miss,
         progress: true,
+        background: args.background,
     };
     let frame = render(&scene, &options);
 
+    let write_start = Instant::now();
     let exr_path = dir.join(format!("{stem}.exr"));
+    eprintln!(
+        "writing {}{} …",
+        exr_path.display(),
+        if previews { " and PNG previews" } else { "" }
+    );
     let header = ExrHeader {
         world_to_camera: scene.camera.world_to_camera(),
         world_to_ndc: scene.camera.world_to_ndc(0.01, 1000.0),
         scene_file: args.scene.display().to_string(),
         depth_miss: args.depth_miss,
     };
-    write_exr(&frame, &exr_path, &header).with_context(|| format!("writing {}", exr_path.display()))?;
+    let background = scene.background.as_vec3().to_array();
+    let (exr, pngs) = rayon::join(
+        || write_exr_with(&frame, &exr_path, &header, args.compression),
+        || {
+            if previews {
+                write_previews(&frame, &dir, &stem, background)
+            } else {
+                Ok(Vec::new())
+            }
+        },
+    );
+    exr?;
     let mut written = vec![exr_path];
-    if scene.outputs.previews && !args.no_previews {
-        written.extend(write_previews(&frame, &dir, &stem).context("writing PNG previews")?);
-    }
+    written.extend(pngs.context("writing PNG previews")?);
+    let write_time = write_start.elapsed();
     for path in &written {
         eprintln!("wrote {}", path.display());
     }
     println!(
-        "rendered {}x{} at {} spp ({} objects, load+BVH {:.3} s) in {:.3} s: {:.2} Mrays/s on {} threads",
+        "rendered {}x{} at {} spp ({} objects) on {} threads: trace {:.3} s ({:.2} Mrays/s), wall {:.3} s (load+BVH {:.3} s, write {:.3} s)",
         frame.window.width(),
         frame.window.height(),
         scene.sampling.spp,
         scene.objects.len(),
-        load_time.as_secs_f64(),
+        rayon::current_num_threads(),
         frame.elapsed.as_secs_f64(),
         frame.mrays_per_second(),
-        rayon::current_num_threads()
+        wall.elapsed().as_secs_f64(),
+        load_time.as_secs_f64(),
+        write_time.as_secs_f64(),
     );
     Ok(())
 }
 
-/// `(directory, file stem)` for the outputs.
+/// `(directory, file stem)` for the outputs: a path ending in `.exr` names the EXR file; an
+/// existing directory or a path without an extension is the directory; anything else (`-o
+/// img.png`) is refused rather than created as a directory.
 fn output_location(output: &Path, scene: &Path) -> Result<(PathBuf, String)> {
-    if output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-        let dir = output.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
-        let stem = output
-            .file_stem()
-            .context("output file name")?
-            .to_string_lossy()
-            .into_owned();
-        Ok((
-            if dir.as_os_str().is_empty() {
-                PathBuf::from(".")
-            } else {
-                dir
-            },
-            stem,
-        ))
-    } else {
-        let stem = scene
-            .file_stem()
-            .context("scene file name")?
-            .to_string_lossy()
-            .into_owned();
-        Ok((output.to_path_buf(), stem))
+    match output.extension() {
+        Some(e) if e.eq_ignore_ascii_case("exr") => {
+            let stem = output
+                .file_stem()
+                .context("output file name")?
+                .to_string_lossy()
+                .into_owned();
+            Ok((crate::output::atomic::parent_dir(output), stem))
+        }
+        Some(e) if !output.is_dir() => bail!(
+            "-o {}: the output is a directory or a file ending in .exr, not .{} (PNG previews are written next to the EXR)",
+            output.display(),
+            e.to_string_lossy()
+        ),
+        _ => {
+            let stem = scene
+                .file_stem()
+                .context("scene file name")?
+                .to_string_lossy()
+                .into_owned();
+            Ok((output.to_path_buf(), stem))
+        }
     }
 }
 
 fn query_command(args: &QueryArgs) -> Result<()> {
+    let wall = Instant::now();
     let scene = Scene::load(&args.scene)?;
-    let text = std::fs::read_to_string(&args.rays).with_context(|| format!("reading {}", args.rays.display()))?;
-    let rays = parse_rays(&text, &args.rays.display().to_string())?;
-    let start = Instant::now();
-    let hits = first_hits(&scene, &rays);
-    let elapsed = start.elapsed();
-    let csv = format_hits(&scene, &hits);
-    if args.output.as_os_str() == "-" {
-        print!("{csv}");
+    let rays_name = args.rays.display().to_string();
+    let from_stdin = args.rays.as_os_str() == "-";
+    let input: Box<dyn std::io::Read> = if from_stdin {
+        Box::new(std::io::stdin().lock())
     } else {
-        std::fs::write(&args.output, csv).with_context(|| format!("writing {}", args.output.display()))?;
-    }
+        Box::new(std::fs::File::open(&args.rays).with_context(|| format!("reading {rays_name}"))?)
+    };
+    let input = BufReader::with_capacity(1 << 20, input);
+    let mut source: Box<dyn RaySource> = match args.rays_format.unwrap_or_else(|| BatchFormat::of(&args.rays)) {
+        BatchFormat::Csv => Box::new(CsvRays::new(input, &rays_name)),
+        BatchFormat::Npy => Box::new(NpyRays::new(input, &rays_name)?),
+    };
+    let to_stdout = args.output.as_os_str() == "-";
+    let format = args.format.unwrap_or_else(|| BatchFormat::of(&args.output));
+    let counts = if to_stdout {
+        let stdout = BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
+        let mut sink: Box<dyn HitSink> = match format {
+            BatchFormat::Csv => Box::new(CsvHits::new(stdout)),
+            BatchFormat::Npy => {
+                let Some(rows) = source.len_hint() else {
+                    bail!("writing .npy to stdout needs .npy rays (the row count goes first); use -o FILE.npy");
+                };
+                Box::new(NpyStream(NpyHits::with_rows(stdout, rows)))
+            }
+        };
+        run_batch(&scene, source.as_mut(), sink.as_mut())?
+    } else {
+        check_destination(&crate::output::atomic::parent_dir(&args.output), 0)?;
+        let mut file = AtomicFile::create(&args.output)?;
+        let counts = {
+            let writer = BufWriter::with_capacity(1 << 20, file.file());
+            let mut sink: Box<dyn HitSink> = match format {
+                BatchFormat::Csv => Box::new(CsvHits::new(writer)),
+                BatchFormat::Npy => Box::new(NpyHits::seekable(writer)),
+            };
+            run_batch(&scene, source.as_mut(), sink.as_mut())
+                .with_context(|| format!("writing {}", args.output.display()))?
+        };
+        file.commit()?;
+        counts
+    };
+    let elapsed = wall.elapsed().as_secs_f64();
     eprintln!(
-        "{} rays, {} hits in {:.3} s ({:.2} Mrays/s)",
-        rays.len(),
-        hits.iter().filter(|h| h.is_some()).count(),
-        elapsed.as_secs_f64(),
-        rays.len() as f64 / elapsed.as_secs_f64().max(1e-12) / 1e6
+        "{} rays, {} hits in {elapsed:.3} s end to end ({:.2} Mrays/s; chunks of {CHUNK_RAYS})",
+        counts.rays,
+        counts.hits,
+        counts.rays as f64 / elapsed.max(1e-12) / 1e6
     );
     Ok(())
 }

@@ -16,6 +16,7 @@ pub mod output;
 pub mod query;
 pub mod registry;
 pub mod render;
+pub mod resources;
 pub mod sampling;
 pub mod scene;
 pub mod shapes;

@@ -7,7 +7,7 @@
 //!
 //! | AOV | rule over the pixel's samples |
 //! |---|---|
-//! | `Beauty` | filter-weighted mean of the samples' colours (background for misses) |
+//! | `Beauty` | filter-weighted mean of the samples' colours, misses black (premultiplied by `A`; the background only with [`RenderOptions::background`]) |
 //! | `Alpha` | filter-weighted fraction of samples that hit (with `Box`: hits / spp) |
 //! | `Depth`, `Distance`, `Position` | of the **nearest** hit sample (smallest `Z`), never averaged |
 //! | `PrimitiveId` | the object hit by the most samples (ties: the one with the nearest sample) |
@@ -67,6 +67,10 @@ pub struct RenderOptions {
     pub depth_miss: f32,
     /// Show a progress bar on stderr once the render has taken a second.
     pub progress: bool,
+    /// Fill the uncovered part of each pixel's `Beauty` with the scene background. Off by
+    /// default: `R, G, B` are premultiplied by coverage `A` (EXR's convention), so a miss is
+    /// black and compositing `over` another image gives the right colour.
+    pub background: bool,
 }
 
 impl Default for RenderOptions {
@@ -76,6 +80,7 @@ impl Default for RenderOptions {
             crop: None,
             depth_miss: f32::INFINITY,
             progress: false,
+            background: false,
         }
     }
 }
@@ -193,6 +198,11 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         channels,
         world_to_camera,
         depth_miss: options.depth_miss,
+        miss_colour: if options.background {
+            scene.background
+        } else {
+            DVec3::ZERO
+        },
     };
 
     samples.par_chunks_mut(row_len).enumerate().for_each(|(row, out)| {
@@ -223,6 +233,7 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
                         hit.as_ref(),
                         &world_to_camera,
                         options.depth_miss,
+                        context.miss_colour,
                     );
                     rest = &mut rest[n..];
                 }
@@ -259,6 +270,8 @@ struct RowContext<'a> {
     channels: usize,
     world_to_camera: glam::DMat4,
     depth_miss: f32,
+    /// Beauty of the uncovered part of a pixel: the background, or black (premultiplied).
+    miss_colour: DVec3,
 }
 
 /// One sample's hit: the object, its record, shading normal, planar depth and ray.
@@ -292,7 +305,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
             let ray = camera.lens_ray(sample.x, sample.y, sample.lens);
             let Some((object, raw)) = scene.intersect_at(&ray, Interval::POSITIVE, sample.time) else {
                 if context.beauty {
-                    colour += w * scene.background;
+                    colour += w * context.miss_colour;
                 }
                 continue;
             };
@@ -329,6 +342,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
                     None,
                     &context.world_to_camera,
                     context.depth_miss,
+                    context.miss_colour,
                 );
                 rest = &mut rest[n..];
             }
@@ -390,6 +404,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
                     Some(&merged),
                     &context.world_to_camera,
                     context.depth_miss,
+                    context.miss_colour,
                 ),
             };
             rest = &mut rest[n..];
@@ -407,6 +422,7 @@ fn write_aov(
     hit: Option<&(u32, SurfaceHit, Option<DVec3>)>,
     world_to_camera: &glam::DMat4,
     depth_miss: f32,
+    miss_colour: DVec3,
 ) -> usize {
     let mut put3 = |v: DVec3| {
         out[0] = v.x as f32;
@@ -416,7 +432,7 @@ fn write_aov(
     };
     let Some((object, hit, shading_normal)) = hit else {
         return match aov {
-            Aov::Beauty => put3(scene.background),
+            Aov::Beauty => put3(miss_colour),
             Aov::Normal | Aov::Position | Aov::CameraNormal | Aov::ShadingNormal => put3(DVec3::ZERO),
             Aov::Depth | Aov::Distance => {
                 out[0] = depth_miss;
