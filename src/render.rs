@@ -225,16 +225,7 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
                 });
                 let mut rest = &mut pixel[..];
                 for aov in &aovs {
-                    let n = write_aov(
-                        rest,
-                        scene,
-                        *aov,
-                        &ray,
-                        hit.as_ref(),
-                        &world_to_camera,
-                        options.depth_miss,
-                        context.miss_colour,
-                    );
+                    let n = write_aov(rest, scene, *aov, &ray, hit.as_ref(), &context);
                     rest = &mut rest[n..];
                 }
             }
@@ -334,16 +325,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
         // the nearest hit sample (the first of equals), for depth, distance and position
         let Some(nearest) = hits.iter().min_by(|a, b| a.depth.total_cmp(&b.depth)) else {
             for aov in context.aovs {
-                let n = write_aov(
-                    rest,
-                    scene,
-                    *aov,
-                    &Ray::new(camera.eye, camera.forward),
-                    None,
-                    &context.world_to_camera,
-                    context.depth_miss,
-                    context.miss_colour,
-                );
+                let n = write_aov(rest, scene, *aov, &Ray::new(camera.eye, camera.forward), None, context);
                 rest = &mut rest[n..];
             }
             continue;
@@ -396,16 +378,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
                     rest[0] = (covered / weights) as f32;
                     1
                 }
-                _ => write_aov(
-                    rest,
-                    scene,
-                    *aov,
-                    &nearest.ray,
-                    Some(&merged),
-                    &context.world_to_camera,
-                    context.depth_miss,
-                    context.miss_colour,
-                ),
+                _ => write_aov(rest, scene, *aov, &nearest.ray, Some(&merged), context),
             };
             rest = &mut rest[n..];
         }
@@ -420,10 +393,10 @@ fn write_aov(
     aov: Aov,
     ray: &Ray,
     hit: Option<&(u32, SurfaceHit, Option<DVec3>)>,
-    world_to_camera: &glam::DMat4,
-    depth_miss: f32,
-    miss_colour: DVec3,
+    context: &RowContext,
 ) -> usize {
+    let (world_to_camera, depth_miss, miss_colour) =
+        (&context.world_to_camera, context.depth_miss, context.miss_colour);
     let mut put3 = |v: DVec3| {
         out[0] = v.x as f32;
         out[1] = v.y as f32;

@@ -27,6 +27,19 @@ fn parse_mem_available(meminfo: &str) -> Option<u64> {
     kib.checked_mul(1024)
 }
 
+/// User + system CPU time of this process so far, in seconds (Linux `/proc/self/stat`; `None`
+/// elsewhere). On a machine shared with other work, CPU time is the fairer measure of a phase's
+/// cost than its wall time.
+#[must_use]
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // the fields after the parenthesised command name; utime and stime are fields 14 and 15
+    let (_, after) = stat.rsplit_once(')')?;
+    let fields: Vec<&str> = after.split_whitespace().collect();
+    let ticks = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0) // USER_HZ, 100 on every Linux ABI
+}
+
 /// Fails with the estimate when `estimated_bytes` exceeds the available memory.
 ///
 /// # Errors

@@ -31,10 +31,9 @@ impl AtomicFile {
     /// The directory cannot be written.
     pub fn create(destination: &Path) -> Result<Self> {
         let dir = parent_dir(destination);
-        let name = destination.file_name().map_or_else(
-            || "output".to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        );
+        let name = destination
+            .file_name()
+            .map_or_else(|| "output".to_string(), |n| n.to_string_lossy().into_owned());
         let temp = tempfile::Builder::new()
             .prefix(&format!(".{name}."))
             .suffix(".tmp")
@@ -42,7 +41,8 @@ impl AtomicFile {
             .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
         // a temporary file is private (0600); the result gets the replaced file's permissions,
         // or the usual 0644 for a new file
-        let permissions = std::fs::metadata(destination).map_or_else(|_| default_permissions(), |m| Some(m.permissions()));
+        let permissions =
+            std::fs::metadata(destination).map_or_else(|_| default_permissions(), |m| Some(m.permissions()));
         if let Some(permissions) = permissions {
             temp.as_file()
                 .set_permissions(permissions)
@@ -105,10 +105,7 @@ fn default_permissions() -> Option<std::fs::Permissions> {
 ///
 /// # Errors
 /// Creating, writing, flushing or renaming fails; the destination is then untouched.
-pub fn write_atomically(
-    destination: &Path,
-    write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<()>,
-) -> Result<()> {
+pub fn write_atomically(destination: &Path, write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<()>) -> Result<()> {
     let mut file = AtomicFile::create(destination)?;
     {
         let mut writer = BufWriter::with_capacity(1 << 20, file.file());

@@ -81,13 +81,7 @@ fn contains(outer: &IntegerBounds, inner: &IntegerBounds) -> bool {
 
 fn describe(b: &IntegerBounds) -> String {
     let end = b.end();
-    format!(
-        "[{}, {}) × [{}, {})",
-        b.position.x(),
-        end.x(),
-        b.position.y(),
-        end.y()
-    )
+    format!("[{}, {}) × [{}, {})", b.position.x(), end.x(), b.position.y(), end.y())
 }
 
 /// Copies the rows of `source` (over `from`) into `target` (over `to`, which contains `from`).
@@ -115,7 +109,10 @@ pub fn merge_crops(crops: &[PathBuf], output: &Path) -> Result<()> {
     let display = image_attributes.display_window;
     let signature = channel_signature(&first.layer);
     if let Some((name, _)) = signature.iter().find(|(_, kind)| *kind == "sub-sampled") {
-        bail!("{}: channel {name} is sub-sampled; merge takes full-resolution channels", first_path.display());
+        bail!(
+            "{}: channel {name} is sub-sampled; merge takes full-resolution channels",
+            first_path.display()
+        );
     }
     let mut all = vec![first];
     for path in rest {
