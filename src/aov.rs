@@ -12,6 +12,7 @@
 //! | `CameraNormal` | `Nc.X, Nc.Y, Nc.Z`    | the normal in camera space (+x right, +y up, −z view) | 0 |
 //! | `PrimitiveId`  | `id`                  | index of the object in the scene's `objects` list   | −1 |
 //! | `Uv`           | `u, v`                | surface parameters (0 where a type has none)        | 0 |
+//! | `Uncertain`    | `uncertain`           | 1 where a ray of the pixel (primary or shadow) ran out of the root finder's evaluation budget, so the pixel may be wrong; else 0 | same |
 //!
 //! **Several samples per pixel** (`sampling.spp > 1`, or moving objects) are resolved per AOV,
 //! since only colour may be blended:
@@ -24,6 +25,7 @@
 //! | `PrimitiveId` | the object hit by the most samples; ties go to the one with the nearest sample |
 //! | `Normal`, `CameraNormal`, `ShadingNormal` | mean over the samples that hit that object only, renormalised |
 //! | `Uv` | mean over the same samples as the normal (not seam-aware) |
+//! | `Uncertain` | 1 if any sample's rays ran out of budget |
 //!
 //! A pixel no sample hits gets the miss values. `Distance` is measured from the sample's lens
 //! point (the eye for a pinhole); `Z` is always planar depth from the eye.
@@ -55,6 +57,8 @@ pub enum Aov {
     Uv,
     /// World shading normal `Ns.X, Ns.Y, Ns.Z` (the geometric normal where there is none).
     ShadingNormal,
+    /// `uncertain`: 1 where the root finder's budget ran out for a ray of the pixel.
+    Uncertain,
 }
 
 impl Aov {
@@ -62,7 +66,7 @@ impl Aov {
     pub const DEFAULT: [Aov; 4] = [Aov::Beauty, Aov::Alpha, Aov::Depth, Aov::Normal];
 
     /// Every AOV, in the order of the module table (`--aov all`).
-    pub const ALL: [Aov; 10] = [
+    pub const ALL: [Aov; 11] = [
         Aov::Beauty,
         Aov::Alpha,
         Aov::Depth,
@@ -73,6 +77,7 @@ impl Aov {
         Aov::CameraNormal,
         Aov::PrimitiveId,
         Aov::Uv,
+        Aov::Uncertain,
     ];
 
     /// EXR channel names, in order.
@@ -89,6 +94,7 @@ impl Aov {
             Aov::PrimitiveId => &["id"],
             Aov::Uv => &["u", "v"],
             Aov::ShadingNormal => &["Ns.X", "Ns.Y", "Ns.Z"],
+            Aov::Uncertain => &["uncertain"],
         }
     }
 }

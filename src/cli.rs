@@ -16,6 +16,7 @@ use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
+use zeroset_primitives::root::budget_exhaustions;
 
 /// zeroset: a ray caster for implicit surfaces with exact depth and normal AOVs.
 #[derive(Debug, Parser)]
@@ -138,6 +139,10 @@ pub struct QueryArgs {
     /// Worker threads (default: all cores; at most 4 × the cores).
     #[arg(short = 't', long)]
     pub threads: Option<usize>,
+    /// Add an `uncertain` column: 1 where the root finder ran out of its evaluation budget on
+    /// the ray (its answer may be wrong).
+    #[arg(long)]
+    pub uncertain: bool,
 }
 
 /// Runs the CLI on the process arguments; prints errors to stderr and returns a failing exit
@@ -330,8 +335,16 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         background: args.background,
     };
     let cpu_before_trace = process_cpu_seconds();
+    let exhausted_before = budget_exhaustions();
     let frame = render(&scene, &options);
+    let exhausted = budget_exhaustions() - exhausted_before;
     let cpu_before_write = process_cpu_seconds();
+    if exhausted > 0 {
+        eprintln!(
+            "{}",
+            uncertain_warning(exhausted, "rays (primary or shadow)", "--aov Uncertain")
+        );
+    }
 
     let write_start = Instant::now();
     let exr_path = dir.join(format!("{stem}.exr"));
@@ -384,6 +397,15 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// The warning for rays whose root finder ran out of its evaluation budget.
+fn uncertain_warning(count: u64, what: &str, flag: &str) -> String {
+    format!(
+        "warning: {count} {what} ran out of the root finder's evaluation budget and may be wrong \
+         (counted as misses past that point; a tighter `lipschitz` bound or search box helps); \
+         {flag} flags them"
+    )
+}
+
 /// `(directory, file stem)` for the outputs: a path ending in `.exr` names the EXR file; an
 /// existing directory or a path without an extension is the directory; anything else (`-o
 /// img.png`) is refused rather than created as a directory.
@@ -433,12 +455,12 @@ fn query_command(args: &QueryArgs) -> Result<()> {
     let counts = if to_stdout {
         let stdout = BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
         let mut sink: Box<dyn HitSink> = match format {
-            BatchFormat::Csv => Box::new(CsvHits::new(stdout)),
+            BatchFormat::Csv => Box::new(CsvHits::new(stdout, args.uncertain)),
             BatchFormat::Npy => {
                 let Some(rows) = source.len_hint() else {
                     bail!("writing .npy to stdout needs .npy rays (the row count goes first); use -o FILE.npy");
                 };
-                Box::new(NpyStream(NpyHits::with_rows(stdout, rows)))
+                Box::new(NpyStream(NpyHits::with_rows(stdout, rows, args.uncertain)))
             }
         };
         run_batch(&scene, source.as_mut(), sink.as_mut())?
@@ -448,8 +470,8 @@ fn query_command(args: &QueryArgs) -> Result<()> {
         let counts = {
             let writer = BufWriter::with_capacity(1 << 20, file.file());
             let mut sink: Box<dyn HitSink> = match format {
-                BatchFormat::Csv => Box::new(CsvHits::new(writer)),
-                BatchFormat::Npy => Box::new(NpyHits::seekable(writer)),
+                BatchFormat::Csv => Box::new(CsvHits::new(writer, args.uncertain)),
+                BatchFormat::Npy => Box::new(NpyHits::seekable(writer, args.uncertain)),
             };
             run_batch(&scene, source.as_mut(), sink.as_mut())
                 .with_context(|| format!("writing {}", args.output.display()))?
@@ -458,6 +480,9 @@ fn query_command(args: &QueryArgs) -> Result<()> {
         counts
     };
     let elapsed = wall.elapsed().as_secs_f64();
+    if counts.uncertain > 0 {
+        eprintln!("{}", uncertain_warning(counts.uncertain, "rays", "--uncertain"));
+    }
     eprintln!(
         "{} rays, {} hits in {elapsed:.3} s end to end ({:.2} Mrays/s; chunks of {CHUNK_RAYS})",
         counts.rays,

@@ -26,8 +26,12 @@
 //! name from the scene (empty if unnamed; commas and line breaks replaced by spaces); `u,v` are
 //! empty where the primitive has none.
 //!
-//! **NPY output**: an `f8` array of shape `(N, 11)`, columns `hit,t,px,py,pz,nx,ny,nz,id,u,v`
-//! (no name), NaN where the CSV has an empty field. Writing `.npy` to stdout needs `.npy` input
+//! With `--uncertain`, a last column `uncertain` is 1 where the root finder ran out of its
+//! evaluation budget on the ray (the answer may be wrong), else 0; the count of such rays is
+//! reported on stderr in any case.
+//!
+//! **NPY output**: an `f8` array of shape `(N, 11)` (`(N, 12)` with `--uncertain`), columns
+//! `hit,t,px,py,pz,nx,ny,nz,id,u,v[,uncertain]` (no name), NaN where the CSV has an empty field. Writing `.npy` to stdout needs `.npy` input
 //! (the row count goes in the header, before the rows).
 
 use crate::scene::Scene;
@@ -35,6 +39,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::io::{BufRead, Read, Seek, SeekFrom, Write};
+use zeroset_primitives::root::thread_budget_exhaustions;
 use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
 
 /// Rays read, traced and written per step of the batch loop.
@@ -55,8 +60,15 @@ pub struct QueryRay {
     pub range: Interval,
 }
 
-/// The first hit of one query ray: the object index and its completed hit record.
-pub type QueryHit = Option<(u32, SurfaceHit)>;
+/// The answer for one query ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QueryHit {
+    /// The first hit: the object index and its completed hit record.
+    pub hit: Option<(u32, SurfaceHit)>,
+    /// Whether the root finder ran out of its evaluation budget on this ray: the answer (a miss,
+    /// or a hit beyond a surface it could not resolve) may be wrong.
+    pub uncertain: bool,
+}
 
 /// A malformed ray or an unreadable input.
 #[derive(Debug, thiserror::Error)]
@@ -76,7 +88,8 @@ pub fn trace_batch(scene: &Scene, rays: &[QueryRay]) -> Vec<QueryHit> {
     rays.par_iter()
         .with_min_len(256)
         .map(|q| {
-            scene.intersect(&q.ray, q.range).map(|(object, raw)| {
+            let exhausted_before = thread_budget_exhaustions();
+            let hit = scene.intersect(&q.ray, q.range).map(|(object, raw)| {
                 (
                     object,
                     SurfaceHit::complete(
@@ -86,7 +99,11 @@ pub fn trace_batch(scene: &Scene, rays: &[QueryRay]) -> Vec<QueryHit> {
                         HitRequest::ALL,
                     ),
                 )
-            })
+            });
+            QueryHit {
+                hit,
+                uncertain: thread_budget_exhaustions() != exhausted_before,
+            }
         })
         .collect()
 }
@@ -444,8 +461,8 @@ pub trait HitSink {
 }
 
 /// One CSV output row (without the line break).
-fn csv_row(scene: &Scene, hit: &QueryHit, out: &mut String) {
-    match hit {
+fn csv_row(scene: &Scene, answer: &QueryHit, uncertain_column: bool, out: &mut String) {
+    match &answer.hit {
         None => out.push_str("0,,,,,,,,,,,"),
         Some((object, h)) => {
             let n = h.normal.unwrap_or_default();
@@ -466,6 +483,9 @@ fn csv_row(scene: &Scene, hit: &QueryHit, out: &mut String) {
             }
         }
     }
+    if uncertain_column {
+        out.push_str(if answer.uncertain { ",1" } else { ",0" });
+    }
 }
 
 /// Formats hits as CSV text (header included), for callers that hold all hits.
@@ -473,7 +493,7 @@ fn csv_row(scene: &Scene, hit: &QueryHit, out: &mut String) {
 pub fn format_hits(scene: &Scene, hits: &[QueryHit]) -> String {
     let mut out = format!("{CSV_HIT_HEADER}\n");
     for hit in hits {
-        csv_row(scene, hit, &mut out);
+        csv_row(scene, hit, false, &mut out);
         out.push('\n');
     }
     out
@@ -483,21 +503,24 @@ pub fn format_hits(scene: &Scene, hits: &[QueryHit]) -> String {
 pub struct CsvHits<W> {
     writer: W,
     header_written: bool,
+    uncertain_column: bool,
 }
 
 impl<W: Write> CsvHits<W> {
-    /// A CSV sink on `writer`.
-    pub fn new(writer: W) -> Self {
+    /// A CSV sink on `writer`, with the `uncertain` column last if `uncertain_column`.
+    pub fn new(writer: W, uncertain_column: bool) -> Self {
         Self {
             writer,
             header_written: false,
+            uncertain_column,
         }
     }
 
     fn header(&mut self) -> std::io::Result<()> {
         if !self.header_written {
             self.header_written = true;
-            writeln!(self.writer, "{CSV_HIT_HEADER}")?;
+            let extra = if self.uncertain_column { ",uncertain" } else { "" };
+            writeln!(self.writer, "{CSV_HIT_HEADER}{extra}")?;
         }
         Ok(())
     }
@@ -506,12 +529,13 @@ impl<W: Write> CsvHits<W> {
 impl<W: Write> HitSink for CsvHits<W> {
     fn write_chunk(&mut self, scene: &Scene, hits: &[QueryHit]) -> std::io::Result<()> {
         self.header()?;
+        let uncertain_column = self.uncertain_column;
         let pieces: Vec<String> = hits
             .par_chunks(1024)
             .map(|part| {
                 let mut text = String::with_capacity(part.len() * 160);
                 for hit in part {
-                    csv_row(scene, hit, &mut text);
+                    csv_row(scene, hit, uncertain_column, &mut text);
                     text.push('\n');
                 }
                 text
@@ -529,7 +553,7 @@ impl<W: Write> HitSink for CsvHits<W> {
     }
 }
 
-/// Columns of the `.npy` output.
+/// Columns of the `.npy` output (without the optional `uncertain` column).
 pub const NPY_HIT_COLUMNS: usize = 11;
 
 /// Length of the `.npy` output preamble: fixed, so the row count can be patched in at the end.
@@ -553,6 +577,8 @@ pub fn npy_preamble(rows: u64, columns: usize) -> Vec<u8> {
 /// count, or patched at the end when the writer can seek.
 pub struct NpyHits<W> {
     writer: W,
+    /// 11, or 12 with the `uncertain` column.
+    columns: usize,
     rows: u64,
     /// The count written in the header up front, if it was known.
     declared: Option<u64>,
@@ -561,9 +587,10 @@ pub struct NpyHits<W> {
 
 impl<W: Write + Seek> NpyHits<W> {
     /// A sink on a seekable `writer` (a file): the row count is patched in at the end.
-    pub fn seekable(writer: W) -> Self {
+    pub fn seekable(writer: W, uncertain_column: bool) -> Self {
         Self {
             writer,
+            columns: NPY_HIT_COLUMNS + usize::from(uncertain_column),
             rows: 0,
             declared: None,
             started: false,
@@ -573,9 +600,10 @@ impl<W: Write + Seek> NpyHits<W> {
 
 impl<W: Write> NpyHits<W> {
     /// A sink on any writer for exactly `rows` rows, declared up front.
-    pub fn with_rows(writer: W, rows: u64) -> Self {
+    pub fn with_rows(writer: W, rows: u64, uncertain_column: bool) -> Self {
         Self {
             writer,
+            columns: NPY_HIT_COLUMNS + usize::from(uncertain_column),
             rows: 0,
             declared: Some(rows),
             started: false,
@@ -586,17 +614,25 @@ impl<W: Write> NpyHits<W> {
         if !self.started {
             self.started = true;
             self.writer
-                .write_all(&npy_preamble(self.declared.unwrap_or(0), NPY_HIT_COLUMNS))?;
+                .write_all(&npy_preamble(self.declared.unwrap_or(0), self.columns))?;
         }
         Ok(())
     }
 
     fn write_rows(&mut self, hits: &[QueryHit]) -> std::io::Result<()> {
         self.start()?;
+        let columns = self.columns;
         let bytes: Vec<u8> = hits
             .par_iter()
             .with_min_len(1024)
-            .flat_map_iter(|hit| npy_row(hit).into_iter().flat_map(f64::to_le_bytes))
+            .flat_map_iter(|hit| {
+                let flag = f64::from(u8::from(hit.uncertain));
+                npy_row(hit)
+                    .into_iter()
+                    .chain(std::iter::once(flag))
+                    .take(columns)
+                    .flat_map(f64::to_le_bytes)
+            })
             .collect();
         self.writer.write_all(&bytes)?;
         self.rows += hits.len() as u64;
@@ -605,9 +641,9 @@ impl<W: Write> NpyHits<W> {
 }
 
 /// One `.npy` output row.
-fn npy_row(hit: &QueryHit) -> [f64; NPY_HIT_COLUMNS] {
+fn npy_row(answer: &QueryHit) -> [f64; NPY_HIT_COLUMNS] {
     let nan = f64::NAN;
-    match hit {
+    match &answer.hit {
         None => [0.0, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan],
         Some((object, h)) => {
             let n = h.normal.map_or([nan; 3], |n| n.to_array());
@@ -639,7 +675,7 @@ impl<W: Write + Seek> HitSink for NpyHits<W> {
         self.start()?;
         if self.declared != Some(self.rows) {
             self.writer.seek(SeekFrom::Start(0))?;
-            self.writer.write_all(&npy_preamble(self.rows, NPY_HIT_COLUMNS))?;
+            self.writer.write_all(&npy_preamble(self.rows, self.columns))?;
             self.writer.seek(SeekFrom::End(0))?;
         }
         self.writer.flush()
@@ -673,6 +709,8 @@ pub struct BatchCounts {
     pub rays: u64,
     /// Rays that hit.
     pub hits: u64,
+    /// Rays whose root finder ran out of its evaluation budget (see [`QueryHit::uncertain`]).
+    pub uncertain: u64,
 }
 
 /// The batch loop: reads, traces and writes chunk by chunk, in order.
@@ -686,7 +724,8 @@ pub fn run_batch(scene: &Scene, source: &mut dyn RaySource, sink: &mut dyn HitSi
         let more = source.read_chunk(CHUNK_RAYS, &mut rays)?;
         let hits = trace_batch(scene, &rays);
         counts.rays += rays.len() as u64;
-        counts.hits += hits.iter().filter(|h| h.is_some()).count() as u64;
+        counts.hits += hits.iter().filter(|h| h.hit.is_some()).count() as u64;
+        counts.uncertain += hits.iter().filter(|h| h.uncertain).count() as u64;
         sink.write_chunk(scene, &hits)?;
         if !more {
             break;

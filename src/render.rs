@@ -28,6 +28,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
+use zeroset_primitives::root::thread_budget_exhaustions;
 use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
 
 /// A pixel rectangle `[x0, x1) × [y0, y1)` of the full image.
@@ -198,6 +199,10 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         channels,
         world_to_camera,
         depth_miss: options.depth_miss,
+        uncertain_offset: {
+            let at = aovs.iter().position(|a| *a == Aov::Uncertain);
+            at.map(|k| aovs[..k].iter().map(|a| a.channels().len()).sum())
+        },
         miss_colour: if options.background {
             scene.background
         } else {
@@ -212,6 +217,7 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
         } else {
             for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
                 let x = window.x0 + column as u32;
+                let exhausted_before = thread_budget_exhaustions();
                 let ray = camera.pixel_ray(x, y);
                 let hit = scene.intersect(&ray, Interval::POSITIVE).map(|(object, raw)| {
                     let primitive = &*scene.objects[object as usize].primitive;
@@ -228,6 +234,7 @@ pub fn render(scene: &Scene, options: &RenderOptions) -> Frame {
                     let n = write_aov(rest, scene, *aov, &ray, hit.as_ref(), &context);
                     rest = &mut rest[n..];
                 }
+                flag_uncertain(pixel, &context, exhausted_before);
             }
         }
         if options.progress {
@@ -263,6 +270,21 @@ struct RowContext<'a> {
     depth_miss: f32,
     /// Beauty of the uncovered part of a pixel: the background, or black (premultiplied).
     miss_colour: DVec3,
+    /// Where the `Uncertain` channel is in a pixel, if it was asked for.
+    uncertain_offset: Option<usize>,
+}
+
+/// Sets the pixel's `Uncertain` channel (if rendered) to 1 if this thread's root finder ran out of
+/// budget since `exhausted_before` — that is, while this pixel's rays were traced — else 0.
+#[inline(always)]
+fn flag_uncertain(pixel: &mut [f32], context: &RowContext, exhausted_before: u64) {
+    if let Some(at) = context.uncertain_offset {
+        pixel[at] = if thread_budget_exhaustions() == exhausted_before {
+            0.0
+        } else {
+            1.0
+        };
+    }
 }
 
 /// One sample's hit: the object, its record, shading normal, planar depth and ray.
@@ -286,6 +308,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
     let mut counts: Vec<(u32, u32, f64)> = Vec::new();
     for (column, pixel) in out.chunks_exact_mut(context.channels).enumerate() {
         let x = x0 + column as u32;
+        let exhausted_before = thread_budget_exhaustions();
         pixel_samples(&scene.sampling, camera.shutter, x, y, &mut points, &mut scratch);
         let (cx, cy) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
         let (mut weights, mut covered, mut colour) = (0.0, 0.0, DVec3::ZERO);
@@ -328,6 +351,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
                 let n = write_aov(rest, scene, *aov, &Ray::new(camera.eye, camera.forward), None, context);
                 rest = &mut rest[n..];
             }
+            flag_uncertain(pixel, context, exhausted_before);
             continue;
         };
         // the object most samples hit (ties: the nearest), for id, normals and uv
@@ -382,6 +406,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
             };
             rest = &mut rest[n..];
         }
+        flag_uncertain(pixel, context, exhausted_before);
     }
 }
 
@@ -415,7 +440,7 @@ fn write_aov(
                 out[0] = -1.0;
                 1
             }
-            Aov::Alpha => {
+            Aov::Alpha | Aov::Uncertain => {
                 out[0] = 0.0;
                 1
             }
@@ -442,6 +467,8 @@ fn write_aov(
         Aov::Depth => scene.camera.planar_depth(hit.point) as f32,
         Aov::Distance => hit.t as f32,
         Aov::PrimitiveId => *object as f32,
+        // set once the whole pixel is traced (`flag_uncertain`)
+        Aov::Uncertain => 0.0,
     };
     out[0] = scalar;
     1

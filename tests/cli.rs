@@ -816,7 +816,7 @@ fn aov_all_writes_every_channel() {
         .iter()
         .flat_map(|a| a.channels().iter().map(|c| c.to_string()))
         .collect();
-    assert_eq!(expected.len(), 21);
+    assert_eq!(expected.len(), 22);
     assert_eq!(channel_names(&dir.path().join("default.exr")), expected);
 }
 
@@ -922,7 +922,7 @@ fn merge_command_assembles_crops_exactly() {
     let o = run(&["merge", p(&left), p(&right), "-o", p(&merged)]);
     assert_ok(&o, "merge");
     let (a, b) = (read_channels(&merged), read_channels(&full));
-    assert_eq!(a.len(), 21);
+    assert_eq!(a.len(), 22);
     for ((na, va), (nb, vb)) in a.iter().zip(&b) {
         assert_eq!(na, nb);
         assert!(
@@ -1136,7 +1136,15 @@ fn oiiotool_add_of_crops_is_exact_and_over_is_not() {
     let dir = tempfile::tempdir().unwrap();
     let render_to = |name: &str, crop: Option<&str>| {
         let path = dir.path().join(name);
-        let mut args = vec!["render", "scenes/default.ron", "-o", p(&path), "--aov", "all", "--no-previews"];
+        let mut args = vec![
+            "render",
+            "scenes/default.ron",
+            "-o",
+            p(&path),
+            "--aov",
+            "all",
+            "--no-previews",
+        ];
         args.extend_from_slice(&["--width", "96", "--height", "54"]);
         if let Some(c) = crop {
             args.extend_from_slice(&["--crop", c]);
@@ -1162,10 +1170,77 @@ fn oiiotool_add_of_crops_is_exact_and_over_is_not() {
             .collect()
     };
     let (expected, added, composited) = (by_name(&full), by_name(&add), by_name(&over));
-    assert_eq!(expected.len(), 21);
-    assert_eq!(added, expected, "oiiotool --add of the crops is the full frame, bit for bit");
+    assert_eq!(expected.len(), 22);
+    assert_eq!(
+        added, expected,
+        "oiiotool --add of the crops is the full frame, bit for bit"
+    );
     let z_inf = expected["Z"].iter().filter(|z| **z == f32::INFINITY.to_bits()).count();
-    let z_inf_over = composited["Z"].iter().filter(|z| **z == f32::INFINITY.to_bits()).count();
+    let z_inf_over = composited["Z"]
+        .iter()
+        .filter(|z| **z == f32::INFINITY.to_bits())
+        .count();
     assert!(z_inf > 100, "the frame has misses: {z_inf}");
-    assert!(z_inf_over < z_inf, "--over keeps every miss's Z = inf: the README's warning is wrong");
+    assert!(
+        z_inf_over < z_inf,
+        "--over keeps every miss's Z = inf: the README's warning is wrong"
+    );
+}
+
+/// A unit sphere as a `Function` with a valid but very loose Lipschitz bound: sphere tracing
+/// steps at most `1.6·|Φ|/L ≤ 6e-6`, so any ray crossing the search box [−2, 2]³ over a length
+/// of more than 1 needs over 150,000 steps and exhausts the 100,000-evaluation budget; a ray
+/// missing the box evaluates nothing.
+const LOOSE_SCENE: &str = "Scene(camera: (eye: (0, 0, -6), look_at: (0, 0, 0), vfov_deg: 60, width: 12, height: 4), \
+    objects: [(name: \"loose\", shape: Function(phi: \"sqrt(x^2 + y^2 + z^2) - 1\", min: (-2, -2, -2), max: (2, 2, 2), lipschitz: 1000000))])";
+
+#[test]
+fn exhausted_budgets_are_counted_and_flagged() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("loose.ron");
+    std::fs::write(&scene, LOOSE_SCENE).unwrap();
+    // through the sphere, through the box beside it, and two missing the box
+    let rays = dir.path().join("rays.csv");
+    std::fs::write(&rays, "0,0,-6,0,0,1\n1.5,1.5,-6,0,0,1\n0,5,-6,0,0,1\n5,0,0,0,1,0\n").unwrap();
+    let o = run(&["query", p(&scene), "--rays", p(&rays), "--uncertain"]);
+    assert_ok(&o, "query --uncertain");
+    assert!(
+        stderr(&o).contains("warning: 2 rays ran out of the root finder's evaluation budget"),
+        "{}",
+        stderr(&o)
+    );
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines[0], "hit,t,px,py,pz,nx,ny,nz,id,name,u,v,uncertain");
+    let flags: Vec<&str> = lines[1..].iter().map(|l| l.rsplit(',').next().unwrap()).collect();
+    assert_eq!(flags, ["1", "1", "0", "0"], "{out}");
+    // the flagged rays are the ones the loose bound lost: reported as misses
+    assert!(lines[1].starts_with("0,") && lines[2].starts_with("0,"), "{out}");
+    // without the flag: the same rows without the column, and the same warning
+    let o = run(&["query", p(&scene), "--rays", p(&rays)]);
+    assert!(stdout(&o).lines().all(|l| l.split(',').count() == 12));
+    assert!(stderr(&o).contains("warning: 2 rays"), "{}", stderr(&o));
+
+    // a render: the pixels whose rays cross the box are flagged, the others not
+    let exr = dir.path().join("loose.exr");
+    let o = run(&[
+        "render",
+        p(&scene),
+        "-o",
+        p(&exr),
+        "--aov",
+        "Alpha,Uncertain",
+        "--no-previews",
+    ]);
+    assert_ok(&o, "render");
+    let channels = read_channels(&exr);
+    let flags = &channels.iter().find(|(n, _)| n == "uncertain").unwrap().1;
+    let flagged = flags.iter().filter(|f| **f == 1.0).count();
+    assert!(flags.iter().all(|f| *f == 0.0 || *f == 1.0));
+    assert!(flagged > 0 && flagged < flags.len(), "{flags:?}");
+    assert!(
+        stderr(&o).contains(&format!("warning: {flagged} rays (primary or shadow) ran out")),
+        "{}",
+        stderr(&o)
+    );
 }
