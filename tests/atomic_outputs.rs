@@ -86,10 +86,10 @@ fn sigkill_at_seven_moments_leaves_the_old_or_the_new_file() {
         (false, 0.3 * trace),
         (false, 0.7 * trace),
         (true, 0.0),
-        (true, 0.2 * write),
-        (true, 0.45 * write),
-        (true, 0.7 * write),
-        (true, 0.95 * write),
+        (true, 0.25 * write),
+        (true, 0.5 * write),
+        (true, 0.75 * write),
+        (true, 1.0 * write),
     ];
     let (mut old, mut new) = (0, 0);
     for (after_writing, delay) in moments {
