@@ -19,9 +19,22 @@ use tempfile::NamedTempFile;
 
 /// A file being written under a temporary name next to `destination`; [`AtomicFile::commit`]
 /// renames it into place. Dropped without a commit, it is deleted.
+///
+/// A destination that is a symbolic link is resolved first (the link keeps pointing at the new
+/// file); one that exists and is neither a regular file nor a directory — `/dev/null`, a named
+/// pipe, a terminal — is written directly, since it holds nothing to protect and cannot be
+/// renamed over.
 pub struct AtomicFile {
-    temp: NamedTempFile,
+    target: Target,
     destination: PathBuf,
+}
+
+/// Where the bytes go.
+enum Target {
+    /// A temporary file beside the destination, renamed over it on commit.
+    Temporary(NamedTempFile),
+    /// The destination itself (a device or pipe).
+    Direct(File),
 }
 
 impl AtomicFile {
@@ -30,6 +43,25 @@ impl AtomicFile {
     /// # Errors
     /// The directory cannot be written.
     pub fn create(destination: &Path) -> Result<Self> {
+        let destination = &std::fs::canonicalize(destination)
+            .ok()
+            .filter(|_| destination.is_symlink())
+            .unwrap_or_else(|| destination.to_path_buf());
+        if let Ok(meta) = std::fs::metadata(destination) {
+            if meta.is_dir() {
+                bail!("{} is a directory, not a file", destination.display());
+            }
+            if !meta.is_file() {
+                let file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(destination)
+                    .with_context(|| format!("opening {}", destination.display()))?;
+                return Ok(Self {
+                    target: Target::Direct(file),
+                    destination: destination.clone(),
+                });
+            }
+        }
         let dir = parent_dir(destination);
         let name = destination
             .file_name()
@@ -49,14 +81,17 @@ impl AtomicFile {
                 .with_context(|| format!("setting the permissions of a file in {}", dir.display()))?;
         }
         Ok(Self {
-            temp,
-            destination: destination.to_path_buf(),
+            target: Target::Temporary(temp),
+            destination: destination.clone(),
         })
     }
 
-    /// The open temporary file.
+    /// The open temporary file (or the device written directly).
     pub fn file(&mut self) -> &mut File {
-        self.temp.as_file_mut()
+        match &mut self.target {
+            Target::Temporary(temp) => temp.as_file_mut(),
+            Target::Direct(file) => file,
+        }
     }
 
     /// The destination path.
@@ -70,13 +105,15 @@ impl AtomicFile {
     /// # Errors
     /// The `fsync` or the rename fails (the temporary file is then removed).
     pub fn commit(self) -> Result<()> {
-        self.temp
-            .as_file()
+        let temp = match self.target {
+            Target::Temporary(temp) => temp,
+            Target::Direct(_) => return Ok(()),
+        };
+        temp.as_file()
             .sync_all()
             .with_context(|| format!("flushing {} to disk", self.destination.display()))?;
         let destination = self.destination;
-        self.temp
-            .persist(&destination)
+        temp.persist(&destination)
             .map_err(|e| e.error)
             .with_context(|| format!("renaming the finished file to {}", destination.display()))?;
         // make the rename itself durable where the platform allows opening a directory
@@ -186,6 +223,27 @@ mod tests {
         write_atomically(&path, |w| Ok(w.write_all(b"new")?)).unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn links_are_followed_and_devices_written_directly() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("target.txt");
+        let link = dir.path().join("link.txt");
+        std::fs::write(&target, "old").unwrap();
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        write_atomically(&link, |w| Ok(w.write_all(b"new")?)).unwrap();
+        assert!(link.is_symlink(), "the link is kept");
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "new");
+        write_atomically(Path::new("/dev/null"), |w| Ok(w.write_all(b"discarded")?)).unwrap();
+        let null = std::fs::metadata("/dev/null").unwrap();
+        assert!(null.file_type().is_char_device(), "/dev/null is still a device");
+        assert!(
+            write_atomically(dir.path(), |_| Ok(())).is_err(),
+            "a directory is refused"
+        );
     }
 
     #[test]
