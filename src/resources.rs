@@ -3,8 +3,9 @@
 //! capped.
 //!
 //! Available memory is Linux's `MemAvailable` (`/proc/meminfo`: free memory plus what the kernel
-//! can reclaim without swapping). Where it cannot be read (other systems) the memory check is
-//! skipped.
+//! can reclaim without swapping), or less where the process's cgroup (v2) limits it
+//! (`memory.max − memory.current`, as in a container). Where neither can be read (other
+//! systems) the memory check is skipped.
 
 use crate::output::atomic::human_bytes;
 use anyhow::{bail, Result};
@@ -16,8 +17,32 @@ pub const THREADS_PER_CORE: usize = 4;
 /// Bytes the kernel says can be allocated without swapping, if known.
 #[must_use]
 pub fn available_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    parse_mem_available(&text)
+    let system = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|text| parse_mem_available(&text));
+    // the process's cgroup v2 directory: the `0::/path` line of /proc/self/cgroup
+    let group = std::fs::read_to_string("/proc/self/cgroup")
+        .ok()
+        .and_then(|text| text.lines().find_map(|l| l.strip_prefix("0::").map(str::to_string)))
+        .unwrap_or_else(|| "/".to_string());
+    let read =
+        |name: &str| std::fs::read_to_string(format!("/sys/fs/cgroup{}/{name}", group.trim_end_matches('/'))).ok();
+    let cgroup = match (read("memory.max"), read("memory.current")) {
+        (Some(max), Some(current)) => cgroup_room(&max, &current),
+        _ => None,
+    };
+    match (system, cgroup) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// Room left under a cgroup v2 limit: `memory.max` (bytes, or `max` for none) minus
+/// `memory.current`.
+fn cgroup_room(max: &str, current: &str) -> Option<u64> {
+    let max: u64 = max.trim().parse().ok()?; // "max": no limit
+    let current: u64 = current.trim().parse().ok()?;
+    Some(max.saturating_sub(current))
 }
 
 /// `MemAvailable` in bytes from the text of `/proc/meminfo`.
@@ -103,6 +128,13 @@ mod tests {
         let text = "MemTotal:       24000000 kB\nMemFree:  100 kB\nMemAvailable:   2048 kB\n";
         assert_eq!(parse_mem_available(text), Some(2048 * 1024));
         assert_eq!(parse_mem_available("MemTotal: 1 kB\n"), None);
+    }
+
+    #[test]
+    fn cgroup_room_is_the_limit_less_the_usage() {
+        assert_eq!(cgroup_room("8589934592\n", "1073741824\n"), Some(7 << 30));
+        assert_eq!(cgroup_room("max\n", "1073741824\n"), None);
+        assert_eq!(cgroup_room("100\n", "200\n"), Some(0));
     }
 
     #[test]
