@@ -47,8 +47,7 @@ pub struct ExrHeader {
 /// The lossless EXR codecs the `exr` crate writes (PXR24 and B44 are lossy for `f32`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum ExrCompression {
-    /// No compression: the fastest to write, the largest files (the default: see the module
-    /// docs).
+    /// No compression: the fastest to write, the largest files (the default).
     #[default]
     None,
     /// Run-length encoding.
