@@ -3,19 +3,24 @@
 
 use crate::aov::Aov;
 use crate::camera::Camera;
+use crate::output::atomic::{check_destination, write_atomically, AtomicFile};
 use crate::output::cameras_json::{cameras_json, exr_camera_attributes, transforms_json};
-use crate::output::exr::{write_exr, ExrHeader};
+use crate::output::exr::{size_estimate, write_exr_with, ExrCompression, ExrHeader};
+use crate::output::merge::merge_crops;
 use crate::output::png::write_previews;
-use crate::query::{first_hits, format_hits, parse_rays};
+use crate::query::{run_batch, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS};
 use crate::render::{render_view, Frame, RenderOptions, Window};
+use crate::resources::{capped_threads, check_memory, process_cpu_seconds, render_memory_estimate};
 use crate::scene::Scene;
 use crate::views::{render_views, view_files};
 use anyhow::{bail, Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
+use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
+use zeroset_primitives::root::budget_exhaustions;
 
 /// zeroset: a ray caster for implicit surfaces with exact depth and normal AOVs.
 #[derive(Debug, Parser)]
@@ -31,8 +36,10 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene to EXR (all requested AOVs) and PNG previews.
     Render(RenderArgs),
-    /// First hits of a batch of rays (CSV in, CSV out).
+    /// First hits of a batch of rays (CSV or NumPy .npy in and out, streamed).
     Query(QueryArgs),
+    /// Assemble crops (renders with `--crop`) into the full frame, bit for bit.
+    Merge(MergeArgs),
     /// List the primitive names scene files may use.
     Primitives,
 }
@@ -42,7 +49,8 @@ pub enum Command {
 pub struct RenderArgs {
     /// Scene file (RON).
     pub scene: PathBuf,
-    /// Output: a directory (files named after the scene) or a path ending in `.exr`.
+    /// Output: a directory (files named after the scene) or a path ending in `.exr`; any other
+    /// extension is an error unless the path is an existing directory.
     #[arg(short, long, default_value = "out")]
     pub output: PathBuf,
     /// Override the image width (the vertical field of view is kept).
@@ -51,15 +59,16 @@ pub struct RenderArgs {
     /// Override the image height.
     #[arg(long)]
     pub height: Option<u32>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads (default: all cores; at most 4 × the cores).
+    #[arg(short = 't', long)]
     pub threads: Option<usize>,
-    /// AOVs to write, comma-separated (default: the scene's `outputs.aovs`).
-    #[arg(long, value_delimiter = ',', value_enum, ignore_case = true)]
-    pub aov: Option<Vec<Aov>>,
+    /// AOVs to write, comma-separated, or `all` (default: the scene's `outputs.aovs`).
+    #[arg(long, value_delimiter = ',')]
+    pub aov: Option<Vec<String>>,
     /// Render only the pixel window `x0,y0,x1,y1` (half-open): the EXR keeps the full display
-    /// window with this data window, so crops of one frame can be stitched (e.g. `oiiotool
-    /// a.exr b.exr --over -o full.exr`, or any EXR tool honouring data windows).
+    /// window with this data window. Stitch crops with `zeroset merge a.exr b.exr -o full.exr`
+    /// (exact); with oiiotool use `--add` (`oiiotool a.exr b.exr --add -o full.exr`, exact for
+    /// crops that do not overlap), never `--over` (it turns the misses' `Z = inf` into 0).
     #[arg(long, value_delimiter = ',')]
     pub crop: Option<Vec<u32>>,
     /// Value for `Z` and `distance` where nothing was hit (default `inf`; e.g. 0 for pipelines
@@ -72,6 +81,14 @@ pub struct RenderArgs {
     /// Samples per pixel (default: the scene's `sampling.spp`, itself 1 by default).
     #[arg(long)]
     pub spp: Option<u32>,
+    /// EXR compression (lossless): none (default, the fastest), rle (2–3× the CPU time of none
+    /// for 55–70 % of the size), zips or zip (deflate: 7–22× the time, 13–40 % of the size), piz.
+    #[arg(long, value_enum, default_value_t = ExrCompression::default(), ignore_case = true)]
+    pub compression: ExrCompression,
+    /// Fill the uncovered part of pixels with the scene background in `Beauty` (default: black,
+    /// `R, G, B` premultiplied by `A` as EXR expects).
+    #[arg(long)]
+    pub background: bool,
     /// Render only view I of the scene's `views` (to `NAME.IIII.exr`).
     #[arg(long, value_name = "I")]
     pub view: Option<usize>,
@@ -80,12 +97,44 @@ pub struct RenderArgs {
     pub transforms: bool,
 }
 
+/// `zeroset merge`.
+#[derive(Debug, clap::Args)]
+pub struct MergeArgs {
+    /// Crops of one frame (EXR files written with `--crop`) that tile its display window.
+    #[arg(required = true)]
+    pub crops: Vec<PathBuf>,
+    /// The full frame (EXR).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// Formats of `zeroset query` input and output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BatchFormat {
+    /// Comma-separated text.
+    Csv,
+    /// NumPy `.npy` array.
+    Npy,
+}
+
+impl BatchFormat {
+    /// The format a path's extension names (`.npy`), CSV otherwise.
+    fn of(path: &Path) -> Self {
+        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy")) {
+            Self::Npy
+        } else {
+            Self::Csv
+        }
+    }
+}
+
 /// `zeroset query`.
 #[derive(Debug, clap::Args)]
 pub struct QueryArgs {
     /// Scene file (RON).
     pub scene: PathBuf,
-    /// Rays, one per line: `ox,oy,oz,dx,dy,dz[,tmin,tmax]`.
+    /// Rays: CSV `ox,oy,oz,dx,dy,dz[,tmin,tmax]` per line, or a `.npy` array of shape (N, 6) or
+    /// (N, 8); `-` for stdin.
     #[arg(long, required_unless_present = "pixels", conflicts_with = "pixels")]
     pub rays: Option<PathBuf>,
     /// Image positions instead of rays, one per line: `x,y[,view]` (pixel (i, j)'s centre is
@@ -95,12 +144,22 @@ pub struct QueryArgs {
     /// Scene file whose camera (and views) turn `--pixels` into rays (default: the queried scene).
     #[arg(long, requires = "pixels", value_name = "SCENE")]
     pub camera: Option<PathBuf>,
-    /// Output CSV (`-` for stdout).
+    /// Format of `--rays` (default: from its extension, `.npy` or CSV).
+    #[arg(long, value_enum, ignore_case = true)]
+    pub rays_format: Option<BatchFormat>,
+    /// Output (`-` for stdout): CSV, or `.npy` (f8, shape (N, 11)).
     #[arg(short, long, default_value = "-")]
     pub output: PathBuf,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Format of the output (default: from its extension, `.npy` or CSV).
+    #[arg(long, value_enum, ignore_case = true)]
+    pub format: Option<BatchFormat>,
+    /// Worker threads (default: all cores; at most 4 × the cores).
+    #[arg(short = 't', long)]
     pub threads: Option<usize>,
+    /// Add an `uncertain` column: 1 where the root finder ran out of its evaluation budget on
+    /// the ray (its answer may be wrong).
+    #[arg(long)]
+    pub uncertain: bool,
 }
 
 /// Runs the CLI on the process arguments; prints errors to stderr and returns a failing exit
@@ -111,7 +170,7 @@ pub fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_message(&e));
             ExitCode::FAILURE
         }
     }
@@ -122,6 +181,11 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => with_threads(args.threads, || render_command(&args)),
         Command::Query(args) => with_threads(args.threads, || query_command(&args)),
+        Command::Merge(args) => {
+            merge_crops(&args.crops, &args.output)?;
+            eprintln!("wrote {}", args.output.display());
+            Ok(())
+        }
         Command::Primitives => {
             for name in crate::registry::registered_names() {
                 println!("{name}");
@@ -131,7 +195,32 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
+/// An error and its causes on one line, each cause only if its text is not already there (a
+/// message that quotes its OS error is not followed by the same OS error again).
+#[must_use]
+pub fn error_message(error: &anyhow::Error) -> String {
+    let mut message = String::new();
+    for cause in error.chain() {
+        let text = cause.to_string();
+        if message.contains(&text) {
+            continue;
+        }
+        if !message.is_empty() {
+            message.push_str(": ");
+        }
+        message.push_str(&text);
+    }
+    message
+}
+
 fn with_threads(threads: Option<usize>, f: impl FnOnce() -> Result<()> + Send) -> Result<()> {
+    let threads = threads.map(|requested| {
+        let (n, warning) = capped_threads(requested);
+        if let Some(w) = warning {
+            eprintln!("{w}");
+        }
+        n
+    });
     match threads {
         None => f(),
         Some(0) => bail!("--threads must be at least 1"),
@@ -143,10 +232,29 @@ fn with_threads(threads: Option<usize>, f: impl FnOnce() -> Result<()> + Send) -
     }
 }
 
+/// The AOVs `--aov` names: names of [`Aov`] (any case) or `all`.
+fn parse_aovs(names: &[String]) -> Result<Vec<Aov>> {
+    let mut aovs = Vec::new();
+    for name in names {
+        if name.trim().eq_ignore_ascii_case("all") {
+            aovs.extend(Aov::ALL);
+            continue;
+        }
+        match Aov::from_str(name.trim(), true) {
+            Ok(aov) => aovs.push(aov),
+            Err(_) => {
+                let known: Vec<String> = Aov::ALL.iter().map(|a| format!("{a:?}")).collect();
+                bail!("--aov {name}: unknown AOV; use {} or all", known.join(", "));
+            }
+        }
+    }
+    Ok(aovs)
+}
+
 fn render_command(args: &RenderArgs) -> Result<()> {
-    let load_start = Instant::now();
+    let wall = Instant::now();
     let mut scene = Scene::load(&args.scene)?;
-    let load_time = load_start.elapsed();
+    let load_time = wall.elapsed();
     if args.width.is_some() || args.height.is_some() {
         let w = args.width.unwrap_or(scene.camera.width);
         let h = args.height.unwrap_or(scene.camera.height);
@@ -195,43 +303,102 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     if args.depth_miss.is_nan() {
         bail!("--depth-miss must be a number or ±inf, not NaN");
     }
-    let aovs = args.aov.clone().unwrap_or_else(|| scene.outputs.aovs.clone());
+    let aovs = match &args.aov {
+        Some(names) => parse_aovs(names)?,
+        None => scene.outputs.aovs.clone(),
+    };
     let (dir, stem) = output_location(&args.output, &args.scene)?;
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let previews = scene.outputs.previews && !args.no_previews;
+
+    // resources, before any tracing: memory for the buffers, a writable directory with room
+    let window = crop.unwrap_or(Window {
+        x0: 0,
+        y0: 0,
+        x1: scene.camera.width,
+        y1: scene.camera.height,
+    });
+    let pixels = u64::from(window.width()) * u64::from(window.height());
+    let mut distinct = aovs.clone();
+    distinct.sort();
+    distinct.dedup();
+    let channels: u64 = distinct.iter().map(|a| a.channels().len() as u64).sum();
+    let preview_count = if previews {
+        distinct
+            .iter()
+            .filter(|a| matches!(a, Aov::Beauty | Aov::Depth | Aov::Normal))
+            .count() as u64
+    } else {
+        0
+    };
+    let memory = render_memory_estimate(
+        pixels,
+        channels,
+        preview_count,
+        u64::from(scene.sampling.spp),
+        rayon::current_num_threads() as u64,
+    );
+    check_memory(
+        &format!(
+            "rendering {}x{} with {channels} channels at {} spp",
+            window.width(),
+            window.height(),
+            scene.sampling.spp
+        ),
+        memory,
+    )?;
+    let disk = size_estimate(pixels, channels, u64::from(window.height())) + pixels * 3 * preview_count;
+    check_destination(&dir, disk)?;
 
     let views = view_files(&scene, &stem);
-    write_camera_files(&views, &dir, &stem, args.transforms)?;
     let selected: Vec<usize> = match args.view {
         None => (0..views.len()).collect(),
         Some(_) if scene.views.is_empty() => bail!("--view: {} has no `views`", args.scene.display()),
         Some(i) if i >= views.len() => bail!("--view {i}: the scene has views 0 to {}", views.len() - 1),
         Some(i) => vec![i],
     };
+    write_camera_files(&views, &dir, &stem, args.transforms)?;
     let options = RenderOptions {
         aovs,
         crop,
         depth_miss: args.depth_miss,
         progress: selected.len() == 1,
+        background: args.background,
     };
     let cameras: Vec<&Camera> = selected.iter().map(|&i| views[i].0).collect();
-    let start = Instant::now();
-    let write_view = |k: usize, frame: Frame| -> Result<Frame> {
+    let background = scene.background.as_vec3().to_array();
+    let write_seconds = std::sync::Mutex::new(0.0f64);
+    // writes view `k` of `selected` (EXR and previews in parallel, each atomically)
+    let write_view = |k: usize, frame: &Frame| -> Result<()> {
         let index = selected[k];
         let (camera, file) = (views[index].0, &views[index].1);
+        let write_start = Instant::now();
         let exr_path = dir.join(file);
+        eprintln!(
+            "writing {}{} …",
+            exr_path.display(),
+            if previews { " and PNG previews" } else { "" }
+        );
         let header = ExrHeader {
             world_to_camera: camera.world_to_camera(),
             world_to_ndc: camera.world_to_ndc(0.01, 1000.0),
             scene_file: args.scene.display().to_string(),
             depth_miss: args.depth_miss,
-            camera_attributes: exr_camera_attributes(camera, index, file),
+            camera_attributes: exr_camera_attributes(camera, index),
         };
-        write_exr(&frame, &exr_path, &header).with_context(|| format!("writing {}", exr_path.display()))?;
+        let preview_stem = file.trim_end_matches(".exr");
+        let (exr, pngs) = rayon::join(
+            || write_exr_with(frame, &exr_path, &header, args.compression),
+            || {
+                if previews {
+                    write_previews(frame, &dir, preview_stem, background)
+                } else {
+                    Ok(Vec::new())
+                }
+            },
+        );
+        exr?;
         let mut written = vec![exr_path];
-        if scene.outputs.previews && !args.no_previews {
-            let preview_stem = file.trim_end_matches(".exr");
-            written.extend(write_previews(&frame, &dir, preview_stem).context("writing PNG previews")?);
-        }
+        written.extend(pngs.context("writing PNG previews")?);
         for path in &written {
             eprintln!("wrote {}", path.display());
         }
@@ -242,112 +409,186 @@ fn render_command(args: &RenderArgs) -> Result<()> {
                 frame.not_converged
             );
         }
-        Ok(frame)
+        *write_seconds.lock().unwrap_or_else(std::sync::PoisonError::into_inner) += write_start.elapsed().as_secs_f64();
+        Ok(())
     };
-    if cameras.len() == 1 {
-        let frame = write_view(0, render_view(&scene, cameras[0], &options))?;
-        println!(
-            "rendered {}x{} at {} spp ({} objects, load+BVH {:.3} s) in {:.3} s: {:.2} Mrays/s on {} threads",
-            frame.window.width(),
-            frame.window.height(),
-            scene.sampling.spp,
-            scene.objects.len(),
-            load_time.as_secs_f64(),
-            frame.elapsed.as_secs_f64(),
-            frame.mrays_per_second(),
-            rayon::current_num_threads()
-        );
-        return Ok(());
-    }
-    let rays = AtomicU64::new(0);
-    render_views(&scene, &cameras, &options, |k, frame| {
-        let frame = write_view(k, frame)?;
-        let pixels = u64::from(frame.window.width()) * u64::from(frame.window.height());
-        rays.fetch_add(pixels * u64::from(frame.spp), Ordering::Relaxed);
-        Ok::<(), anyhow::Error>(())
-    })?;
-    let elapsed = start.elapsed().as_secs_f64();
+    let cpu_before_trace = process_cpu_seconds();
+    let exhausted_before = budget_exhaustions();
+    let trace_start = Instant::now();
+    let (trace_seconds, rays) = if cameras.len() == 1 {
+        let frame = render_view(&scene, cameras[0], &options);
+        warn_uncertain(budget_exhaustions() - exhausted_before);
+        write_view(0, &frame)?;
+        let rays = u64::from(frame.window.width()) * u64::from(frame.window.height()) * u64::from(frame.spp);
+        (frame.elapsed.as_secs_f64(), rays)
+    } else {
+        let rays = AtomicU64::new(0);
+        render_views(&scene, &cameras, &options, |k, frame| {
+            write_view(k, &frame)?;
+            let pixels = u64::from(frame.window.width()) * u64::from(frame.window.height());
+            rays.fetch_add(pixels * u64::from(frame.spp), Ordering::Relaxed);
+            Ok::<(), anyhow::Error>(())
+        })?;
+        warn_uncertain(budget_exhaustions() - exhausted_before);
+        // views trace and write at once: the trace time is the total less the writing
+        let total = trace_start.elapsed().as_secs_f64();
+        (total, rays.into_inner())
+    };
+    let write_seconds = write_seconds
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let cpu = match (cpu_before_trace, process_cpu_seconds()) {
+        (Some(a), Some(b)) => format!("; CPU {:.2} s", b - a),
+        _ => String::new(),
+    };
+    let (what, trace) = if cameras.len() == 1 {
+        let c = cameras[0];
+        let w = crop.map_or(c.width, |w| w.width());
+        let h = crop.map_or(c.height, |w| w.height());
+        (format!("{w}x{h}"), "trace")
+    } else {
+        (format!("{} views", cameras.len()), "trace and write")
+    };
     println!(
-        "rendered {} views at {} spp ({} objects, load+BVH {:.3} s) in {:.3} s ({:.4} s per view, files included): \
-         {:.2} Mrays/s on {} threads",
-        cameras.len(),
+        "rendered {what} at {} spp ({} objects) on {} threads: {trace} {:.3} s ({:.2} Mrays/s), wall {:.3} s (load+BVH {:.3} s, write {:.3} s{cpu})",
         scene.sampling.spp,
         scene.objects.len(),
+        rayon::current_num_threads(),
+        trace_seconds,
+        rays as f64 / trace_seconds.max(1e-12) / 1e6,
+        wall.elapsed().as_secs_f64(),
         load_time.as_secs_f64(),
-        elapsed,
-        elapsed / cameras.len() as f64,
-        rays.into_inner() as f64 / elapsed.max(1e-12) / 1e6,
-        rayon::current_num_threads()
+        write_seconds,
     );
     Ok(())
 }
 
-/// Writes `NAME.cameras.json` for every view (and `transforms.json` when asked) into `dir`.
+/// Warns when rays exhausted the root finder's budget during a render.
+fn warn_uncertain(exhausted: u64) {
+    if exhausted > 0 {
+        eprintln!(
+            "{}",
+            uncertain_warning(exhausted, "rays (primary or shadow)", "--aov Uncertain")
+        );
+    }
+}
+
+/// Writes `NAME.cameras.json` for every view (and `transforms.json` when asked) into `dir`,
+/// each atomically.
 fn write_camera_files(views: &[(&Camera, String)], dir: &Path, stem: &str, transforms: bool) -> Result<()> {
     let path = dir.join(format!("{stem}.cameras.json"));
-    std::fs::write(&path, cameras_json(views)).with_context(|| format!("writing {}", path.display()))?;
+    let text = cameras_json(views);
+    write_atomically(&path, |w| Ok(w.write_all(text.as_bytes())?))?;
     eprintln!("wrote {}", path.display());
     if transforms {
         let text = transforms_json(views).map_err(|m| anyhow::anyhow!("--transforms: {m}"))?;
         let path = dir.join("transforms.json");
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        write_atomically(&path, |w| Ok(w.write_all(text.as_bytes())?))?;
         eprintln!("wrote {}", path.display());
     }
     Ok(())
 }
 
-/// `(directory, file stem)` for the outputs.
+/// The warning for rays whose root finder ran out of its evaluation budget.
+fn uncertain_warning(count: u64, what: &str, flag: &str) -> String {
+    format!(
+        "warning: {count} {what} ran out of the root finder's evaluation budget and may be wrong \
+         (counted as misses past that point; a tighter `lipschitz` bound or search box helps); \
+         {flag} flags them"
+    )
+}
+
+/// `(directory, file stem)` for the outputs: a path ending in `.exr` names the EXR file; an
+/// existing directory or a path without an extension is the directory; anything else (`-o
+/// img.png`) is refused rather than created as a directory.
 fn output_location(output: &Path, scene: &Path) -> Result<(PathBuf, String)> {
-    if output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-        let dir = output.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
-        let stem = output
-            .file_stem()
-            .context("output file name")?
-            .to_string_lossy()
-            .into_owned();
-        Ok((
-            if dir.as_os_str().is_empty() {
-                PathBuf::from(".")
-            } else {
-                dir
-            },
-            stem,
-        ))
-    } else {
-        let stem = scene
-            .file_stem()
-            .context("scene file name")?
-            .to_string_lossy()
-            .into_owned();
-        Ok((output.to_path_buf(), stem))
+    match output.extension() {
+        Some(e) if e.eq_ignore_ascii_case("exr") => {
+            let stem = output
+                .file_stem()
+                .context("output file name")?
+                .to_string_lossy()
+                .into_owned();
+            Ok((crate::output::atomic::parent_dir(output), stem))
+        }
+        Some(e) if !output.is_dir() => bail!(
+            "-o {}: the output is a directory or a file ending in .exr, not .{} (PNG previews are written next to the EXR)",
+            output.display(),
+            e.to_string_lossy()
+        ),
+        _ => {
+            let stem = scene
+                .file_stem()
+                .context("scene file name")?
+                .to_string_lossy()
+                .into_owned();
+            Ok((output.to_path_buf(), stem))
+        }
     }
 }
 
 fn query_command(args: &QueryArgs) -> Result<()> {
+    let wall = Instant::now();
     let scene = Scene::load(&args.scene)?;
-    let rays = match (&args.rays, &args.pixels) {
-        (Some(file), _) => {
-            let text = std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
-            parse_rays(&text, &file.display().to_string())?
+    let mut source: Box<dyn RaySource> = match (&args.rays, &args.pixels) {
+        (Some(rays), _) => {
+            let rays_name = rays.display().to_string();
+            let input: Box<dyn std::io::Read> = if rays.as_os_str() == "-" {
+                Box::new(std::io::stdin().lock())
+            } else {
+                Box::new(std::fs::File::open(rays).with_context(|| format!("reading {rays_name}"))?)
+            };
+            let input = BufReader::with_capacity(1 << 20, input);
+            match args.rays_format.unwrap_or_else(|| BatchFormat::of(rays)) {
+                BatchFormat::Csv => Box::new(CsvRays::new(input, &rays_name)),
+                BatchFormat::Npy => Box::new(NpyRays::new(input, &rays_name)?),
+            }
         }
-        (None, Some(pixels)) => crate::pixels::pixel_rays_from_files(&scene, args.camera.as_deref(), pixels)?,
+        (None, Some(pixels)) => Box::new(VecRays::new(crate::pixels::pixel_rays_from_files(
+            &scene,
+            args.camera.as_deref(),
+            pixels,
+        )?)),
         (None, None) => bail!("give --rays or --pixels"),
     };
-    let start = Instant::now();
-    let hits = first_hits(&scene, &rays);
-    let elapsed = start.elapsed();
-    let csv = format_hits(&scene, &hits);
-    if args.output.as_os_str() == "-" {
-        print!("{csv}");
+    let to_stdout = args.output.as_os_str() == "-";
+    let format = args.format.unwrap_or_else(|| BatchFormat::of(&args.output));
+    let counts = if to_stdout {
+        let stdout = BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
+        let mut sink: Box<dyn HitSink> = match format {
+            BatchFormat::Csv => Box::new(CsvHits::new(stdout, args.uncertain)),
+            BatchFormat::Npy => {
+                let Some(rows) = source.len_hint() else {
+                    bail!("writing .npy to stdout needs .npy rays (the row count goes first); use -o FILE.npy");
+                };
+                Box::new(NpyStream(NpyHits::with_rows(stdout, rows, args.uncertain)))
+            }
+        };
+        run_batch(&scene, source.as_mut(), sink.as_mut())?
     } else {
-        std::fs::write(&args.output, csv).with_context(|| format!("writing {}", args.output.display()))?;
+        check_destination(&crate::output::atomic::parent_dir(&args.output), 0)?;
+        let mut file = AtomicFile::create(&args.output)?;
+        let counts = {
+            let writer = BufWriter::with_capacity(1 << 20, file.file());
+            let mut sink: Box<dyn HitSink> = match format {
+                BatchFormat::Csv => Box::new(CsvHits::new(writer, args.uncertain)),
+                BatchFormat::Npy => Box::new(NpyHits::seekable(writer, args.uncertain)),
+            };
+            run_batch(&scene, source.as_mut(), sink.as_mut())
+                .with_context(|| format!("writing {}", args.output.display()))?
+        };
+        file.commit()?;
+        counts
+    };
+    let elapsed = wall.elapsed().as_secs_f64();
+    if counts.uncertain > 0 {
+        eprintln!("{}", uncertain_warning(counts.uncertain, "rays", "--uncertain"));
     }
     eprintln!(
-        "{} rays, {} hits in {:.3} s ({:.2} Mrays/s)",
-        rays.len(),
-        hits.iter().filter(|h| h.is_some()).count(),
-        elapsed.as_secs_f64(),
-        rays.len() as f64 / elapsed.as_secs_f64().max(1e-12) / 1e6
+        "{} rays, {} hits in {elapsed:.3} s end to end ({:.2} Mrays/s; chunks of {CHUNK_RAYS})",
+        counts.rays,
+        counts.hits,
+        counts.rays as f64 / elapsed.max(1e-12) / 1e6
     );
     Ok(())
 }

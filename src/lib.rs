@@ -18,6 +18,7 @@ pub mod pixels;
 pub mod query;
 pub mod registry;
 pub mod render;
+pub mod resources;
 pub mod sampling;
 pub mod scene;
 pub mod shapes;

@@ -1,20 +1,55 @@
-//! Batch first-hit queries: `zeroset query SCENE --rays RAYS.csv -o HITS.csv`.
+//! Batch first-hit queries: `zeroset query SCENE --rays RAYS.{csv,npy} -o HITS.{csv,npy}`.
 //!
-//! Input: one ray per line, `ox,oy,oz,dx,dy,dz[,tmin,tmax]` (default `tmin = 0`, `tmax = +∞`);
-//! blank lines and lines starting with `#` are skipped, and so is a first line that is not
-//! numeric (a header). The direction is used as given: `t` is in units of `|d|`, so normalise
-//! directions to get distances.
+//! The batch path is three independent parts, run chunk after chunk of [`CHUNK_RAYS`] rays so
+//! memory stays bounded whatever the number of rays, and output rows stay in input order:
+//! 1. a [`RaySource`] parses rays ([`CsvRays`], [`NpyRays`]);
+//! 2. [`trace_batch`] traces a slice of rays in parallel;
+//! 3. a [`HitSink`] formats and writes the hits ([`CsvHits`], [`NpyHits`]).
 //!
-//! Output: a header line, then one line per input ray, in input order:
+//! **CSV input**: one ray per line, `ox,oy,oz,dx,dy,dz[,tmin,tmax]` (default `tmin = 0`,
+//! `tmax = +∞`), fields separated by commas, spaces around them allowed. A UTF-8 byte-order mark
+//! is skipped; blank lines and lines starting with `#` are skipped. The first other line is a
+//! header only if its fields are exactly `ox,oy,oz,dx,dy,dz` or `ox,oy,oz,dx,dy,dz,tmin,tmax`;
+//! every other line must be a ray, and anything else — a word, a semicolon, fields separated by
+//! spaces only, a trailing comma, a wrong count — is an error naming the file and line. No line
+//! is ever skipped silently.
+//!
+//! **NPY input**: a NumPy `.npy` array of shape `(N, 6)` or `(N, 8)`, little-endian `f8` or `f4`,
+//! C order, with the same columns; errors name the row (0-based, as NumPy indexes it).
+//!
+//! The direction is used as given: `t` is in units of `|d|`, so normalise directions to get
+//! distances. Origins and directions must be finite, directions non-zero, `tmin ≤ tmax`.
+//!
+//! **CSV output**: a header line, then one line per input ray, in input order:
 //! `hit,t,px,py,pz,nx,ny,nz,id,name,u,v` — `hit` is 1 or 0; on a miss every other field is
 //! empty. The normal is the outward unit ∇Φ (not flipped); `id` is the object index, `name` its
-//! name from the scene (empty if unnamed); `u,v` are empty where the primitive has none.
+//! name from the scene (empty if unnamed; commas and line breaks replaced by spaces); `u,v` are
+//! empty where the primitive has none.
+//!
+//! With `--uncertain`, a last column `uncertain` is 1 where the root finder ran out of its
+//! evaluation budget on the ray (the answer may be wrong), else 0; the count of such rays is
+//! reported on stderr in any case.
+//!
+//! **NPY output**: an `f8` array of shape `(N, 11)` (`(N, 12)` with `--uncertain`), columns
+//! `hit,t,px,py,pz,nx,ny,nz,id,u,v[,uncertain]` (no name), NaN where the CSV has an empty field. Writing `.npy` to stdout needs `.npy` input
+//! (the row count goes in the header, before the rows).
 
 use crate::scene::Scene;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::fmt::Write as _;
+use std::io::{BufRead, Read, Seek, SeekFrom, Write};
+use zeroset_primitives::root::thread_budget_exhaustions;
 use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
+
+/// Rays read, traced and written per step of the batch loop.
+pub const CHUNK_RAYS: usize = 1 << 16;
+
+/// The documented CSV headers (without and with the `t` range).
+pub const CSV_RAY_HEADERS: [&str; 2] = ["ox,oy,oz,dx,dy,dz", "ox,oy,oz,dx,dy,dz,tmin,tmax"];
+
+/// The CSV output header.
+pub const CSV_HIT_HEADER: &str = "hit,t,px,py,pz,nx,ny,nz,id,name,u,v";
 
 /// One query ray with its parameter range.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -25,75 +60,36 @@ pub struct QueryRay {
     pub range: Interval,
 }
 
-/// A malformed line of the ray file.
+/// The answer for one query ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QueryHit {
+    /// The first hit: the object index and its completed hit record.
+    pub hit: Option<(u32, SurfaceHit)>,
+    /// Whether the root finder ran out of its evaluation budget on this ray: the answer (a miss,
+    /// or a hit beyond a surface it could not resolve) may be wrong.
+    pub uncertain: bool,
+}
+
+/// A malformed ray or an unreadable input.
 #[derive(Debug, thiserror::Error)]
-#[error("{path}:{line}: {message}")]
+#[error("{path}:{location}: {message}")]
 pub struct QueryError {
     /// The ray file.
     pub path: String,
-    /// 1-based line number.
-    pub line: usize,
+    /// 1-based line number (CSV), `row N` (NPY) or `header`.
+    pub location: String,
     /// What is wrong.
     pub message: String,
 }
 
-/// Parses the CSV ray list (see the module docs).
-pub fn parse_rays(text: &str, path: &str) -> Result<Vec<QueryRay>, QueryError> {
-    let mut rays = Vec::new();
-    for (index, line) in text.lines().enumerate() {
-        let line_no = index + 1;
-        let trimmed = line.trim();
-        if trimmed.is_empty() || trimmed.starts_with('#') {
-            continue;
-        }
-        let fields: Vec<&str> = trimmed.split(',').map(str::trim).collect();
-        let numbers: Result<Vec<f64>, _> = fields.iter().map(|f| f.parse::<f64>()).collect();
-        let err = |message: String| QueryError {
-            path: path.to_string(),
-            line: line_no,
-            message,
-        };
-        let Ok(v) = numbers else {
-            if rays.is_empty() && index == 0 {
-                continue; // header
-            }
-            return Err(err(format!(
-                "expected numbers `ox,oy,oz,dx,dy,dz[,tmin,tmax]`, got `{trimmed}`"
-            )));
-        };
-        if v.len() != 6 && v.len() != 8 {
-            return Err(err(format!("expected 6 or 8 fields, got {}", v.len())));
-        }
-        let origin = DVec3::new(v[0], v[1], v[2]);
-        let dir = DVec3::new(v[3], v[4], v[5]);
-        let range = if v.len() == 8 {
-            Interval::new(v[6], v[7])
-        } else {
-            Interval::POSITIVE
-        };
-        if !origin.is_finite() || !dir.is_finite() {
-            return Err(err("origin and direction must be finite".into()));
-        }
-        if dir == DVec3::ZERO {
-            return Err(err("direction must be non-zero".into()));
-        }
-        if range.min.is_nan() || range.max.is_nan() || range.is_empty() {
-            return Err(err(format!("invalid t range [{}, {}]", range.min, range.max)));
-        }
-        rays.push(QueryRay {
-            ray: Ray::new(origin, dir),
-            range,
-        });
-    }
-    Ok(rays)
-}
-
-/// First hits of `rays` in `scene` (in input order), with normal and uv.
+/// First hits of `rays` in `scene` (in input order, traced in parallel), with normal and uv.
 #[must_use]
-pub fn first_hits(scene: &Scene, rays: &[QueryRay]) -> Vec<Option<(u32, SurfaceHit)>> {
+pub fn trace_batch(scene: &Scene, rays: &[QueryRay]) -> Vec<QueryHit> {
     rays.par_iter()
+        .with_min_len(256)
         .map(|q| {
-            scene.intersect(&q.ray, q.range).map(|(object, raw)| {
+            let exhausted_before = thread_budget_exhaustions();
+            let hit = scene.intersect(&q.ray, q.range).map(|(object, raw)| {
                 (
                     object,
                     SurfaceHit::complete(
@@ -103,33 +99,747 @@ pub fn first_hits(scene: &Scene, rays: &[QueryRay]) -> Vec<Option<(u32, SurfaceH
                         HitRequest::ALL,
                     ),
                 )
-            })
+            });
+            QueryHit {
+                hit,
+                uncertain: thread_budget_exhaustions() != exhausted_before,
+            }
         })
         .collect()
 }
 
-/// Formats hits as the output CSV (see the module docs).
-#[must_use]
-pub fn format_hits(scene: &Scene, hits: &[Option<(u32, SurfaceHit)>]) -> String {
-    let mut out = String::from("hit,t,px,py,pz,nx,ny,nz,id,name,u,v\n");
-    for hit in hits {
-        match hit {
-            None => out.push_str("0,,,,,,,,,,,\n"),
-            Some((object, h)) => {
-                let n = h.normal.unwrap_or_default();
-                let name = scene.objects[*object as usize]
-                    .name
-                    .as_deref()
-                    .unwrap_or("")
-                    .replace([',', '\n'], " ");
-                let uv = h.uv.map_or(",".to_string(), |uv| format!("{:e},{:e}", uv.x, uv.y));
-                let _ = writeln!(
-                    out,
-                    "1,{:e},{:e},{:e},{:e},{:e},{:e},{:e},{object},{name},{uv}",
-                    h.t, h.point.x, h.point.y, h.point.z, n.x, n.y, n.z
-                );
+/// The checks every ray passes, whatever its format: `(ox, oy, oz, dx, dy, dz[, tmin, tmax])`.
+fn ray_from_fields(v: &[f64]) -> Result<QueryRay, String> {
+    if v.len() != 6 && v.len() != 8 {
+        return Err(format!("expected 6 or 8 fields, got {}", v.len()));
+    }
+    let origin = DVec3::new(v[0], v[1], v[2]);
+    let dir = DVec3::new(v[3], v[4], v[5]);
+    let range = if v.len() == 8 {
+        Interval::new(v[6], v[7])
+    } else {
+        Interval::POSITIVE
+    };
+    if !origin.is_finite() || !dir.is_finite() {
+        return Err("origin and direction must be finite".into());
+    }
+    if dir == DVec3::ZERO {
+        return Err("direction must be non-zero".into());
+    }
+    if range.min.is_nan() || range.max.is_nan() || range.is_empty() {
+        return Err(format!("invalid t range [{}, {}]", range.min, range.max));
+    }
+    Ok(QueryRay {
+        ray: Ray::new(origin, dir),
+        range,
+    })
+}
+
+/// Where rays come from, a chunk at a time.
+pub trait RaySource {
+    /// Appends up to `max` rays to `out` (cleared first); returns `false` once the input is
+    /// exhausted.
+    ///
+    /// # Errors
+    /// A malformed ray or a read error, located.
+    fn read_chunk(&mut self, max: usize, out: &mut Vec<QueryRay>) -> Result<bool, QueryError>;
+
+    /// The total number of rays, when the format states it up front.
+    fn len_hint(&self) -> Option<u64> {
+        None
+    }
+}
+
+/// Rays already in memory (pixel rays of a camera, rays built by a program) as a source.
+pub struct VecRays {
+    rays: std::vec::IntoIter<QueryRay>,
+    total: u64,
+}
+
+impl VecRays {
+    /// A source yielding `rays` in order.
+    #[must_use]
+    pub fn new(rays: Vec<QueryRay>) -> Self {
+        Self {
+            total: rays.len() as u64,
+            rays: rays.into_iter(),
+        }
+    }
+}
+
+impl RaySource for VecRays {
+    fn read_chunk(&mut self, max: usize, out: &mut Vec<QueryRay>) -> Result<bool, QueryError> {
+        out.clear();
+        out.extend(self.rays.by_ref().take(max));
+        Ok(self.rays.len() > 0)
+    }
+
+    fn len_hint(&self) -> Option<u64> {
+        Some(self.total)
+    }
+}
+
+/// What one CSV line holds.
+enum CsvLine {
+    Skip,
+    Header,
+    Ray(QueryRay),
+}
+
+/// Parses one CSV line (see the module docs).
+fn parse_csv_line(line: &str) -> Result<CsvLine, String> {
+    let trimmed = line.trim();
+    if trimmed.is_empty() || trimmed.starts_with('#') {
+        return Ok(CsvLine::Skip);
+    }
+    let fields: Vec<&str> = trimmed.split(',').map(str::trim).collect();
+    let joined = fields.join(",");
+    if CSV_RAY_HEADERS.contains(&joined.as_str()) {
+        return Ok(CsvLine::Header);
+    }
+    if trimmed.contains(';') {
+        return Err(format!("fields are separated by commas, found `;` in `{trimmed}`"));
+    }
+    let mut v = Vec::with_capacity(8);
+    for (k, field) in fields.iter().enumerate() {
+        if field.is_empty() {
+            let hint = if k + 1 == fields.len() {
+                " (a trailing comma?)"
+            } else {
+                ""
+            };
+            return Err(format!("field {} is empty{hint} in `{trimmed}`", k + 1));
+        }
+        match field.parse::<f64>() {
+            Ok(x) => v.push(x),
+            Err(_) => {
+                return Err(format!(
+                    "field {} `{field}` is not a number; expected `ox,oy,oz,dx,dy,dz[,tmin,tmax]`",
+                    k + 1
+                ))
             }
         }
     }
+    ray_from_fields(&v).map(CsvLine::Ray)
+}
+
+/// CSV rays from any buffered reader, parsed in parallel a chunk at a time.
+pub struct CsvRays<R> {
+    reader: R,
+    path: String,
+    /// Lines read so far.
+    line_no: usize,
+    /// Whether a ray (or the header) has been seen: a header is accepted only before.
+    seen_content: bool,
+    lines: Vec<String>,
+    done: bool,
+}
+
+impl<R: BufRead> CsvRays<R> {
+    /// A reader of `reader`, named `path` in errors.
+    pub fn new(reader: R, path: &str) -> Self {
+        Self {
+            reader,
+            path: path.to_string(),
+            line_no: 0,
+            seen_content: false,
+            lines: Vec::new(),
+            done: false,
+        }
+    }
+}
+
+impl<R: BufRead> RaySource for CsvRays<R> {
+    fn read_chunk(&mut self, max: usize, out: &mut Vec<QueryRay>) -> Result<bool, QueryError> {
+        out.clear();
+        let first_line = self.line_no + 1;
+        let mut count = 0;
+        // reuse the line buffers of the previous chunk
+        while count < max && !self.done {
+            if self.lines.len() <= count {
+                self.lines.push(String::new());
+            }
+            let buffer = &mut self.lines[count];
+            buffer.clear();
+            let read = self.reader.read_line(buffer).map_err(|e| QueryError {
+                path: self.path.clone(),
+                location: (self.line_no + 1).to_string(),
+                message: format!("reading: {e}"),
+            })?;
+            if read == 0 {
+                self.done = true;
+                break;
+            }
+            self.line_no += 1;
+            if self.line_no == 1 {
+                if let Some(rest) = buffer.strip_prefix('\u{feff}') {
+                    *buffer = rest.to_string();
+                }
+            }
+            count += 1;
+        }
+        let parsed: Vec<Result<CsvLine, String>> = self.lines[..count].par_iter().map(|l| parse_csv_line(l)).collect();
+        for (k, line) in parsed.into_iter().enumerate() {
+            let located = |message: String| QueryError {
+                path: self.path.clone(),
+                location: (first_line + k).to_string(),
+                message,
+            };
+            match line.map_err(located)? {
+                CsvLine::Skip => {}
+                CsvLine::Header if !self.seen_content => self.seen_content = true,
+                CsvLine::Header => {
+                    return Err(located(
+                        "a header line is allowed only before the first ray".to_string(),
+                    ))
+                }
+                CsvLine::Ray(ray) => {
+                    self.seen_content = true;
+                    out.push(ray);
+                }
+            }
+        }
+        Ok(!self.done)
+    }
+}
+
+/// The parts of an `.npy` header zeroset reads.
+#[derive(Debug)]
+struct NpyHeader {
+    rows: u64,
+    columns: usize,
+    /// `true` for `f8`, `false` for `f4`.
+    double: bool,
+}
+
+/// Parses the `.npy` preamble (magic, version, header dictionary) from `reader`.
+fn read_npy_header(reader: &mut impl Read, path: &str) -> Result<NpyHeader, QueryError> {
+    let err = |message: String| QueryError {
+        path: path.to_string(),
+        location: "header".into(),
+        message,
+    };
+    let mut preamble = [0u8; 8];
+    reader
+        .read_exact(&mut preamble)
+        .map_err(|e| err(format!("reading the .npy preamble: {e}")))?;
+    if &preamble[..6] != b"\x93NUMPY" {
+        return Err(err("not a NumPy .npy file (no \\x93NUMPY magic)".into()));
+    }
+    let header_len = match preamble[6] {
+        1 => {
+            let mut b = [0u8; 2];
+            reader.read_exact(&mut b).map_err(|e| err(format!("reading: {e}")))?;
+            usize::from(u16::from_le_bytes(b))
+        }
+        2 | 3 => {
+            let mut b = [0u8; 4];
+            reader.read_exact(&mut b).map_err(|e| err(format!("reading: {e}")))?;
+            u32::from_le_bytes(b) as usize
+        }
+        v => return Err(err(format!(".npy format version {v} is not supported"))),
+    };
+    if header_len > 1 << 20 {
+        return Err(err(format!("header of {header_len} bytes is not plausible")));
+    }
+    let mut text = vec![0u8; header_len];
+    reader
+        .read_exact(&mut text)
+        .map_err(|e| err(format!("reading the header: {e}")))?;
+    let text = String::from_utf8_lossy(&text).replace(' ', "");
+    let value_of = |key: &str| -> Option<&str> {
+        let start = text.find(&format!("'{key}':"))? + key.len() + 3;
+        Some(&text[start..])
+    };
+    let descr = value_of("descr").ok_or_else(|| err(format!("no 'descr' in `{text}`")))?;
+    let double = if descr.starts_with("'<f8'") {
+        true
+    } else if descr.starts_with("'<f4'") {
+        false
+    } else {
+        return Err(err(format!(
+            "dtype {} is not supported; use little-endian float64 ('<f8') or float32 ('<f4')",
+            descr.split(',').next().unwrap_or(descr)
+        )));
+    };
+    if !value_of("fortran_order").is_some_and(|v| v.starts_with("False")) {
+        return Err(err(
+            "Fortran-order arrays are not supported; save a C-order array".into()
+        ));
+    }
+    let shape = value_of("shape")
+        .and_then(|v| v.strip_prefix('('))
+        .and_then(|v| v.split(')').next())
+        .ok_or_else(|| err(format!("no 'shape' in `{text}`")))?;
+    let dims: Vec<&str> = shape.split(',').filter(|s| !s.is_empty()).collect();
+    let parse = |s: &str| {
+        s.parse::<u64>()
+            .map_err(|_| err(format!("shape ({shape}) is not an integer tuple")))
+    };
+    if dims.len() != 2 {
+        return Err(err(format!("shape ({shape}): expected (N, 6) or (N, 8)")));
+    }
+    let (rows, columns) = (parse(dims[0])?, parse(dims[1])?);
+    if columns != 6 && columns != 8 {
+        return Err(err(format!("shape ({shape}): expected (N, 6) or (N, 8)")));
+    }
+    Ok(NpyHeader {
+        rows,
+        columns: columns as usize,
+        double,
+    })
+}
+
+/// Rays from a NumPy `.npy` array (see the module docs).
+pub struct NpyRays<R> {
+    reader: R,
+    path: String,
+    header: NpyHeader,
+    next_row: u64,
+    bytes: Vec<u8>,
+}
+
+impl<R: Read> NpyRays<R> {
+    /// Reads the header of `reader`, named `path` in errors.
+    ///
+    /// # Errors
+    /// Not an `.npy` file of a supported dtype and shape.
+    pub fn new(mut reader: R, path: &str) -> Result<Self, QueryError> {
+        let header = read_npy_header(&mut reader, path)?;
+        Ok(Self {
+            reader,
+            path: path.to_string(),
+            header,
+            next_row: 0,
+            bytes: Vec::new(),
+        })
+    }
+}
+
+impl<R: Read> RaySource for NpyRays<R> {
+    fn read_chunk(&mut self, max: usize, out: &mut Vec<QueryRay>) -> Result<bool, QueryError> {
+        out.clear();
+        let rows = (self.header.rows - self.next_row).min(max as u64) as usize;
+        let width = if self.header.double { 8 } else { 4 };
+        let columns = self.header.columns;
+        self.bytes.resize(rows * columns * width, 0);
+        self.reader.read_exact(&mut self.bytes).map_err(|e| QueryError {
+            path: self.path.clone(),
+            location: format!("row {}", self.next_row),
+            message: format!("reading {rows} rows: {e} (the file is shorter than its shape says)"),
+        })?;
+        let double = self.header.double;
+        let parsed: Vec<Result<QueryRay, String>> = self
+            .bytes
+            .par_chunks_exact(columns * width)
+            .map(|row| {
+                let v: Vec<f64> = row
+                    .chunks_exact(width)
+                    .map(|b| {
+                        if double {
+                            f64::from_le_bytes(b.try_into().expect("8 bytes"))
+                        } else {
+                            f64::from(f32::from_le_bytes(b.try_into().expect("4 bytes")))
+                        }
+                    })
+                    .collect();
+                ray_from_fields(&v)
+            })
+            .collect();
+        for (k, ray) in parsed.into_iter().enumerate() {
+            out.push(ray.map_err(|message| QueryError {
+                path: self.path.clone(),
+                location: format!("row {}", self.next_row + k as u64),
+                message,
+            })?);
+        }
+        self.next_row += rows as u64;
+        if self.next_row == self.header.rows {
+            // nothing may follow the array
+            let mut extra = [0u8; 1];
+            if self.reader.read(&mut extra).is_ok_and(|n| n > 0) {
+                return Err(QueryError {
+                    path: self.path.clone(),
+                    location: format!("row {}", self.next_row),
+                    message: format!("data beyond the {} rows of the shape", self.header.rows),
+                });
+            }
+            return Ok(false);
+        }
+        Ok(true)
+    }
+
+    fn len_hint(&self) -> Option<u64> {
+        Some(self.header.rows)
+    }
+}
+
+/// Where hits go, a chunk at a time, in input order.
+pub trait HitSink {
+    /// Writes the hits of one chunk.
+    ///
+    /// # Errors
+    /// A write error.
+    fn write_chunk(&mut self, scene: &Scene, hits: &[QueryHit]) -> std::io::Result<()>;
+
+    /// Completes the output (e.g. the row count of an `.npy` header).
+    ///
+    /// # Errors
+    /// A write error.
+    fn finish(&mut self) -> std::io::Result<()>;
+}
+
+/// One CSV output row (without the line break).
+fn csv_row(scene: &Scene, answer: &QueryHit, uncertain_column: bool, out: &mut String) {
+    match &answer.hit {
+        None => out.push_str("0,,,,,,,,,,,"),
+        Some((object, h)) => {
+            let n = h.normal.unwrap_or_default();
+            let name = scene.objects[*object as usize]
+                .name
+                .as_deref()
+                .unwrap_or("")
+                .replace([',', '\n', '\r'], " ");
+            let _ = write!(
+                out,
+                "1,{:e},{:e},{:e},{:e},{:e},{:e},{:e},{object},{name},",
+                h.t, h.point.x, h.point.y, h.point.z, n.x, n.y, n.z
+            );
+            if let Some(uv) = h.uv {
+                let _ = write!(out, "{:e},{:e}", uv.x, uv.y);
+            } else {
+                out.push(',');
+            }
+        }
+    }
+    if uncertain_column {
+        out.push_str(if answer.uncertain { ",1" } else { ",0" });
+    }
+}
+
+/// Formats hits as CSV text (header included), for callers that hold all hits.
+#[must_use]
+pub fn format_hits(scene: &Scene, hits: &[QueryHit]) -> String {
+    let mut out = format!("{CSV_HIT_HEADER}\n");
+    for hit in hits {
+        csv_row(scene, hit, false, &mut out);
+        out.push('\n');
+    }
     out
+}
+
+/// CSV hits (see the module docs); rows are formatted in parallel.
+pub struct CsvHits<W> {
+    writer: W,
+    header_written: bool,
+    uncertain_column: bool,
+}
+
+impl<W: Write> CsvHits<W> {
+    /// A CSV sink on `writer`, with the `uncertain` column last if `uncertain_column`.
+    pub fn new(writer: W, uncertain_column: bool) -> Self {
+        Self {
+            writer,
+            header_written: false,
+            uncertain_column,
+        }
+    }
+
+    fn header(&mut self) -> std::io::Result<()> {
+        if !self.header_written {
+            self.header_written = true;
+            let extra = if self.uncertain_column { ",uncertain" } else { "" };
+            writeln!(self.writer, "{CSV_HIT_HEADER}{extra}")?;
+        }
+        Ok(())
+    }
+}
+
+impl<W: Write> HitSink for CsvHits<W> {
+    fn write_chunk(&mut self, scene: &Scene, hits: &[QueryHit]) -> std::io::Result<()> {
+        self.header()?;
+        let uncertain_column = self.uncertain_column;
+        let pieces: Vec<String> = hits
+            .par_chunks(1024)
+            .map(|part| {
+                let mut text = String::with_capacity(part.len() * 160);
+                for hit in part {
+                    csv_row(scene, hit, uncertain_column, &mut text);
+                    text.push('\n');
+                }
+                text
+            })
+            .collect();
+        for piece in pieces {
+            self.writer.write_all(piece.as_bytes())?;
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self) -> std::io::Result<()> {
+        self.header()?;
+        self.writer.flush()
+    }
+}
+
+/// Columns of the `.npy` output (without the optional `uncertain` column).
+pub const NPY_HIT_COLUMNS: usize = 11;
+
+/// Length of the `.npy` output preamble: fixed, so the row count can be patched in at the end.
+const NPY_PREAMBLE_LEN: usize = 128;
+
+/// The `.npy` (version 1.0) preamble of an `f8` array of shape `(rows, columns)`, padded with
+/// spaces to [`NPY_PREAMBLE_LEN`] bytes.
+#[must_use]
+pub fn npy_preamble(rows: u64, columns: usize) -> Vec<u8> {
+    let dict = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({rows}, {columns}), }}");
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    let header_len = NPY_PREAMBLE_LEN - 10;
+    bytes.extend_from_slice(&(header_len as u16).to_le_bytes());
+    bytes.extend_from_slice(dict.as_bytes());
+    bytes.resize(NPY_PREAMBLE_LEN - 1, b' ');
+    bytes.push(b'\n');
+    bytes
+}
+
+/// `.npy` hits: rows counted as they are written; the header is written first with the known
+/// count, or patched at the end when the writer can seek.
+pub struct NpyHits<W> {
+    writer: W,
+    /// 11, or 12 with the `uncertain` column.
+    columns: usize,
+    rows: u64,
+    /// The count written in the header up front, if it was known.
+    declared: Option<u64>,
+    started: bool,
+}
+
+impl<W: Write + Seek> NpyHits<W> {
+    /// A sink on a seekable `writer` (a file): the row count is patched in at the end.
+    pub fn seekable(writer: W, uncertain_column: bool) -> Self {
+        Self {
+            writer,
+            columns: NPY_HIT_COLUMNS + usize::from(uncertain_column),
+            rows: 0,
+            declared: None,
+            started: false,
+        }
+    }
+}
+
+impl<W: Write> NpyHits<W> {
+    /// A sink on any writer for exactly `rows` rows, declared up front.
+    pub fn with_rows(writer: W, rows: u64, uncertain_column: bool) -> Self {
+        Self {
+            writer,
+            columns: NPY_HIT_COLUMNS + usize::from(uncertain_column),
+            rows: 0,
+            declared: Some(rows),
+            started: false,
+        }
+    }
+
+    fn start(&mut self) -> std::io::Result<()> {
+        if !self.started {
+            self.started = true;
+            self.writer
+                .write_all(&npy_preamble(self.declared.unwrap_or(0), self.columns))?;
+        }
+        Ok(())
+    }
+
+    fn write_rows(&mut self, hits: &[QueryHit]) -> std::io::Result<()> {
+        self.start()?;
+        let columns = self.columns;
+        let bytes: Vec<u8> = hits
+            .par_iter()
+            .with_min_len(1024)
+            .flat_map_iter(|hit| {
+                let flag = f64::from(u8::from(hit.uncertain));
+                npy_row(hit)
+                    .into_iter()
+                    .chain(std::iter::once(flag))
+                    .take(columns)
+                    .flat_map(f64::to_le_bytes)
+            })
+            .collect();
+        self.writer.write_all(&bytes)?;
+        self.rows += hits.len() as u64;
+        Ok(())
+    }
+}
+
+/// One `.npy` output row.
+fn npy_row(answer: &QueryHit) -> [f64; NPY_HIT_COLUMNS] {
+    let nan = f64::NAN;
+    match &answer.hit {
+        None => [0.0, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan],
+        Some((object, h)) => {
+            let n = h.normal.map_or([nan; 3], |n| n.to_array());
+            let uv = h.uv.map_or([nan; 2], |uv| uv.to_array());
+            [
+                1.0,
+                h.t,
+                h.point.x,
+                h.point.y,
+                h.point.z,
+                n[0],
+                n[1],
+                n[2],
+                f64::from(*object),
+                uv[0],
+                uv[1],
+            ]
+        }
+    }
+}
+
+/// `.npy` sink on a seekable writer.
+impl<W: Write + Seek> HitSink for NpyHits<W> {
+    fn write_chunk(&mut self, _scene: &Scene, hits: &[QueryHit]) -> std::io::Result<()> {
+        self.write_rows(hits)
+    }
+
+    fn finish(&mut self) -> std::io::Result<()> {
+        self.start()?;
+        if self.declared != Some(self.rows) {
+            self.writer.seek(SeekFrom::Start(0))?;
+            self.writer.write_all(&npy_preamble(self.rows, self.columns))?;
+            self.writer.seek(SeekFrom::End(0))?;
+        }
+        self.writer.flush()
+    }
+}
+
+/// `.npy` sink on a stream (stdout) with the row count declared up front.
+pub struct NpyStream<W: Write>(pub NpyHits<W>);
+
+impl<W: Write> HitSink for NpyStream<W> {
+    fn write_chunk(&mut self, _scene: &Scene, hits: &[QueryHit]) -> std::io::Result<()> {
+        self.0.write_rows(hits)
+    }
+
+    fn finish(&mut self) -> std::io::Result<()> {
+        self.0.start()?;
+        if self.0.declared != Some(self.0.rows) {
+            return Err(std::io::Error::other(format!(
+                "wrote {} rows after declaring {:?}",
+                self.0.rows, self.0.declared
+            )));
+        }
+        self.0.writer.flush()
+    }
+}
+
+/// Counts of one batch run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BatchCounts {
+    /// Rays read and traced.
+    pub rays: u64,
+    /// Rays that hit.
+    pub hits: u64,
+    /// Rays whose root finder ran out of its evaluation budget (see [`QueryHit::uncertain`]).
+    pub uncertain: u64,
+}
+
+/// The batch loop: reads, traces and writes chunk by chunk, in order.
+///
+/// # Errors
+/// A malformed ray (located) or an I/O error; the rows of earlier chunks may have been written.
+pub fn run_batch(scene: &Scene, source: &mut dyn RaySource, sink: &mut dyn HitSink) -> anyhow::Result<BatchCounts> {
+    let mut counts = BatchCounts::default();
+    let mut rays = Vec::with_capacity(CHUNK_RAYS);
+    loop {
+        let more = source.read_chunk(CHUNK_RAYS, &mut rays)?;
+        let hits = trace_batch(scene, &rays);
+        counts.rays += rays.len() as u64;
+        counts.hits += hits.iter().filter(|h| h.hit.is_some()).count() as u64;
+        counts.uncertain += hits.iter().filter(|h| h.uncertain).count() as u64;
+        sink.write_chunk(scene, &hits)?;
+        if !more {
+            break;
+        }
+    }
+    sink.finish()?;
+    Ok(counts)
+}
+
+/// Parses a whole CSV text at once (for tests and small batches).
+///
+/// # Errors
+/// The first malformed line.
+pub fn parse_rays(text: &str, path: &str) -> Result<Vec<QueryRay>, QueryError> {
+    let mut source = CsvRays::new(text.as_bytes(), path);
+    let (mut all, mut chunk) = (Vec::new(), Vec::new());
+    while source.read_chunk(CHUNK_RAYS, &mut chunk)? {
+        all.append(&mut chunk);
+    }
+    all.append(&mut chunk);
+    Ok(all)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn origins(rays: &[QueryRay]) -> Vec<f64> {
+        rays.iter().map(|r| r.ray.origin.x).collect()
+    }
+
+    #[test]
+    fn first_line_is_a_ray_unless_it_is_the_documented_header() {
+        let bom = "\u{feff}1,0,-5,0,0,1\n2,0,-5,0,0,1\n";
+        assert_eq!(origins(&parse_rays(bom, "r").unwrap()), [1.0, 2.0]);
+        let spaced = " 1 , 0, -5, 0, 0, 1 \n2,0,-5,0,0,1\n";
+        assert_eq!(origins(&parse_rays(spaced, "r").unwrap()), [1.0, 2.0]);
+        let header = "\u{feff}ox, oy, oz, dx, dy, dz, tmin, tmax\n1,0,-5,0,0,1,0,9\n";
+        assert_eq!(origins(&parse_rays(header, "r").unwrap()), [1.0]);
+        for (text, needle) in [
+            ("1;0;-5;0;0;1\n", "r:1: fields are separated by commas"),
+            ("1,0,-5,0,0,1,\n", "r:1: field 7 is empty (a trailing comma?)"),
+            ("1 0 -5 0 0 1\n", "r:1: field 1 `1 0 -5 0 0 1` is not a number"),
+            ("x,y,z,dx,dy,dz\n1,0,-5,0,0,1\n", "r:1: field 1 `x`"),
+            (
+                "1,0,-5,0,0,1\nox,oy,oz,dx,dy,dz\n",
+                "r:2: a header line is allowed only before",
+            ),
+        ] {
+            let err = parse_rays(text, "r").unwrap_err().to_string();
+            assert!(err.starts_with(needle), "{text:?}: {err}");
+        }
+    }
+
+    #[test]
+    fn chunks_keep_line_numbers_and_order() {
+        let mut text = String::from("# comment\n");
+        for i in 0..10 {
+            let _ = writeln!(text, "{i},0,0,0,0,1");
+        }
+        text.push_str("bad\n");
+        let mut source = CsvRays::new(text.as_bytes(), "r");
+        let mut chunk = Vec::new();
+        let mut seen = Vec::new();
+        let err = loop {
+            match source.read_chunk(3, &mut chunk) {
+                Ok(_) => seen.extend(origins(&chunk)),
+                Err(e) => break e,
+            }
+        };
+        // chunks of three lines: the fourth (lines 10–12) holds the error and is not returned
+        assert_eq!(seen, (0..8).map(f64::from).collect::<Vec<_>>());
+        assert_eq!(err.location, "12");
+    }
+
+    #[test]
+    fn npy_preamble_is_aligned_and_round_trips() {
+        let p = npy_preamble(12_345_678_901, NPY_HIT_COLUMNS);
+        assert_eq!(p.len(), NPY_PREAMBLE_LEN);
+        assert_eq!(p.len() % 64, 0, "NumPy aligns the data to 64 bytes");
+        let header = read_npy_header(&mut p.as_slice(), "h").unwrap_err();
+        // 11 columns are not a ray array: the header parses, the shape is refused
+        assert!(header.message.contains("(12345678901,11)"), "{header}");
+        let rays = npy_preamble(7, 8);
+        let h = read_npy_header(&mut rays.as_slice(), "h").unwrap();
+        assert_eq!((h.rows, h.columns, h.double), (7, 8, true));
+    }
 }

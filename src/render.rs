@@ -8,7 +8,7 @@
 //!
 //! | AOV | rule over the pixel's samples |
 //! |---|---|
-//! | `Beauty` | filter-weighted mean of the samples' colours (background for misses) |
+//! | `Beauty` | filter-weighted mean of the samples' colours, misses black (premultiplied by `A`; the background only with [`RenderOptions::background`]) |
 //! | `Alpha` | filter-weighted fraction of samples that hit (with `Box`: hits / spp) |
 //! | `Depth`, `Distance`, `Position` | of the **nearest** hit sample (smallest `Z`), never averaged |
 //! | `PrimitiveId` | the object hit by the most samples (ties: the one with the nearest sample) |
@@ -34,6 +34,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
+use zeroset_primitives::root::thread_budget_exhaustions;
 use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
 
 /// A pixel rectangle `[x0, x1) × [y0, y1)` of the full image.
@@ -73,6 +74,10 @@ pub struct RenderOptions {
     pub depth_miss: f32,
     /// Show a progress bar on stderr once the render has taken a second.
     pub progress: bool,
+    /// Fill the uncovered part of each pixel's `Beauty` with the scene background. Off by
+    /// default: `R, G, B` are premultiplied by coverage `A` (EXR's convention), so a miss is
+    /// black and compositing `over` another image gives the right colour.
+    pub background: bool,
 }
 
 impl Default for RenderOptions {
@@ -82,6 +87,7 @@ impl Default for RenderOptions {
             crop: None,
             depth_miss: f32::INFINITY,
             progress: false,
+            background: false,
         }
     }
 }
@@ -229,6 +235,15 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
         depth_miss: options.depth_miss,
         camera,
         no_ray: NoRayCounts::default(),
+        uncertain_offset: {
+            let at = aovs.iter().position(|a| *a == Aov::Uncertain);
+            at.map(|k| aovs[..k].iter().map(|a| a.channels().len()).sum())
+        },
+        miss_colour: if options.background {
+            scene.background
+        } else {
+            DVec3::ZERO
+        },
     };
 
     samples.par_chunks_mut(row_len).enumerate().for_each(|(row, out)| {
@@ -238,11 +253,13 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
         } else {
             for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
                 let x = window.x0 + column as u32;
+                let exhausted_before = thread_budget_exhaustions();
                 let ray = match camera.pixel_ray(x, y) {
                     Ok(ray) => ray,
                     Err(reason) => {
                         context.no_ray.add(reason);
                         write_miss(pixel, scene, &context);
+                        flag_uncertain(pixel, &context, exhausted_before);
                         continue;
                     }
                 };
@@ -258,18 +275,10 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
                 });
                 let mut rest = &mut pixel[..];
                 for aov in &aovs {
-                    let n = write_aov(
-                        rest,
-                        scene,
-                        camera,
-                        *aov,
-                        &ray,
-                        hit.as_ref(),
-                        &world_to_camera,
-                        options.depth_miss,
-                    );
+                    let n = write_aov(rest, scene, *aov, &ray, hit.as_ref(), &context);
                     rest = &mut rest[n..];
                 }
+                flag_uncertain(pixel, &context, exhausted_before);
             }
         }
         if options.progress {
@@ -305,16 +314,7 @@ fn write_miss(pixel: &mut [f32], scene: &Scene, context: &RowContext) {
     let camera = context.camera;
     let mut rest = pixel;
     for aov in context.aovs {
-        let n = write_aov(
-            rest,
-            scene,
-            camera,
-            *aov,
-            &Ray::new(camera.eye, camera.forward),
-            None,
-            &context.world_to_camera,
-            context.depth_miss,
-        );
+        let n = write_aov(rest, scene, *aov, &Ray::new(camera.eye, camera.forward), None, context);
         rest = &mut rest[n..];
     }
 }
@@ -330,6 +330,23 @@ struct RowContext<'a> {
     depth_miss: f32,
     camera: &'a Camera,
     no_ray: NoRayCounts,
+    /// Beauty of the uncovered part of a pixel: the background, or black (premultiplied).
+    miss_colour: DVec3,
+    /// Where the `Uncertain` channel is in a pixel, if it was asked for.
+    uncertain_offset: Option<usize>,
+}
+
+/// Sets the pixel's `Uncertain` channel (if rendered) to 1 if this thread's root finder ran out of
+/// budget since `exhausted_before` — that is, while this pixel's rays were traced — else 0.
+#[inline(always)]
+fn flag_uncertain(pixel: &mut [f32], context: &RowContext, exhausted_before: u64) {
+    if let Some(at) = context.uncertain_offset {
+        pixel[at] = if thread_budget_exhaustions() == exhausted_before {
+            0.0
+        } else {
+            1.0
+        };
+    }
 }
 
 /// One sample's hit: the object, its record, shading normal, planar depth and ray.
@@ -353,6 +370,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
     let mut counts: Vec<(u32, u32, f64)> = Vec::new();
     for (column, pixel) in out.chunks_exact_mut(context.channels).enumerate() {
         let x = x0 + column as u32;
+        let exhausted_before = thread_budget_exhaustions();
         pixel_samples(&scene.sampling, camera.shutter, x, y, &mut points, &mut scratch);
         let (cx, cy) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
         let (mut weights, mut covered, mut colour) = (0.0, 0.0, DVec3::ZERO);
@@ -366,14 +384,14 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
                 Err(reason) => {
                     context.no_ray.add(reason);
                     if context.beauty {
-                        colour += w * scene.background;
+                        colour += w * context.miss_colour;
                     }
                     continue;
                 }
             };
             let Some((object, raw)) = scene.intersect_at(&ray, Interval::POSITIVE, sample.time) else {
                 if context.beauty {
-                    colour += w * scene.background;
+                    colour += w * context.miss_colour;
                 }
                 continue;
             };
@@ -402,6 +420,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
         // the nearest hit sample (the first of equals), for depth, distance and position
         let Some(nearest) = hits.iter().min_by(|a, b| a.depth.total_cmp(&b.depth)) else {
             write_miss(rest, scene, context);
+            flag_uncertain(pixel, context, exhausted_before);
             continue;
         };
         // the object most samples hit (ties: the nearest), for id, normals and uv
@@ -452,19 +471,11 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
                     rest[0] = (covered / weights) as f32;
                     1
                 }
-                _ => write_aov(
-                    rest,
-                    scene,
-                    camera,
-                    *aov,
-                    &nearest.ray,
-                    Some(&merged),
-                    &context.world_to_camera,
-                    context.depth_miss,
-                ),
+                _ => write_aov(rest, scene, *aov, &nearest.ray, Some(&merged), context),
             };
             rest = &mut rest[n..];
         }
+        flag_uncertain(pixel, context, exhausted_before);
     }
 }
 
@@ -474,13 +485,13 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
 fn write_aov(
     out: &mut [f32],
     scene: &Scene,
-    camera: &Camera,
     aov: Aov,
     ray: &Ray,
     hit: Option<&(u32, SurfaceHit, Option<DVec3>)>,
-    world_to_camera: &glam::DMat4,
-    depth_miss: f32,
+    context: &RowContext,
 ) -> usize {
+    let (world_to_camera, depth_miss, miss_colour) =
+        (&context.world_to_camera, context.depth_miss, context.miss_colour);
     let mut put3 = |v: DVec3| {
         out[0] = v.x as f32;
         out[1] = v.y as f32;
@@ -489,7 +500,7 @@ fn write_aov(
     };
     let Some((object, hit, shading_normal)) = hit else {
         return match aov {
-            Aov::Beauty => put3(scene.background),
+            Aov::Beauty => put3(miss_colour),
             Aov::Normal | Aov::Position | Aov::CameraNormal | Aov::ShadingNormal => put3(DVec3::ZERO),
             Aov::Depth | Aov::Distance => {
                 out[0] = depth_miss;
@@ -499,7 +510,7 @@ fn write_aov(
                 out[0] = -1.0;
                 1
             }
-            Aov::Alpha => {
+            Aov::Alpha | Aov::Uncertain => {
                 out[0] = 0.0;
                 1
             }
@@ -523,9 +534,11 @@ fn write_aov(
             return 2;
         }
         Aov::Alpha => 1.0,
-        Aov::Depth => camera.depth(hit.point, hit.t) as f32,
+        Aov::Depth => context.camera.depth(hit.point, hit.t) as f32,
         Aov::Distance => hit.t as f32,
         Aov::PrimitiveId => *object as f32,
+        // set once the whole pixel is traced (`flag_uncertain`)
+        Aov::Uncertain => 0.0,
     };
     out[0] = scalar;
     1

@@ -37,6 +37,8 @@ fn render_checksum(file: &str, width: u32, height: u32) -> u64 {
                 Aov::CameraNormal,
                 Aov::PrimitiveId,
             ],
+            // the checksums predate premultiplied beauty: misses then held the background
+            background: true,
             ..RenderOptions::default()
         },
     );

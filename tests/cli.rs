@@ -701,3 +701,551 @@ fn bad_query_csv() {
     let o = run(&["query", p(&scene), "--rays", p(&dir.path().join("none.csv"))]);
     assert_fails(&o, &["none.csv"], "missing rays file");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Output conventions and resources (issue 12)
+
+#[test]
+fn output_path_with_another_extension_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("img.png");
+    let o = run(&[
+        "render",
+        "scenes/default.ron",
+        "-o",
+        p(&png),
+        "--width",
+        "32",
+        "--height",
+        "18",
+    ]);
+    let err = assert_fails(&o, &["img.png", ".exr"], "-o img.png");
+    assert!(!png.exists(), "no directory named img.png created\n{err}");
+    // an existing directory with a dot in its name is still a directory
+    let dotted = dir.path().join("renders.v2");
+    std::fs::create_dir(&dotted).unwrap();
+    let o = run(&[
+        "render",
+        "scenes/default.ron",
+        "-o",
+        p(&dotted),
+        "--width",
+        "32",
+        "--height",
+        "18",
+    ]);
+    assert_ok(&o, "existing dotted directory");
+    assert!(dotted.join("default.exr").exists());
+}
+
+#[test]
+fn huge_renders_are_refused_up_front_with_the_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    for (extra, needle) in [
+        (&["--width", "100000", "--height", "100000"][..], "100000x100000"),
+        (&["--spp", "4294967295"][..], "4294967295 spp"),
+    ] {
+        let mut args = vec!["render", "scenes/default.ron", "-o", p(&out)];
+        args.extend_from_slice(extra);
+        let start = std::time::Instant::now();
+        let o = run(&args);
+        let seconds = start.elapsed().as_secs_f64();
+        let err = assert_fails(&o, &[needle, "of memory", "available"], &format!("{extra:?}"));
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        // the estimate is in the message, in bytes with a unit
+        assert!(err.contains(" TB ") || err.contains(" GB "), "{err}");
+        assert!(seconds < 5.0, "{extra:?}: refused after {seconds} s");
+        assert!(!out.join("default.exr").exists());
+    }
+}
+
+#[test]
+fn threads_are_capped_with_a_warning_and_t_is_an_alias() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = run(&[
+        "render",
+        "scenes/default.ron",
+        "-o",
+        p(dir.path()),
+        "--width",
+        "32",
+        "--height",
+        "18",
+        "-t",
+        "100000",
+    ]);
+    assert_ok(&o, "-t 100000");
+    let err = stderr(&o);
+    assert!(err.contains("warning: --threads 100000 capped at"), "{err}");
+    let cores = std::thread::available_parallelism().unwrap().get();
+    assert!(
+        stdout(&o).contains(&format!("on {} threads", 4 * cores)),
+        "{}",
+        stdout(&o)
+    );
+    let o = run(&[
+        "render",
+        "scenes/default.ron",
+        "-o",
+        p(dir.path()),
+        "--width",
+        "32",
+        "--height",
+        "18",
+        "-t",
+        "1",
+    ]);
+    assert_ok(&o, "-t 1");
+    assert!(stdout(&o).contains("on 1 threads"), "{}", stdout(&o));
+}
+
+#[test]
+fn aov_all_writes_every_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = run(&[
+        "render",
+        "scenes/default.ron",
+        "-o",
+        p(dir.path()),
+        "--width",
+        "32",
+        "--height",
+        "18",
+        "--aov",
+        "all",
+        "--no-previews",
+    ]);
+    assert_ok(&o, "--aov all");
+    let expected: BTreeSet<String> = Aov::ALL
+        .iter()
+        .flat_map(|a| a.channels().iter().map(|c| c.to_string()))
+        .collect();
+    assert_eq!(expected.len(), 22);
+    assert_eq!(channel_names(&dir.path().join("default.exr")), expected);
+}
+
+#[test]
+fn os_errors_are_printed_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.ron");
+    let o = run(&["render", p(&missing)]);
+    let err = assert_fails(&o, &["missing.ron", "os error 2"], "missing scene");
+    assert_eq!(err.matches("os error").count(), 1, "{err}");
+    // an output directory that cannot be created (a file is in the way) is found before tracing
+    let blocker = dir.path().join("file");
+    std::fs::write(&blocker, "x").unwrap();
+    let target = blocker.join("sub");
+    let o = run(&["render", "scenes/default.ron", "-o", p(&target)]);
+    let err = assert_fails(&o, &["output directory", "file/sub"], "unwritable output");
+    assert_eq!(err.matches("os error").count(), 1, "{err}");
+    assert!(!stdout(&o).contains("rendered"), "refused before rendering");
+}
+
+#[test]
+fn summary_reports_trace_and_wall_time_and_a_writing_status() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = run(&[
+        "render",
+        "scenes/default.ron",
+        "-o",
+        p(dir.path()),
+        "--width",
+        "64",
+        "--height",
+        "36",
+    ]);
+    assert_ok(&o, "render");
+    let out = stdout(&o);
+    let last = out.lines().last().unwrap();
+    let number_after = |key: &str| -> f64 {
+        let rest = &last[last.find(key).unwrap_or_else(|| panic!("{key} in {last}")) + key.len()..];
+        rest.split_whitespace().next().unwrap().parse().unwrap()
+    };
+    let (trace, wall, write) = (number_after("trace "), number_after("wall "), number_after("write "));
+    assert!(trace > 0.0 && write > 0.0 && wall >= trace + write - 2e-3, "{last}");
+    assert!(stderr(&o).contains("writing "), "{}", stderr(&o));
+}
+
+#[test]
+fn render_compression_flag_sets_the_codec() {
+    let dir = tempfile::tempdir().unwrap();
+    for (flag, codec) in [
+        ("none", Compression::Uncompressed),
+        ("rle", Compression::RLE),
+        ("zips", Compression::ZIP1),
+        ("zip", Compression::ZIP16),
+        ("piz", Compression::PIZ),
+    ] {
+        let path = dir.path().join(format!("{flag}.exr"));
+        let o = run(&[
+            "render",
+            "scenes/default.ron",
+            "-o",
+            p(&path),
+            "--width",
+            "32",
+            "--height",
+            "18",
+            "--compression",
+            flag,
+        ]);
+        assert_ok(&o, flag);
+        let meta = MetaData::read_from_file(&path, true).unwrap();
+        assert_eq!(meta.headers[0].compression, codec, "{flag}");
+    }
+    let o = run(&["render", "scenes/default.ron", "--compression", "pxr24"]);
+    assert_fails(&o, &["pxr24"], "lossy codec");
+}
+
+#[test]
+fn merge_command_assembles_crops_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let size = ["--width", "48", "--height", "30"];
+    let render_to = |name: &str, crop: Option<&str>| {
+        let path = dir.path().join(name);
+        let mut args = vec![
+            "render",
+            "scenes/default.ron",
+            "-o",
+            p(&path),
+            "--aov",
+            "all",
+            "--no-previews",
+        ];
+        args.extend_from_slice(&size);
+        if let Some(c) = crop {
+            args.extend_from_slice(&["--crop", c]);
+        }
+        assert_ok(&run(&args), name);
+        path
+    };
+    let full = render_to("full.exr", None);
+    let left = render_to("left.exr", Some("0,0,17,30"));
+    let right = render_to("right.exr", Some("17,0,48,30"));
+    let merged = dir.path().join("merged.exr");
+    let o = run(&["merge", p(&left), p(&right), "-o", p(&merged)]);
+    assert_ok(&o, "merge");
+    let (a, b) = (read_channels(&merged), read_channels(&full));
+    assert_eq!(a.len(), 22);
+    for ((na, va), (nb, vb)) in a.iter().zip(&b) {
+        assert_eq!(na, nb);
+        assert!(
+            va.iter().map(|x| x.to_bits()).eq(vb.iter().map(|x| x.to_bits())),
+            "channel {na}"
+        );
+    }
+    assert_eq!(std::fs::read(&merged).unwrap(), std::fs::read(&full).unwrap());
+    let o = run(&["merge", p(&left), "-o", p(&dir.path().join("half.exr"))]);
+    assert_fails(&o, &["missing"], "merge of one crop");
+    assert!(!dir.path().join("half.exr").exists());
+}
+
+/// A NumPy 1.0 `.npy` file of `<f8` values, shape `(rows, columns)`, written here independently of
+/// zeroset's writer.
+fn npy_bytes(values: &[f64], columns: usize) -> Vec<u8> {
+    let dict = format!(
+        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, {columns}), }}",
+        values.len() / columns
+    );
+    let mut header = dict.into_bytes();
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(b' ');
+    }
+    header.push(b'\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(&header);
+    for v in values {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    bytes
+}
+
+/// `(shape, values)` of a `<f8` C-order `.npy` file.
+fn read_npy(bytes: &[u8]) -> ((usize, usize), Vec<f64>) {
+    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
+    assert!(
+        header.contains("'descr': '<f8'") && header.contains("'fortran_order': False"),
+        "{header}"
+    );
+    let shape = header.split("'shape': (").nth(1).unwrap().split(')').next().unwrap();
+    let dims: Vec<usize> = shape
+        .split(',')
+        .map(|s| s.trim())
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let values: Vec<f64> = bytes[10 + len..]
+        .chunks_exact(8)
+        .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    assert_eq!(values.len(), dims[0] * dims[1]);
+    ((dims[0], dims[1]), values)
+}
+
+/// Rows a query returns, or the line and text of its error.
+type Expected = std::result::Result<usize, (usize, &'static str)>;
+
+#[test]
+fn query_never_drops_the_first_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("q.ron");
+    std::fs::write(&scene, QUERY_SCENE).unwrap();
+    let ray = "0,0,-5,0,0,1";
+    // (first line, rows expected, or the error's line and text)
+    let cases: [(&str, Expected); 7] = [
+        ("\u{feff}0,0,-5,0,0,1", Ok(3)),
+        ("\u{feff}ox,oy,oz,dx,dy,dz", Ok(2)),
+        ("  0 , 0 , -5 , 0 , 0 , 1  ", Ok(3)),
+        ("ox, oy, oz, dx, dy, dz, tmin, tmax", Ok(2)),
+        ("0;0;-5;0;0;1", Err((1, "separated by commas"))),
+        ("0,0,-5,0,0,1,", Err((1, "trailing comma"))),
+        ("0 0 -5 0 0 1", Err((1, "not a number"))),
+    ];
+    for (first, expected) in cases {
+        let rays = dir.path().join("rays.csv");
+        std::fs::write(&rays, format!("{first}\n{ray}\n{ray}\n")).unwrap();
+        let out = dir.path().join("hits.csv");
+        let _ = std::fs::remove_file(&out);
+        let o = run(&["query", p(&scene), "--rays", p(&rays), "-o", p(&out)]);
+        match expected {
+            Ok(rows) => {
+                assert_ok(&o, first);
+                let csv = std::fs::read_to_string(&out).unwrap();
+                assert_eq!(csv.lines().count(), rows + 1, "{first:?}: {csv}");
+                assert!(csv.lines().skip(1).all(|l| l.starts_with("1,4e0,")), "{first:?}: {csv}");
+                assert!(
+                    stderr(&o).contains(&format!("{rows} rays, {rows} hits")),
+                    "{}",
+                    stderr(&o)
+                );
+            }
+            Err((line, text)) => {
+                assert_fails(&o, &[&format!("{}:{line}:", p(&rays)), text], first);
+                assert!(!out.exists(), "{first:?}: no output file");
+            }
+        }
+    }
+}
+
+#[test]
+fn query_npy_in_and_out_match_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("q.ron");
+    std::fs::write(&scene, QUERY_SCENE).unwrap();
+    // hits on the ball, the floor, misses, a t range; 8 columns
+    let mut values = Vec::new();
+    let mut csv = String::new();
+    for i in 0..300 {
+        let x = f64::from(i % 17) * 0.1 - 0.8;
+        let ray = [
+            x,
+            0.2,
+            -5.0,
+            0.0,
+            -0.3 * f64::from(i % 3),
+            1.0,
+            0.0,
+            if i % 5 == 0 { 3.0 } else { 1e9 },
+        ];
+        values.extend_from_slice(&ray);
+        let text: Vec<String> = ray.iter().map(|v| format!("{v:e}")).collect();
+        csv.push_str(&text.join(","));
+        csv.push('\n');
+    }
+    let (rays_npy, rays_csv) = (dir.path().join("rays.npy"), dir.path().join("rays.csv"));
+    std::fs::write(&rays_npy, npy_bytes(&values, 8)).unwrap();
+    std::fs::write(&rays_csv, &csv).unwrap();
+    let hits_csv = dir.path().join("hits.csv");
+    assert_ok(
+        &run(&["query", p(&scene), "--rays", p(&rays_csv), "-o", p(&hits_csv)]),
+        "csv",
+    );
+    let expected: Vec<Vec<f64>> = std::fs::read_to_string(&hits_csv)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            // drop the name column (9); empty fields are NaN in .npy
+            f.iter()
+                .enumerate()
+                .filter(|(k, _)| *k != 9)
+                .map(|(_, s)| if s.is_empty() { f64::NAN } else { s.parse().unwrap() })
+                .collect()
+        })
+        .collect();
+    assert_eq!(expected.len(), 300);
+    assert!(expected.iter().any(|r| r[0] == 0.0) && expected.iter().any(|r| r[0] == 1.0));
+    for (input, output) in [(&rays_npy, "a.npy"), (&rays_csv, "b.npy")] {
+        let out = dir.path().join(output);
+        assert_ok(&run(&["query", p(&scene), "--rays", p(input), "-o", p(&out)]), output);
+        let (shape, got) = read_npy(&std::fs::read(&out).unwrap());
+        assert_eq!(shape, (300, 11), "{output}");
+        for (row, want) in got.chunks(11).zip(&expected) {
+            for (g, w) in row.iter().zip(want) {
+                assert!(
+                    g.to_bits() == w.to_bits() || (g.is_nan() && w.is_nan()),
+                    "{output}: {row:?} vs {want:?}"
+                );
+            }
+        }
+    }
+    // .npy to stdout needs a known row count: from .npy input it streams, from CSV it is refused
+    let o = run(&["query", p(&scene), "--rays", p(&rays_npy), "--format", "npy"]);
+    assert_ok(&o, "npy to stdout");
+    assert_eq!(o.stdout, std::fs::read(dir.path().join("a.npy")).unwrap());
+    let o = run(&["query", p(&scene), "--rays", p(&rays_csv), "--format", "npy"]);
+    assert_fails(&o, &["stdout"], "csv → npy on stdout");
+    // CSV from stdin
+    let mut child = bin()
+        .args(["query", p(&scene), "--rays", "-"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write as _;
+    child.stdin.take().unwrap().write_all(csv.as_bytes()).unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert_ok(&o, "stdin");
+    assert_eq!(stdout(&o), std::fs::read_to_string(&hits_csv).unwrap());
+    // malformed .npy input: located errors
+    let mut bad = values.clone();
+    bad[8 * 7 + 4] = f64::NAN; // row 7's dy
+    std::fs::write(&rays_npy, npy_bytes(&bad, 8)).unwrap();
+    let o = run(&["query", p(&scene), "--rays", p(&rays_npy)]);
+    assert_fails(&o, &[&format!("{}:row 7:", p(&rays_npy)), "finite"], "nan in npy");
+    std::fs::write(&rays_npy, npy_bytes(&values[..7 * 50], 7)).unwrap();
+    let o = run(&["query", p(&scene), "--rays", p(&rays_npy)]);
+    assert_fails(&o, &["header", "(N, 6) or (N, 8)"], "7 columns");
+    let mut truncated = npy_bytes(&values, 8);
+    truncated.truncate(truncated.len() - 8);
+    std::fs::write(&rays_npy, truncated).unwrap();
+    let o = run(&["query", p(&scene), "--rays", p(&rays_npy)]);
+    assert_fails(&o, &["row 0", "shorter"], "truncated npy");
+}
+
+/// The README's oiiotool recipe: `--add` of data-windowed crops equals the full frame bit for
+/// bit; `--over` does not (it turns the misses' `Z = inf` into 0). Runs where `oiiotool`
+/// (OpenImageIO) is installed, and says so on stderr where it is not.
+#[test]
+fn oiiotool_add_of_crops_is_exact_and_over_is_not() {
+    if Command::new("oiiotool").arg("--help").output().is_err() {
+        eprintln!("oiiotool not installed: the recipe is not checked here");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let render_to = |name: &str, crop: Option<&str>| {
+        let path = dir.path().join(name);
+        let mut args = vec![
+            "render",
+            "scenes/default.ron",
+            "-o",
+            p(&path),
+            "--aov",
+            "all",
+            "--no-previews",
+        ];
+        args.extend_from_slice(&["--width", "96", "--height", "54"]);
+        if let Some(c) = crop {
+            args.extend_from_slice(&["--crop", c]);
+        }
+        assert_ok(&run(&args), name);
+        path
+    };
+    let full = render_to("full.exr", None);
+    let a = render_to("a.exr", Some("0,0,40,54"));
+    let b = render_to("b.exr", Some("40,0,96,54"));
+    let (add, over) = (dir.path().join("add.exr"), dir.path().join("over.exr"));
+    for (op, out) in [("--add", &add), ("--over", &over)] {
+        let o = Command::new("oiiotool")
+            .args([p(&a), p(&b), op, "-o", p(out)])
+            .output()
+            .unwrap();
+        assert_ok(&o, op);
+    }
+    let by_name = |path: &Path| -> std::collections::BTreeMap<String, Vec<u32>> {
+        read_channels(path)
+            .into_iter()
+            .map(|(n, v)| (n, v.iter().map(|x| x.to_bits()).collect()))
+            .collect()
+    };
+    let (expected, added, composited) = (by_name(&full), by_name(&add), by_name(&over));
+    assert_eq!(expected.len(), 22);
+    assert_eq!(
+        added, expected,
+        "oiiotool --add of the crops is the full frame, bit for bit"
+    );
+    let z_inf = expected["Z"].iter().filter(|z| **z == f32::INFINITY.to_bits()).count();
+    let z_inf_over = composited["Z"]
+        .iter()
+        .filter(|z| **z == f32::INFINITY.to_bits())
+        .count();
+    assert!(z_inf > 100, "the frame has misses: {z_inf}");
+    assert!(
+        z_inf_over < z_inf,
+        "--over keeps every miss's Z = inf: the README's warning is wrong"
+    );
+}
+
+/// A unit sphere as a `Function` with a valid but very loose Lipschitz bound: sphere tracing
+/// steps at most `1.6·|Φ|/L ≤ 6e-6`, so any ray crossing the search box [−2, 2]³ over a length
+/// of more than 1 needs over 150,000 steps and exhausts the 100,000-evaluation budget; a ray
+/// missing the box evaluates nothing.
+const LOOSE_SCENE: &str = "Scene(camera: (eye: (0, 0, -6), look_at: (0, 0, 0), vfov_deg: 60, width: 12, height: 4), \
+    objects: [(name: \"loose\", shape: Function(phi: \"sqrt(x^2 + y^2 + z^2) - 1\", min: (-2, -2, -2), max: (2, 2, 2), lipschitz: 1000000))])";
+
+#[test]
+fn exhausted_budgets_are_counted_and_flagged() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("loose.ron");
+    std::fs::write(&scene, LOOSE_SCENE).unwrap();
+    // through the sphere, through the box beside it, and two missing the box
+    let rays = dir.path().join("rays.csv");
+    std::fs::write(&rays, "0,0,-6,0,0,1\n1.5,1.5,-6,0,0,1\n0,5,-6,0,0,1\n5,0,0,0,1,0\n").unwrap();
+    let o = run(&["query", p(&scene), "--rays", p(&rays), "--uncertain"]);
+    assert_ok(&o, "query --uncertain");
+    assert!(
+        stderr(&o).contains("warning: 2 rays ran out of the root finder's evaluation budget"),
+        "{}",
+        stderr(&o)
+    );
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines[0], "hit,t,px,py,pz,nx,ny,nz,id,name,u,v,uncertain");
+    let flags: Vec<&str> = lines[1..].iter().map(|l| l.rsplit(',').next().unwrap()).collect();
+    assert_eq!(flags, ["1", "1", "0", "0"], "{out}");
+    // the flagged rays are the ones the loose bound lost: reported as misses
+    assert!(lines[1].starts_with("0,") && lines[2].starts_with("0,"), "{out}");
+    // without the flag: the same rows without the column, and the same warning
+    let o = run(&["query", p(&scene), "--rays", p(&rays)]);
+    assert!(stdout(&o).lines().all(|l| l.split(',').count() == 12));
+    assert!(stderr(&o).contains("warning: 2 rays"), "{}", stderr(&o));
+
+    // a render: the pixels whose rays cross the box are flagged, the others not
+    let exr = dir.path().join("loose.exr");
+    let o = run(&[
+        "render",
+        p(&scene),
+        "-o",
+        p(&exr),
+        "--aov",
+        "Alpha,Uncertain",
+        "--no-previews",
+    ]);
+    assert_ok(&o, "render");
+    let channels = read_channels(&exr);
+    let flags = &channels.iter().find(|(n, _)| n == "uncertain").unwrap().1;
+    let flagged = flags.iter().filter(|f| **f == 1.0).count();
+    assert!(flags.iter().all(|f| *f == 0.0 || *f == 1.0));
+    assert!(flagged > 0 && flagged < flags.len(), "{flags:?}");
+    assert!(
+        stderr(&o).contains(&format!("warning: {flagged} rays (primary or shadow) ran out")),
+        "{}",
+        stderr(&o)
+    );
+}

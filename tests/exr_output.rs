@@ -1,6 +1,7 @@
 //! EXR output: a render with every AOV is written with `write_exr`, read back with the `exr`
-//! crate, and checked for the documented layout (channel names, FLOAT samples, ZIP16 scanline
-//! blocks, windows, header matrices) and bit-exact values.
+//! crate, and checked for the documented layout (channel names, FLOAT samples, default-codec
+//! scanline blocks, windows, header matrices) and bit-exact values; identical frames give
+//! identical bytes; crops merge back into the full frame bit for bit; beauty is premultiplied.
 
 use exr::meta::attribute::{AttributeValue, IntegerBounds, SampleType, Text};
 use exr::meta::{BlockDescription, MetaData};
@@ -9,7 +10,8 @@ use glam::DVec3;
 use std::collections::BTreeSet;
 use std::path::Path;
 use zeroset::aov::Aov;
-use zeroset::output::exr::{write_exr, ExrHeader};
+use zeroset::output::exr::{write_exr, write_exr_with, ExrCompression, ExrHeader};
+use zeroset::output::merge::merge_crops;
 use zeroset::render::{render, Frame, RenderOptions, Window};
 use zeroset::scene::Scene;
 
@@ -127,7 +129,7 @@ fn full_render_layout_values_and_header() {
     assert_eq!(meta.headers.len(), 1, "single-part file");
     let h = &meta.headers[0];
     assert!(!h.deep);
-    assert_eq!(h.compression, Compression::ZIP16);
+    assert_eq!(h.compression, ExrCompression::default().codec());
     assert_eq!(h.blocks, BlockDescription::ScanLines);
     let names: BTreeSet<String> = h.channels.list.iter().map(|c| c.name.to_string()).collect();
     assert_eq!(names, documented_channels(), "exactly the documented channel names");
@@ -301,5 +303,208 @@ fn subset_of_aovs_and_depth_miss_value() {
         assert!(values.iter().all(|v| v.is_finite() && *v >= 0.0));
         assert!(values.contains(&0.0), "misses written as 0");
         assert!(bits(values) == bits(&frame_channel(&frame, &channel.name.to_string())));
+    }
+}
+
+/// The names of the header attributes in file order, parsed from the raw bytes (magic, version,
+/// then `name\0type\0size value` until an empty name).
+fn raw_attribute_names(bytes: &[u8]) -> Vec<String> {
+    let mut names = Vec::new();
+    let mut at = 8;
+    loop {
+        let end = at + bytes[at..].iter().position(|b| *b == 0).unwrap();
+        if end == at {
+            return names;
+        }
+        names.push(String::from_utf8(bytes[at..end].to_vec()).unwrap());
+        let type_end = end + 1 + bytes[end + 1..].iter().position(|b| *b == 0).unwrap();
+        let size = i32::from_le_bytes(bytes[type_end + 1..type_end + 5].try_into().unwrap()) as usize;
+        at = type_end + 5 + size;
+    }
+}
+
+#[test]
+fn identical_frames_give_identical_bytes_with_sorted_attributes() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene();
+    let frame = render_with(&scene, None);
+    for codec in ExrCompression::ALL {
+        let mut files = Vec::new();
+        for k in 0..4 {
+            let path = dir.path().join(format!("{codec:?}{k}.exr"));
+            write_exr_with(&frame, &path, &header(&scene, f32::INFINITY), codec).unwrap();
+            files.push(std::fs::read(&path).unwrap());
+        }
+        for f in &files[1..] {
+            assert!(*f == files[0], "{codec:?}: identical frames, different bytes");
+        }
+        let names = raw_attribute_names(&files[0]);
+        let mut sorted = names.clone();
+        sorted.sort();
+        assert_eq!(names, sorted, "attributes sorted by name");
+        for n in [
+            "zeroset/depth",
+            "zeroset/depthMiss",
+            "zeroset/scene",
+            "worldToCamera",
+            "channels",
+        ] {
+            assert!(names.iter().any(|x| x == n), "{n} in {names:?}");
+        }
+        // still a valid file with the same values
+        let image = read_all_flat_layers_from_file(dir.path().join(format!("{codec:?}0.exr"))).unwrap();
+        for channel in &image.layer_data[0].channel_data.list {
+            let FlatSamples::F32(values) = &channel.sample_data else {
+                panic!()
+            };
+            assert!(bits(values) == bits(&frame_channel(&frame, &channel.name.to_string())));
+        }
+    }
+}
+
+#[test]
+fn merged_crops_equal_the_full_render_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene();
+    let head = header(&scene, f32::INFINITY);
+    let full = render_with(&scene, None);
+    let full_path = write(&full, &head, dir.path(), "full.exr");
+    // three crops tiling the frame: a top band, and the bottom split at an odd column
+    let windows = [
+        Window {
+            x0: 0,
+            y0: 0,
+            x1: W,
+            y1: 13,
+        },
+        Window {
+            x0: 0,
+            y0: 13,
+            x1: 29,
+            y1: H,
+        },
+        Window {
+            x0: 29,
+            y0: 13,
+            x1: W,
+            y1: H,
+        },
+    ];
+    let crops: Vec<_> = windows
+        .iter()
+        .enumerate()
+        .map(|(k, w)| {
+            write(
+                &render_with(&scene, Some(*w)),
+                &head,
+                dir.path(),
+                &format!("crop{k}.exr"),
+            )
+        })
+        .collect();
+    let merged = dir.path().join("merged.exr");
+    // any order
+    merge_crops(&[crops[2].clone(), crops[0].clone(), crops[1].clone()], &merged).unwrap();
+    let a = read_all_flat_layers_from_file(&merged).unwrap();
+    let b = read_all_flat_layers_from_file(&full_path).unwrap();
+    assert_eq!(a.attributes.display_window, b.attributes.display_window);
+    let (la, lb) = (&a.layer_data[0], &b.layer_data[0]);
+    assert_eq!(la.size, lb.size);
+    assert_eq!(la.attributes.layer_position, Vec2(0, 0));
+    assert_eq!(la.channel_data.list.len(), 18);
+    let mut infinite_z = 0;
+    for (ca, cb) in la.channel_data.list.iter().zip(&lb.channel_data.list) {
+        assert_eq!(ca.name, cb.name);
+        let (FlatSamples::F32(va), FlatSamples::F32(vb)) = (&ca.sample_data, &cb.sample_data) else {
+            panic!()
+        };
+        assert!(bits(va) == bits(vb), "channel {} differs after merge", ca.name);
+        if ca.name.to_string() == "Z" {
+            infinite_z = va.iter().filter(|z| **z == f32::INFINITY).count();
+        }
+    }
+    assert!(infinite_z > 10, "misses stay +inf: {infinite_z}");
+    // header attributes kept: the merged file differs from the full render in nothing
+    assert_eq!(la.attributes, lb.attributes);
+    assert_eq!(
+        std::fs::read(&merged).unwrap(),
+        std::fs::read(&full_path).unwrap(),
+        "same bytes as the full render"
+    );
+
+    // crops that do not tile the frame are refused, naming the problem
+    let overlapping = write(
+        &render_with(
+            &scene,
+            Some(Window {
+                x0: 28,
+                y0: 13,
+                x1: W,
+                y1: H,
+            }),
+        ),
+        &head,
+        dir.path(),
+        "overlap.exr",
+    );
+    let err = format!(
+        "{:#}",
+        merge_crops(&[crops[0].clone(), crops[1].clone(), overlapping], &merged).unwrap_err()
+    );
+    assert!(err.contains("overlap"), "{err}");
+    let err = format!("{:#}", merge_crops(&crops[..2], &merged).unwrap_err());
+    assert!(err.contains("missing"), "{err}");
+    let other = header(&scene, 0.0);
+    let different = write(&render_with(&scene, Some(windows[2])), &other, dir.path(), "other.exr");
+    let err = format!(
+        "{:#}",
+        merge_crops(&[crops[0].clone(), crops[1].clone(), different], &merged).unwrap_err()
+    );
+    assert!(err.contains("attributes differ"), "{err}");
+    // the failed merges left the earlier result untouched
+    assert_eq!(std::fs::read(&merged).unwrap(), std::fs::read(&full_path).unwrap());
+}
+
+#[test]
+fn beauty_is_premultiplied_unless_the_background_is_asked_for() {
+    for spp in [1, 4] {
+        let mut scene = scene();
+        scene.background = DVec3::new(0.25, 0.5, 0.75);
+        scene.sampling.spp = spp;
+        let options = |background| RenderOptions {
+            aovs: vec![Aov::Beauty, Aov::Alpha],
+            background,
+            ..RenderOptions::default()
+        };
+        let plain = render(&scene, &options(false));
+        let filled = render(&scene, &options(true));
+        let (mut misses, mut partial) = (0, 0);
+        for y in 0..H {
+            for x in 0..W {
+                let a = plain.pixel(Aov::Alpha, x, y).unwrap()[0];
+                let rgb = plain.pixel(Aov::Beauty, x, y).unwrap();
+                let with_bg = filled.pixel(Aov::Beauty, x, y).unwrap();
+                if a == 0.0 {
+                    misses += 1;
+                    assert_eq!(rgb, [0.0, 0.0, 0.0], "a miss is black ({x}, {y})");
+                }
+                if a > 0.0 && a < 1.0 {
+                    partial += 1;
+                }
+                // filled = premultiplied + (1 − A)·background
+                for k in 0..3 {
+                    let expected = f64::from(rgb[k]) + (1.0 - f64::from(a)) * scene.background[k];
+                    assert!(
+                        (f64::from(with_bg[k]) - expected).abs() < 1e-5,
+                        "spp {spp} ({x}, {y}) channel {k}: {} vs {expected}",
+                        with_bg[k]
+                    );
+                }
+            }
+        }
+        assert!(misses > 10, "spp {spp}: the test needs misses");
+        if spp > 1 {
+            assert!(partial > 10, "spp {spp}: the test needs partly covered pixels");
+        }
     }
 }

@@ -29,6 +29,30 @@ use crate::traits::Implicit;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 static LIPSCHITZ_VIOLATIONS: AtomicU64 = AtomicU64::new(0);
+static BUDGET_EXHAUSTIONS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    static THREAD_BUDGET_EXHAUSTIONS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// How many rays, process-wide, ran out of [`RootOptions::max_evaluations`] before the end of
+/// their interval: each was reported as a miss although a surface may lie further on.
+#[must_use]
+pub fn budget_exhaustions() -> u64 {
+    BUDGET_EXHAUSTIONS.load(Ordering::Relaxed)
+}
+
+/// [`budget_exhaustions`] of the calling thread alone: read it before and after tracing one ray
+/// on a thread to learn whether that ray's answer is uncertain.
+#[must_use]
+pub fn thread_budget_exhaustions() -> u64 {
+    THREAD_BUDGET_EXHAUSTIONS.with(std::cell::Cell::get)
+}
+
+fn record_budget_exhaustion() {
+    BUDGET_EXHAUSTIONS.fetch_add(1, Ordering::Relaxed);
+    THREAD_BUDGET_EXHAUSTIONS.with(|c| c.set(c.get() + 1));
+}
 
 /// Over-relaxation factor ω of the sphere-tracing steps: a step of `ω·|g|/k` is kept only if the
 /// root-free balls `|g|/k` around both of its ends cover it; otherwise it is retaken at `ω = 1`.
@@ -247,6 +271,9 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
         }
         t0 = t1;
         g0 = g1;
+    }
+    if report.hit.is_none() && t0 < t_end && m.evaluations >= options.max_evaluations {
+        record_budget_exhaustion();
     }
     report.evaluations = m.evaluations;
     report

@@ -163,9 +163,15 @@ pub fn transforms_json(views: &[(&Camera, String)]) -> Result<String, String> {
 /// EXR header attributes with the camera's intrinsics: `zeroset/camera/model` (text),
 /// `zeroset/camera/K` (3×3, row-major, f32), `zeroset/camera/fx`, `…/fy`, `…/cx`, `…/cy` (f64,
 /// OpenCV pixel convention), `zeroset/camera/distortion` (text, the coefficients), and
-/// `zeroset/camera/json` (this view's `cameras.json` entry, full precision).
+/// `zeroset/camera/json` (this view's `cameras.json` entry, full precision, without the file
+/// name: crops of one frame, and a file renamed later, carry the same header, so
+/// `zeroset merge` can check that crops belong together).
 #[must_use]
-pub fn exr_camera_attributes(camera: &Camera, view: usize, exr: &str) -> Vec<(String, AttributeValue)> {
+pub fn exr_camera_attributes(camera: &Camera, view: usize) -> Vec<(String, AttributeValue)> {
+    let mut entry = camera_entry(camera, view, "");
+    if let Some(fields) = entry.as_object_mut() {
+        fields.remove("exr");
+    }
     let mut attributes = vec![
         (
             "zeroset/camera/model".to_string(),
@@ -177,7 +183,7 @@ pub fn exr_camera_attributes(camera: &Camera, view: usize, exr: &str) -> Vec<(St
         ),
         (
             "zeroset/camera/json".to_string(),
-            AttributeValue::Text(Text::from(camera_entry(camera, view, exr).to_string().as_str())),
+            AttributeValue::Text(Text::from(entry.to_string().as_str())),
         ),
     ];
     if let Some(k) = camera.intrinsics() {

@@ -1,11 +1,18 @@
-//! PNG previews (8-bit sRGB): beauty (clamped to [0, 1]), depth (log depth normalised between the
+//! PNG previews (8-bit sRGB), made and encoded in parallel with the fast deflate setting and
+//! the `Sub` row filter (about 10 % less CPU than adaptive filtering for 20 % larger files), and
+//! written atomically: beauty (over the scene background, clamped to [0, 1]), depth (log depth
+//! normalised between the
 //! nearest hit and the 98th percentile, coloured from yellow (near) to dark violet (far), misses
 //! in a flat dark grey), normals (`(n + 1)/2`, misses black).
 
 use crate::aov::Aov;
+use crate::output::atomic::write_atomically;
 use crate::render::Frame;
-use image::{Rgb, RgbImage};
-use std::path::Path;
+use anyhow::Context;
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use image::{ExtendedColorType, ImageEncoder, Rgb};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
 
 fn srgb_encode(linear: f32) -> u8 {
     let c = linear.clamp(0.0, 1.0);
@@ -15,6 +22,41 @@ fn srgb_encode(linear: f32) -> u8 {
         1.055 * c.powf(1.0 / 2.4) - 0.055
     };
     (s * 255.0 + 0.5) as u8
+}
+
+/// `srgb_encode` by table: `thresholds[b − 1]` is the smallest linear value that encodes to at
+/// least byte `b`, found by bisection on the f32 bit patterns of [0, 1] (which are ordered like
+/// the values), so the lookup equals `srgb_encode` exactly, at eight comparisons instead of a
+/// `powf`.
+struct SrgbTable {
+    thresholds: [f32; 255],
+}
+
+impl SrgbTable {
+    fn new() -> Self {
+        let mut thresholds = [0.0; 255];
+        for (k, t) in thresholds.iter_mut().enumerate() {
+            let byte = k as u8 + 1;
+            let (mut lo, mut hi) = (0u32, 1.0f32.to_bits()); // encode(lo) < byte ≤ encode(hi)
+            while hi - lo > 1 {
+                let mid = lo + (hi - lo) / 2;
+                if srgb_encode(f32::from_bits(mid)) >= byte {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            *t = f32::from_bits(hi);
+        }
+        Self { thresholds }
+    }
+
+    fn encode(&self, linear: f32) -> u8 {
+        if linear.is_nan() {
+            return srgb_encode(linear);
+        }
+        self.thresholds.partition_point(|t| *t <= linear) as u8
+    }
 }
 
 fn unit_to_byte(x: f32) -> u8 {
@@ -33,67 +75,92 @@ fn depth_ramp(s: f32) -> Rgb<u8> {
     let x = s.clamp(0.0, 1.0) * 4.0;
     let i = (x as usize).min(3);
     let f = x - i as f32;
-    let c: Vec<u8> = (0..3)
-        .map(|k| unit_to_byte(STOPS[i][k] * (1.0 - f) + STOPS[i + 1][k] * f))
-        .collect();
-    Rgb([c[0], c[1], c[2]])
+    Rgb(std::array::from_fn(|k| {
+        unit_to_byte(STOPS[i][k] * (1.0 - f) + STOPS[i + 1][k] * f)
+    }))
 }
 
 const MISS_GREY: Rgb<u8> = Rgb([40, 40, 40]);
 
-fn save(frame: &Frame, path: &Path, pixel: impl Fn(usize) -> Rgb<u8>) -> image::ImageResult<()> {
+/// Encodes an 8-bit RGB image of the frame's window, made row by row in parallel, as PNG with
+/// the fast deflate setting, written atomically.
+fn save(frame: &Frame, path: &Path, pixel: impl Fn(usize) -> Rgb<u8> + Sync) -> anyhow::Result<()> {
     let (w, h) = (frame.window.width(), frame.window.height());
-    let mut img = RgbImage::new(w, h);
-    for (i, p) in img.pixels_mut().enumerate() {
-        *p = pixel(i);
-    }
-    img.save(path)
+    let mut bytes = vec![0u8; w as usize * h as usize * 3];
+    bytes.par_chunks_mut(w as usize * 3).enumerate().for_each(|(row, out)| {
+        for (column, rgb) in out.chunks_exact_mut(3).enumerate() {
+            rgb.copy_from_slice(&pixel(row * w as usize + column).0);
+        }
+    });
+    write_atomically(path, |file| {
+        PngEncoder::new_with_quality(file, CompressionType::Fast, FilterType::Sub)
+            .write_image(&bytes, w, h, ExtendedColorType::Rgb8)
+            .with_context(|| format!("encoding {}", path.display()))
+    })
 }
 
 /// Writes `<stem>.beauty.png`, `<stem>.depth.png` and `<stem>.normal.png` for the AOVs the frame
-/// has; returns the paths written.
-pub fn write_previews(frame: &Frame, dir: &Path, stem: &str) -> image::ImageResult<Vec<std::path::PathBuf>> {
-    let mut written = Vec::new();
+/// has, in parallel; returns the paths written. The beauty preview shows the premultiplied
+/// colour over `background` (`RGB + (1 − A)·background`; black without an `Alpha` AOV).
+///
+/// # Errors
+/// Encoding or writing a file fails (files already written stay).
+pub fn write_previews(frame: &Frame, dir: &Path, stem: &str, background: [f32; 3]) -> anyhow::Result<Vec<PathBuf>> {
+    let jobs: Vec<(Aov, PathBuf)> = [(Aov::Beauty, "beauty"), (Aov::Depth, "depth"), (Aov::Normal, "normal")]
+        .into_iter()
+        .filter(|(aov, _)| frame.channel_offset(*aov).is_some())
+        .map(|(aov, name)| (aov, dir.join(format!("{stem}.{name}.png"))))
+        .collect();
+    jobs.par_iter()
+        .map(|(aov, path)| write_preview(frame, *aov, path, background).map(|()| path.clone()))
+        .collect()
+}
+
+/// Writes the preview of one AOV (beauty, depth or normal).
+fn write_preview(frame: &Frame, aov: Aov, path: &Path, background: [f32; 3]) -> anyhow::Result<()> {
     let stride = frame.channel_count();
     let alpha = frame.channel_offset(Aov::Alpha);
-    if let Some(o) = frame.channel_offset(Aov::Beauty) {
-        let path = dir.join(format!("{stem}.beauty.png"));
-        save(frame, &path, |i| {
-            let s = &frame.samples[i * stride + o..];
-            Rgb([srgb_encode(s[0]), srgb_encode(s[1]), srgb_encode(s[2])])
-        })?;
-        written.push(path);
-    }
-    if let Some(o) = frame.channel_offset(Aov::Depth) {
-        let mut depths: Vec<f32> = frame
-            .samples
-            .iter()
-            .skip(o)
-            .step_by(stride)
-            .copied()
-            .filter(|z| z.is_finite() && *z > 0.0)
-            .collect();
-        depths.sort_unstable_by(f32::total_cmp);
-        // log depth between the nearest hit and the 98th percentile, so a far horizon does not
-        // flatten the foreground
-        let lo = depths.first().copied().unwrap_or(1.0).ln();
-        let hi = depths.get(depths.len() * 98 / 100).copied().unwrap_or(1.0).ln();
-        let range = (hi - lo).max(f32::MIN_POSITIVE);
-        let path = dir.join(format!("{stem}.depth.png"));
-        save(frame, &path, |i| {
-            let hit = alpha.is_none_or(|a| frame.samples[i * stride + a] > 0.0);
-            let z = frame.samples[i * stride + o];
-            if hit && z.is_finite() && z > 0.0 {
-                depth_ramp((z.ln() - lo) / range)
+    let o = frame.channel_offset(aov).expect("only rendered AOVs are previewed");
+    match aov {
+        Aov::Beauty => {
+            let table = SrgbTable::new();
+            save(frame, path, |i| {
+                let s = &frame.samples[i * stride + o..];
+                let uncovered = alpha.map_or(0.0, |a| 1.0 - frame.samples[i * stride + a]);
+                Rgb(std::array::from_fn(|k| table.encode(s[k] + uncovered * background[k])))
+            })
+        }
+        Aov::Depth => {
+            let mut depths: Vec<f32> = frame
+                .samples
+                .par_iter()
+                .skip(o)
+                .step_by(stride)
+                .copied()
+                .filter(|z| z.is_finite() && *z > 0.0)
+                .collect();
+            // log depth between the nearest hit and the 98th percentile, so a far horizon does
+            // not flatten the foreground (a selection, not a sort: linear time)
+            let lo = depths.par_iter().copied().reduce(|| f32::INFINITY, f32::min);
+            let lo = if lo.is_finite() { lo.ln() } else { 0.0 };
+            let hi = if depths.is_empty() {
+                0.0
             } else {
-                MISS_GREY
-            }
-        })?;
-        written.push(path);
-    }
-    if let Some(o) = frame.channel_offset(Aov::Normal) {
-        let path = dir.join(format!("{stem}.normal.png"));
-        save(frame, &path, |i| {
+                let rank = depths.len() * 98 / 100;
+                depths.select_nth_unstable_by(rank, f32::total_cmp).1.ln()
+            };
+            let range = (hi - lo).max(f32::MIN_POSITIVE);
+            save(frame, path, |i| {
+                let hit = alpha.is_none_or(|a| frame.samples[i * stride + a] > 0.0);
+                let z = frame.samples[i * stride + o];
+                if hit && z.is_finite() && z > 0.0 {
+                    depth_ramp((z.ln() - lo) / range)
+                } else {
+                    MISS_GREY
+                }
+            })
+        }
+        _ => save(frame, path, |i| {
             let n = &frame.samples[i * stride + o..];
             if n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0 {
                 Rgb([0, 0, 0])
@@ -104,8 +171,27 @@ pub fn write_previews(frame: &Frame, dir: &Path, stem: &str) -> image::ImageResu
                     unit_to_byte((n[2] + 1.0) * 0.5),
                 ])
             }
-        })?;
-        written.push(path);
+        }),
     }
-    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_table_equals_the_formula() {
+        let table = SrgbTable::new();
+        let mut x = -0.5f32;
+        while x < 1.5 {
+            assert_eq!(table.encode(x), srgb_encode(x), "{x}");
+            x += 1.0 / 65536.0;
+        }
+        for t in table.thresholds {
+            assert_eq!(table.encode(t), srgb_encode(t));
+            let below = f32::from_bits(t.to_bits() - 1);
+            assert_eq!(table.encode(below), srgb_encode(below));
+        }
+        assert_eq!(table.encode(f32::INFINITY), 255);
+    }
 }

@@ -1,6 +1,7 @@
 """Reads an EXR written by `zeroset render` with the Python OpenEXR bindings (the ones users
-have) and checks what the README promises: channel names, ZIP compression, windows, header
-attributes, and values (coverage 0/1, unit normals on hits, +inf depth on misses).
+have) and checks what the README promises: channel names, the default (no) compression,
+windows, header attributes, and values (coverage 0/1, premultiplied colour: black
+on misses, unit normals on hits, +inf depth on misses).
 
     python3 tests/python/check_exr.py OUT.exr
 Prints '<n> passed, <m> failed' and exits non-zero on any failure.
@@ -31,7 +32,7 @@ for key, channel in channels.items():
     else:
         names.add(key)
 check("channels R G B A Z N.X N.Y N.Z", {"R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z"} <= names)
-check("ZIP compression", str(header["compression"]).endswith("ZIP_COMPRESSION"))
+check("no compression (the default)", str(header["compression"]).endswith("NO_COMPRESSION"))
 check("data window = display window", all((a == b).all() for a, b in zip(header["dataWindow"], header["displayWindow"])))
 check("worldToCamera and worldToNDC present", "worldToCamera" in header and "worldToNDC" in header)
 check("depth convention recorded", "planar depth" in str(header.get("zeroset/depth", "")))
@@ -45,6 +46,7 @@ check("coverage is 0 or 1", np.all((alpha == 0.0) | hit))
 check("some pixels hit and some miss", hit.any() and (~hit).any())
 check("normals unit length on hits", np.allclose(np.linalg.norm(n[hit], axis=-1), 1.0, atol=1e-5))
 check("normals zero on misses", np.all(n[~hit] == 0.0))
+check("premultiplied colour: R = G = B = 0 on misses", np.all(rgba[~hit][..., :3] == 0.0))
 check("depth finite and positive on hits", np.all(np.isfinite(z[hit]) & (z[hit] > 0)))
 check("depth +inf on misses", np.all(np.isposinf(z[~hit])))
 check("no NaN anywhere", not any(np.isnan(c.pixels).any() for c in channels.values()))

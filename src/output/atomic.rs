@@ -1,0 +1,263 @@
+//! Files that appear whole or not at all.
+//!
+//! Every output (EXR, PNG previews, `query` results) is written to a temporary file in the
+//! destination's own directory, flushed and `fsync`ed, and only then renamed over the
+//! destination. A rename within one file system is atomic (POSIX `rename(2)`), so a reader — or a
+//! kill, a Ctrl-C, a full disk at any moment — sees either the previous file or the complete new
+//! one, never a truncated mix. The temporary file (`.NAME.XXXXXX.tmp`) is removed on any error or
+//! unwind; only a SIGKILL can leave one behind, and it never has the destination's name.
+//!
+//! [`check_destination`] is the early check run before any tracing: the directory must exist or
+//! be creatable and must accept a new file, and its file system must have room for the estimated
+//! output.
+
+use anyhow::{bail, Context, Result};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use tempfile::NamedTempFile;
+
+/// A file being written under a temporary name next to `destination`; [`AtomicFile::commit`]
+/// renames it into place. Dropped without a commit, it is deleted.
+///
+/// A destination that is a symbolic link is resolved first (the link keeps pointing at the new
+/// file); one that exists and is neither a regular file nor a directory — `/dev/null`, a named
+/// pipe, a terminal — is written directly, since it holds nothing to protect and cannot be
+/// renamed over.
+pub struct AtomicFile {
+    target: Target,
+    destination: PathBuf,
+}
+
+/// Where the bytes go.
+enum Target {
+    /// A temporary file beside the destination, renamed over it on commit.
+    Temporary(NamedTempFile),
+    /// The destination itself (a device or pipe).
+    Direct(File),
+}
+
+impl AtomicFile {
+    /// Creates the temporary file in `destination`'s directory.
+    ///
+    /// # Errors
+    /// The directory cannot be written.
+    pub fn create(destination: &Path) -> Result<Self> {
+        let destination = &std::fs::canonicalize(destination)
+            .ok()
+            .filter(|_| destination.is_symlink())
+            .unwrap_or_else(|| destination.to_path_buf());
+        if let Ok(meta) = std::fs::metadata(destination) {
+            if meta.is_dir() {
+                bail!("{} is a directory, not a file", destination.display());
+            }
+            if !meta.is_file() {
+                let file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(destination)
+                    .with_context(|| format!("opening {}", destination.display()))?;
+                return Ok(Self {
+                    target: Target::Direct(file),
+                    destination: destination.clone(),
+                });
+            }
+        }
+        let dir = parent_dir(destination);
+        let name = destination
+            .file_name()
+            .map_or_else(|| "output".to_string(), |n| n.to_string_lossy().into_owned());
+        let temp = tempfile::Builder::new()
+            .prefix(&format!(".{name}."))
+            .suffix(".tmp")
+            .tempfile_in(&dir)
+            .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
+        // a temporary file is private (0600); the result gets the replaced file's permissions,
+        // or the usual 0644 for a new file
+        let permissions =
+            std::fs::metadata(destination).map_or_else(|_| default_permissions(), |m| Some(m.permissions()));
+        if let Some(permissions) = permissions {
+            temp.as_file()
+                .set_permissions(permissions)
+                .with_context(|| format!("setting the permissions of a file in {}", dir.display()))?;
+        }
+        Ok(Self {
+            target: Target::Temporary(temp),
+            destination: destination.clone(),
+        })
+    }
+
+    /// The open temporary file (or the device written directly).
+    pub fn file(&mut self) -> &mut File {
+        match &mut self.target {
+            Target::Temporary(temp) => temp.as_file_mut(),
+            Target::Direct(file) => file,
+        }
+    }
+
+    /// The destination path.
+    #[must_use]
+    pub fn destination(&self) -> &Path {
+        &self.destination
+    }
+
+    /// Flushes the data to disk and renames the file over the destination.
+    ///
+    /// # Errors
+    /// The `fsync` or the rename fails (the temporary file is then removed).
+    pub fn commit(self) -> Result<()> {
+        let temp = match self.target {
+            Target::Temporary(temp) => temp,
+            Target::Direct(_) => return Ok(()),
+        };
+        temp.as_file()
+            .sync_all()
+            .with_context(|| format!("flushing {} to disk", self.destination.display()))?;
+        let destination = self.destination;
+        temp.persist(&destination)
+            .map_err(|e| e.error)
+            .with_context(|| format!("renaming the finished file to {}", destination.display()))?;
+        // make the rename itself durable where the platform allows opening a directory
+        if let Ok(dir) = File::open(parent_dir(&destination)) {
+            let _ = dir.sync_all();
+        }
+        Ok(())
+    }
+}
+
+/// Permissions of a new output file: `rw-r--r--` on Unix; elsewhere the temporary file's own.
+fn default_permissions() -> Option<std::fs::Permissions> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        Some(std::fs::Permissions::from_mode(0o644))
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
+}
+
+/// Writes `destination` atomically with `write`, which gets a buffered writer on the temporary
+/// file.
+///
+/// # Errors
+/// Creating, writing, flushing or renaming fails; the destination is then untouched.
+pub fn write_atomically(destination: &Path, write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<()>) -> Result<()> {
+    let mut file = AtomicFile::create(destination)?;
+    {
+        let mut writer = BufWriter::with_capacity(1 << 20, file.file());
+        write(&mut writer)?;
+        writer
+            .flush()
+            .with_context(|| format!("writing {}", destination.display()))?;
+    }
+    file.commit()
+}
+
+/// The directory a file path lives in (`.` for a bare name).
+#[must_use]
+pub fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// The early check before tracing: creates `dir` if needed, proves it accepts a new file (by
+/// creating and deleting a temporary one), and compares `estimated_bytes` with the space
+/// available to this user on its file system.
+///
+/// # Errors
+/// The directory cannot be created or written, or the estimate exceeds the free space.
+pub fn check_destination(dir: &Path, estimated_bytes: u64) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating the output directory {}", dir.display()))?;
+    let probe = tempfile::Builder::new()
+        .prefix(".zeroset-write-check.")
+        .tempfile_in(dir)
+        .with_context(|| format!("the output directory {} is not writable", dir.display()))?;
+    drop(probe);
+    // file systems that cannot report free space (some network mounts) are not refused
+    if let Ok(available) = fs4::available_space(dir) {
+        if estimated_bytes > available {
+            bail!(
+                "the outputs need about {} but {} has only {} free",
+                human_bytes(estimated_bytes),
+                dir.display(),
+                human_bytes(available)
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `1234567` → `"1.2 MB"` (decimal units).
+#[must_use]
+pub fn human_bytes(bytes: u64) -> String {
+    let b = bytes as f64;
+    match bytes {
+        0..1_000 => format!("{bytes} B"),
+        1_000..1_000_000 => format!("{:.1} kB", b / 1e3),
+        1_000_000..1_000_000_000 => format!("{:.1} MB", b / 1e6),
+        1_000_000_000..1_000_000_000_000 => format!("{:.1} GB", b / 1e9),
+        _ => format!("{:.1} TB", b / 1e12),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn commit_replaces_and_drop_leaves_the_old_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.txt");
+        std::fs::write(&path, "old").unwrap();
+        // an error inside the writer: the old file stays, no temporary file is left
+        let failed = write_atomically(&path, |w| {
+            w.write_all(b"partial")?;
+            bail!("interrupted")
+        });
+        assert!(failed.is_err());
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        write_atomically(&path, |w| Ok(w.write_all(b"new")?)).unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn links_are_followed_and_devices_written_directly() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("target.txt");
+        let link = dir.path().join("link.txt");
+        std::fs::write(&target, "old").unwrap();
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        write_atomically(&link, |w| Ok(w.write_all(b"new")?)).unwrap();
+        assert!(link.is_symlink(), "the link is kept");
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "new");
+        write_atomically(Path::new("/dev/null"), |w| Ok(w.write_all(b"discarded")?)).unwrap();
+        let null = std::fs::metadata("/dev/null").unwrap();
+        assert!(null.file_type().is_char_device(), "/dev/null is still a device");
+        assert!(
+            write_atomically(dir.path(), |_| Ok(())).is_err(),
+            "a directory is refused"
+        );
+    }
+
+    #[test]
+    fn check_refuses_more_than_the_free_space() {
+        let dir = tempfile::tempdir().unwrap();
+        check_destination(dir.path(), 1).unwrap();
+        let err = check_destination(dir.path(), u64::MAX).unwrap_err().to_string();
+        assert!(err.contains("free") && err.contains("TB"), "{err}");
+    }
+
+    #[test]
+    fn human_bytes_units() {
+        assert_eq!(human_bytes(999), "999 B");
+        assert_eq!(human_bytes(1_500_000), "1.5 MB");
+        assert_eq!(human_bytes(40_000_000_000), "40.0 GB");
+    }
+}
