@@ -130,6 +130,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let load_start = Instant::now();
     let mut scene = Scene::load(&args.scene)?;
     let load_time = load_start.elapsed();
+    crate::diagnostics::print_load_warnings(&scene);
     if args.width.is_some() || args.height.is_some() {
         let w = args.width.unwrap_or(scene.camera.width);
         let h = args.height.unwrap_or(scene.camera.height);
@@ -183,7 +184,11 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         depth_miss: args.depth_miss,
         progress: true,
     };
+    let before = zeroset_primitives::uncertain_counts();
     let frame = render(&scene, &options);
+    if let Some(message) = crate::diagnostics::uncertain_message(crate::diagnostics::uncertain_since(before)) {
+        eprintln!("{message}");
+    }
 
     let exr_path = dir.join(format!("{stem}.exr"));
     let header = ExrHeader {
@@ -243,6 +248,7 @@ fn output_location(output: &Path, scene: &Path) -> Result<(PathBuf, String)> {
 
 fn query_command(args: &QueryArgs) -> Result<()> {
     let scene = Scene::load(&args.scene)?;
+    crate::diagnostics::print_load_warnings(&scene);
     let text = std::fs::read_to_string(&args.rays).with_context(|| format!("reading {}", args.rays.display()))?;
     let rays = parse_rays(&text, &args.rays.display().to_string())?;
     let start = Instant::now();

@@ -10,6 +10,7 @@ pub mod aov;
 pub mod camera;
 pub mod cli;
 pub mod combinators;
+pub mod diagnostics;
 pub mod mesh_io;
 pub mod motion;
 pub mod output;

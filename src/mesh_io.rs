@@ -297,8 +297,16 @@ impl SceneShape for MeshDesc {
         if let Some(mesh) = loaded.get(&key) {
             return Ok(Arc::clone(mesh));
         }
-        let mesh: Arc<dyn Primitive> =
-            Arc::new(load_mesh(&path, self.normals).map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?);
+        let mesh = load_mesh(&path, self.normals).map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?;
+        if mesh.skipped_triangles() > 0 {
+            context.warn(format!(
+                "{}: {} of {} triangles are degenerate (zero area) and are never hit",
+                path.display(),
+                mesh.skipped_triangles(),
+                mesh.triangle_count()
+            ));
+        }
+        let mesh: Arc<dyn Primitive> = Arc::new(mesh);
         loaded.insert(key, Arc::clone(&mesh));
         Ok(mesh)
     }

@@ -330,6 +330,10 @@ pub struct Scene {
     pub outputs: Outputs,
     /// Samples per pixel, filter and seed.
     pub sampling: Sampling,
+    /// Warnings about valid but noteworthy input, each prefixed by its object (degenerate
+    /// triangles left out, a `Function` that may be undefined in parts of its box, …); the CLI
+    /// prints them.
+    pub warnings: Vec<String>,
     /// Objects tested on every ray: those with infinite bounds, and a lone bounded object.
     unbounded: Vec<u32>,
     bvh: Bvh,
@@ -394,6 +398,7 @@ impl Scene {
         check_finite("scene", "ambient", desc.ambient)?;
         check_finite("scene", "background", desc.background)?;
         let mut objects = Vec::with_capacity(desc.objects.len());
+        let mut warnings = Vec::new();
         for (index, object) in desc.objects.into_iter().enumerate() {
             let location = match &object.name {
                 Some(name) => format!("objects[{index}] {name:?} ({})", object.shape.name),
@@ -404,6 +409,7 @@ impl Scene {
                 .shape
                 .build(context)
                 .map_err(|e| (location.clone(), format!("field `{}`: {}", e.field, e.problem)))?;
+            warnings.extend(context.take_warnings().into_iter().map(|w| format!("{location}: {w}")));
             let motion = match &object.transform_close {
                 None => None,
                 Some(close) => {
@@ -473,6 +479,7 @@ impl Scene {
             desc.outputs,
         );
         scene.sampling = desc.sampling;
+        scene.warnings = warnings;
         Ok(scene)
     }
 
@@ -514,6 +521,7 @@ impl Scene {
             background,
             outputs,
             sampling: Sampling::default(),
+            warnings: Vec::new(),
             unbounded,
             bvh,
         }

@@ -32,7 +32,9 @@
 pub mod bounds;
 pub mod bvh;
 pub mod error;
+pub mod expr;
 pub mod hit;
+pub mod isolation;
 pub mod math;
 pub mod offset;
 pub mod ray;
@@ -52,8 +54,9 @@ pub mod polygon;
 pub mod sphere;
 pub mod triangle;
 
-// implicit combinators
+// implicit combinators and user functions
 pub mod csg;
+pub mod function;
 
 #[cfg(feature = "testing")]
 pub mod testing;
@@ -78,6 +81,9 @@ pub use polygon::Polygon;
 pub use sphere::Sphere;
 pub use triangle::Triangle;
 
-pub use csg::{Csg, CsgOp, Function, Offset, SmoothUnion};
+pub use csg::{Csg, CsgOp, Offset, SmoothUnion};
+pub use expr::Expr;
+pub use function::Function;
+pub use isolation::{uncertain_counts, UncertainCounts};
 
 pub use glam;

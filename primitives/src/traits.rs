@@ -7,8 +7,10 @@
 //! closed forms.
 
 use crate::bounds::Aabb;
+use crate::expr::Jet;
 use crate::hit::RawHit;
 use crate::math::central_difference;
+use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::root::{self, RootOptions};
 use glam::{DVec2, DVec3};
@@ -45,6 +47,20 @@ pub trait Implicit {
     /// Without one, the finder samples the ray uniformly ([`RootOptions::samples`]) and can miss
     /// features thinner than one sample spacing.
     fn lipschitz(&self) -> Option<f64> {
+        None
+    }
+
+    /// Enclosures of `g(t) = Φ(ray.at(t))` (`value`) and of `g′(t) = ∇Φ·dir` (`slope`) valid for
+    /// every `t` in `segment`, if the type can bound Φ by interval arithmetic (see
+    /// [`crate::math::enclosure`]; [`crate::expr::Expr::enclose_along`] does it for an
+    /// expression). A type that returns `Some` gets the guaranteed first root of
+    /// [`crate::isolation`] from the generic intersector, without a Lipschitz bound. The default
+    /// is `None` (the sampling / sphere-tracing finder of [`crate::root`]).
+    ///
+    /// The enclosures must be **sound**: a value or slope outside them is a bug that can lose
+    /// roots.
+    fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> {
+        let _ = (ray, segment);
         None
     }
 
@@ -161,6 +177,7 @@ macro_rules! forward_through_pointer {
             fn gradient(&self, p: DVec3) -> DVec3 { (**self).gradient(p) }
             fn lipschitz(&self) -> Option<f64> { (**self).lipschitz() }
             fn within_boundary(&self, p: DVec3) -> bool { (**self).within_boundary(p) }
+            fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> { (**self).enclose_along(ray, segment) }
         }
         impl<P: Intersect + ?Sized> Intersect for $($ptr)::+<P> {
             fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> { (**self).intersect(ray, range) }
