@@ -4,7 +4,7 @@
 use crate::aov::Aov;
 use crate::output::exr::{write_exr, ExrHeader};
 use crate::output::png::write_previews;
-use crate::query::{first_hits, format_hits, parse_rays};
+use crate::query::{first_hits, format_hits, parse_rays_with};
 use crate::render::{render, RenderOptions, Window};
 use crate::scene::Scene;
 use anyhow::{bail, Context, Result};
@@ -75,9 +75,20 @@ pub struct RenderArgs {
 pub struct QueryArgs {
     /// Scene file (RON).
     pub scene: PathBuf,
-    /// Rays, one per line: `ox,oy,oz,dx,dy,dz[,tmin,tmax]`.
+    /// Rays, one per line: `ox,oy,oz,dx,dy,dz[,tmin,tmax][,nx,ny,nz]`. The range is open at
+    /// `tmin` (default 0): the first hit with `t > tmin`, so an origin on a surface does not
+    /// report it at `t = 0`.
     #[arg(long)]
     pub rays: PathBuf,
+    /// Include `tmin` in the range (`tmin ≤ t ≤ tmax`; default `tmin < t ≤ tmax`).
+    #[arg(long)]
+    pub closed_range: bool,
+    /// The origins are surface points known to this precision (`f32`, `f64`, or an absolute error
+    /// bound such as `1e-6`); every line then gives the surface normal `nx,ny,nz` and the origin
+    /// is moved off the surface so the ray cannot re-hit it through rounding (see
+    /// `docs/numerics.md`, "Spawning rays").
+    #[arg(long, value_name = "f32|f64|E")]
+    pub origin_precision: Option<zeroset_primitives::offset::PointPrecision>,
     /// Output CSV (`-` for stdout).
     #[arg(short, long, default_value = "-")]
     pub output: PathBuf,
@@ -250,10 +261,23 @@ fn query_command(args: &QueryArgs) -> Result<()> {
     let scene = Scene::load(&args.scene)?;
     crate::diagnostics::print_load_warnings(&scene);
     let text = std::fs::read_to_string(&args.rays).with_context(|| format!("reading {}", args.rays.display()))?;
-    let rays = parse_rays(&text, &args.rays.display().to_string())?;
+    let setup = crate::query_rays::RaySetup {
+        range: if args.closed_range {
+            crate::query_rays::RangeConvention::Closed
+        } else {
+            crate::query_rays::RangeConvention::OpenStart
+        },
+        origin_precision: args.origin_precision,
+        magnitude: crate::query_rays::scene_magnitude(&scene),
+    };
+    let rays = parse_rays_with(&text, &args.rays.display().to_string(), &setup)?;
+    let before = zeroset_primitives::uncertain_counts();
     let start = Instant::now();
     let hits = first_hits(&scene, &rays);
     let elapsed = start.elapsed();
+    if let Some(message) = crate::diagnostics::uncertain_message(crate::diagnostics::uncertain_since(before)) {
+        eprintln!("{message}");
+    }
     let csv = format_hits(&scene, &hits);
     if args.output.as_os_str() == "-" {
         print!("{csv}");

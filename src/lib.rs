@@ -15,6 +15,7 @@ pub mod mesh_io;
 pub mod motion;
 pub mod output;
 pub mod query;
+pub mod query_rays;
 pub mod registry;
 pub mod render;
 pub mod sampling;

@@ -1,17 +1,19 @@
 //! Batch first-hit queries: `zeroset query SCENE --rays RAYS.csv -o HITS.csv`.
 //!
-//! Input: one ray per line, `ox,oy,oz,dx,dy,dz[,tmin,tmax]` (default `tmin = 0`, `tmax = +∞`);
-//! blank lines and lines starting with `#` are skipped, and so is a first line that is not
-//! numeric (a header). The direction is used as given: `t` is in units of `|d|`, so normalise
-//! directions to get distances.
+//! Input: one ray per line, `ox,oy,oz,dx,dy,dz[,tmin,tmax][,nx,ny,nz]` (default `tmin = 0`,
+//! `tmax = +∞`; the range is open at `tmin` unless `--closed-range`, and the normal columns spawn
+//! the origin off a surface with `--origin-precision`: see [`crate::query_rays`]); blank lines and
+//! lines starting with `#` are skipped, and so is a first line that is not numeric (a header).
+//! The direction is used as given: `t` is in units of `|d|`, so normalise directions to get
+//! distances.
 //!
 //! Output: a header line, then one line per input ray, in input order:
 //! `hit,t,px,py,pz,nx,ny,nz,id,name,u,v` — `hit` is 1 or 0; on a miss every other field is
 //! empty. The normal is the outward unit ∇Φ (not flipped); `id` is the object index, `name` its
 //! name from the scene (empty if unnamed); `u,v` are empty where the primitive has none.
 
+use crate::query_rays::{ray_from_fields, RaySetup};
 use crate::scene::Scene;
-use glam::DVec3;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
@@ -37,8 +39,13 @@ pub struct QueryError {
     pub message: String,
 }
 
-/// Parses the CSV ray list (see the module docs).
+/// Parses the CSV ray list with the default [`RaySetup`] (see the module docs).
 pub fn parse_rays(text: &str, path: &str) -> Result<Vec<QueryRay>, QueryError> {
+    parse_rays_with(text, path, &RaySetup::default())
+}
+
+/// Parses the CSV ray list, building each ray as `setup` says ([`crate::query_rays`]).
+pub fn parse_rays_with(text: &str, path: &str, setup: &RaySetup) -> Result<Vec<QueryRay>, QueryError> {
     let mut rays = Vec::new();
     for (index, line) in text.lines().enumerate() {
         let line_no = index + 1;
@@ -58,32 +65,11 @@ pub fn parse_rays(text: &str, path: &str) -> Result<Vec<QueryRay>, QueryError> {
                 continue; // header
             }
             return Err(err(format!(
-                "expected numbers `ox,oy,oz,dx,dy,dz[,tmin,tmax]`, got `{trimmed}`"
+                "expected numbers `ox,oy,oz,dx,dy,dz[,tmin,tmax][,nx,ny,nz]`, got `{trimmed}`"
             )));
         };
-        if v.len() != 6 && v.len() != 8 {
-            return Err(err(format!("expected 6 or 8 fields, got {}", v.len())));
-        }
-        let origin = DVec3::new(v[0], v[1], v[2]);
-        let dir = DVec3::new(v[3], v[4], v[5]);
-        let range = if v.len() == 8 {
-            Interval::new(v[6], v[7])
-        } else {
-            Interval::POSITIVE
-        };
-        if !origin.is_finite() || !dir.is_finite() {
-            return Err(err("origin and direction must be finite".into()));
-        }
-        if dir == DVec3::ZERO {
-            return Err(err("direction must be non-zero".into()));
-        }
-        if range.min.is_nan() || range.max.is_nan() || range.is_empty() {
-            return Err(err(format!("invalid t range [{}, {}]", range.min, range.max)));
-        }
-        rays.push(QueryRay {
-            ray: Ray::new(origin, dir),
-            range,
-        });
+        let (ray, range) = ray_from_fields(&v, setup).map_err(err)?;
+        rays.push(QueryRay { ray, range });
     }
     Ok(rays)
 }
