@@ -126,12 +126,18 @@ mod tests {
         assert!(ray_from_fields(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0], &f32_setup)
             .unwrap_err()
             .contains("needs the surface normal"));
-        assert!(ray_from_fields(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0], &RaySetup::default())
-            .unwrap_err()
-            .contains("only used with --origin-precision"));
+        assert!(
+            ray_from_fields(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0], &RaySetup::default())
+                .unwrap_err()
+                .contains("only used with --origin-precision")
+        );
         let (ray, _) = ray_from_fields(&[0.0, 0.0, 1.0, 0.0, 1.0, -0.5, 0.0, 0.0, 1.0], &f32_setup).unwrap();
         // leaving downwards (d·n < 0): moved below z = 1 by the spawn distance
-        assert!(ray.origin.z < 1.0 - 2.0 * 2f64.powi(-24) && ray.origin.z > 1.0 - 1e-6, "{}", ray.origin);
+        assert!(
+            ray.origin.z < 1.0 - 2.0 * 2f64.powi(-24) && ray.origin.z > 1.0 - 1e-6,
+            "{}",
+            ray.origin
+        );
         assert!(ray_from_fields(&[0.0; 7], &RaySetup::default()).is_err());
     }
 }
