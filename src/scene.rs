@@ -734,7 +734,8 @@ pub fn affine_from_rows(rows: &[Vec<f64>]) -> Result<DAffine3, String> {
     let linear = glam::DMat3::from_cols(column(0), column(1), column(2));
     let det = linear.determinant();
     let frobenius = (column(0).length_squared() + column(1).length_squared() + column(2).length_squared()).sqrt();
-    if !(det.abs() > 1e-12 * frobenius.powi(3)) {
+    // NaN-rejecting: a NaN determinant is singular too
+    if det.abs().partial_cmp(&(1e-12 * frobenius.powi(3))) != Some(std::cmp::Ordering::Greater) {
         return Err(format!(
             "{field}: the 3×3 linear part is singular (determinant {det:e}); a transform must be invertible"
         ));

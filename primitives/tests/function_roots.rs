@@ -301,11 +301,7 @@ fn double_root_everywhere_is_reported_uncertain() {
                 worst = worst.max((hit.t - h.t).abs());
                 found += 1;
             }
-            _ if closest > 1.0 + 1e-3 => {
-                if report.hit.is_some() {
-                    false_hits += 1;
-                }
-            }
+            _ if closest > 1.0 + 1e-3 && report.hit.is_some() => false_hits += 1,
             _ => {}
         }
     }
