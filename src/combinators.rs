@@ -144,7 +144,7 @@ impl SceneShape for TransformedDesc {
 
 /// `Function(phi: "expr in x, y, z", min: (..), max: (..), tolerance: 1e-7, budget: 100000)`: Φ
 /// written as an expression in standard notation (`+ - * / ^`, numbers such as `1e-3`,
-/// `sqrt exp ln sin cos tan atan tanh abs sq min max pow`, constants `pi`, `e`, `tau`; see
+/// `sqrt exp ln log10 log2 sin cos tan asin acos atan sinh cosh tanh cbrt abs sq min max pow`, constants `pi`, `e`, `tau`; see
 /// `zeroset_primitives::expr`), the surface searched inside the box `[min, max]`. The first root
 /// along a ray is isolated by interval arithmetic (`zeroset_primitives::isolation`): no
 /// Lipschitz bound is needed (`lipschitz` is still accepted, validated and unused), thin

@@ -13,7 +13,8 @@
 //! **Language.** `+ − × ÷` (`+ - * /`), powers `^` or `**` (an integer constant exponent is an
 //! exact repeated product, any other needs a positive base), unary signs, parentheses; numbers
 //! as `2`, `.5`, `1e-3`; variables `x y z`; constants `pi`, `e`, `tau`; functions `sqrt exp ln`
-//! (`log` is `ln`) `sin cos tan atan tanh abs sq` and `min max pow` of two arguments. See
+//! (`log` is `ln`) `log10 log2 sin cos tan asin acos atan sinh cosh tanh cbrt abs sq` and
+//! `min max pow` of two arguments. See
 //! [`parse`](mod@parse) for the grammar.
 //!
 //! **Evaluations.** One tree walk generic over [`Scalar`]:
@@ -62,6 +63,13 @@ pub(crate) enum Func1 {
     Tan,
     Atan,
     Tanh,
+    Asin,
+    Acos,
+    Sinh,
+    Cosh,
+    Log10,
+    Log2,
+    Cbrt,
     Abs,
     /// `sq(x) = x²`, parsed into an integer power.
     Square,
@@ -133,6 +141,13 @@ fn walk<T: Scalar>(node: &Node, vars: &[T; 3]) -> T {
                 Func1::Tan => a.tan(),
                 Func1::Atan => a.atan(),
                 Func1::Tanh => a.tanh(),
+                Func1::Asin => a.asin(),
+                Func1::Acos => a.acos(),
+                Func1::Sinh => a.sinh(),
+                Func1::Cosh => a.cosh(),
+                Func1::Log10 => a.log10(),
+                Func1::Log2 => a.log2(),
+                Func1::Cbrt => a.cbrt(),
                 Func1::Abs => a.abs(),
                 Func1::Square => a.powi(2),
             }
@@ -176,7 +191,10 @@ fn checked(node: &Node, p: &[f64; 3]) -> Result<f64, DomainError> {
             let a = checked(a, p)?;
             match f {
                 Func1::Sqrt if a < 0.0 => return fail(*column, "sqrt of a negative number"),
-                Func1::Ln if a <= 0.0 => return fail(*column, "ln of a number ≤ 0"),
+                Func1::Ln | Func1::Log10 | Func1::Log2 if a <= 0.0 => return fail(*column, "logarithm of a number ≤ 0"),
+                Func1::Asin | Func1::Acos if !(-1.0..=1.0).contains(&a) => {
+                    return fail(*column, "asin/acos of a number outside [−1, 1]")
+                }
                 Func1::Tan if a.cos() == 0.0 => return fail(*column, "tan at a pole"),
                 _ => walk(&Node::Call1(*f, Box::new(Node::Const(a)), *column), &[0.0; 3]),
             }
@@ -281,6 +299,9 @@ mod tests {
         assert_eq!(at("pow(x, 0.5)", [4.0, 0.0, 0.0]), 2.0);
         assert!((at("sin(pi / 2) + ln(e) + cos(0)", [0.0; 3]) - 3.0).abs() < 1e-15);
         assert_eq!(at("abs(-x) - sqrt(16)", [2.0, 0.0, 0.0]), -2.0);
+        assert_eq!(at("log10(1000) + log2(8) + cbrt(-27)", [0.0; 3]), 3.0);
+        assert!((at("asin(1) + acos(1) - pi/2", [0.0; 3])).abs() < 1e-15);
+        assert!((at("cosh(x)^2 - sinh(x)^2", [0.7, 0.0, 0.0]) - 1.0).abs() < 1e-14);
     }
 
     #[test]
@@ -325,6 +346,7 @@ mod tests {
             "(x^2 + y^2 + z^2 + 0.5)^2 - 3*(x^2 + y^2)",
             "exp(-4*(x*x + y*y + z*z)) + exp(-4*((x-0.7)^2 + y*y + z*z)) - 0.5",
             "min(sqrt(x*x + y*y + z*z) - 1, max(abs(x), abs(y)) - 0.5) / (1 + z*z)",
+            "asin(0.5*x) + acos(0.3*y) + sinh(z) * cosh(x) + log10(2 + y) + log2(3 + x) + cbrt(x*z - 2)",
         ];
         let (lo, hi) = (DVec3::new(-0.3, 0.1, -1.2), DVec3::new(0.9, 0.4, -0.7));
         let ray = Ray::new(DVec3::new(-2.0, 0.3, 0.5), DVec3::new(0.8, -0.1, 0.3));

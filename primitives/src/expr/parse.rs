@@ -111,7 +111,7 @@ fn tokenize(text: &str) -> Result<Vec<Lexed>, ParseError> {
 }
 
 /// Names of the one-argument functions, as written.
-const FUNCTIONS_1: [(&str, Func1); 11] = [
+const FUNCTIONS_1: [(&str, Func1); 18] = [
     ("sqrt", Func1::Sqrt),
     ("exp", Func1::Exp),
     ("ln", Func1::Ln),
@@ -121,6 +121,13 @@ const FUNCTIONS_1: [(&str, Func1); 11] = [
     ("tan", Func1::Tan),
     ("atan", Func1::Atan),
     ("tanh", Func1::Tanh),
+    ("asin", Func1::Asin),
+    ("acos", Func1::Acos),
+    ("sinh", Func1::Sinh),
+    ("cosh", Func1::Cosh),
+    ("log10", Func1::Log10),
+    ("log2", Func1::Log2),
+    ("cbrt", Func1::Cbrt),
     ("abs", Func1::Abs),
     ("sq", Func1::Square),
 ];

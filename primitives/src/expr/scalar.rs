@@ -28,6 +28,20 @@ pub trait Scalar:
     fn atan(self) -> Self;
     /// `tanh x`.
     fn tanh(self) -> Self;
+    /// `asin x`.
+    fn asin(self) -> Self;
+    /// `acos x`.
+    fn acos(self) -> Self;
+    /// `sinh x`.
+    fn sinh(self) -> Self;
+    /// `cosh x`.
+    fn cosh(self) -> Self;
+    /// `log₁₀ x`.
+    fn log10(self) -> Self;
+    /// `log₂ x`.
+    fn log2(self) -> Self;
+    /// `∛x`.
+    fn cbrt(self) -> Self;
     /// `|x|`.
     fn abs(self) -> Self;
     /// The derivative of `|x|`: `sign(x)` (an enclosure of it across 0).
@@ -73,6 +87,27 @@ impl Scalar for f64 {
     }
     fn tanh(self) -> Self {
         f64::tanh(self)
+    }
+    fn asin(self) -> Self {
+        f64::asin(self)
+    }
+    fn acos(self) -> Self {
+        f64::acos(self)
+    }
+    fn sinh(self) -> Self {
+        f64::sinh(self)
+    }
+    fn cosh(self) -> Self {
+        f64::cosh(self)
+    }
+    fn log10(self) -> Self {
+        f64::log10(self)
+    }
+    fn log2(self) -> Self {
+        f64::log2(self)
+    }
+    fn cbrt(self) -> Self {
+        f64::cbrt(self)
     }
     fn abs(self) -> Self {
         f64::abs(self)
@@ -137,6 +172,27 @@ impl Scalar for Enclosure {
     }
     fn tanh(self) -> Self {
         Enclosure::tanh(self)
+    }
+    fn asin(self) -> Self {
+        Enclosure::asin(self)
+    }
+    fn acos(self) -> Self {
+        Enclosure::acos(self)
+    }
+    fn sinh(self) -> Self {
+        Enclosure::sinh(self)
+    }
+    fn cosh(self) -> Self {
+        Enclosure::cosh(self)
+    }
+    fn log10(self) -> Self {
+        Enclosure::log10(self)
+    }
+    fn log2(self) -> Self {
+        Enclosure::log2(self)
+    }
+    fn cbrt(self) -> Self {
+        Enclosure::cbrt(self)
     }
     fn abs(self) -> Self {
         Enclosure::abs(self)
@@ -263,6 +319,30 @@ impl<T: Scalar> Scalar for Jet<T> {
     fn tanh(self) -> Self {
         let t = self.value.tanh();
         self.chain(t, T::constant(1.0) - t.powi(2))
+    }
+    fn asin(self) -> Self {
+        let one = T::constant(1.0);
+        self.chain(self.value.asin(), one / (one - self.value.powi(2)).sqrt())
+    }
+    fn acos(self) -> Self {
+        let one = T::constant(1.0);
+        self.chain(self.value.acos(), -(one / (one - self.value.powi(2)).sqrt()))
+    }
+    fn sinh(self) -> Self {
+        self.chain(self.value.sinh(), self.value.cosh())
+    }
+    fn cosh(self) -> Self {
+        self.chain(self.value.cosh(), self.value.sinh())
+    }
+    fn log10(self) -> Self {
+        self.chain(self.value.log10(), T::constant(std::f64::consts::LOG10_E) / self.value)
+    }
+    fn log2(self) -> Self {
+        self.chain(self.value.log2(), T::constant(std::f64::consts::LOG2_E) / self.value)
+    }
+    fn cbrt(self) -> Self {
+        let c = self.value.cbrt();
+        self.chain(c, T::constant(1.0) / (T::constant(3.0) * c.powi(2)))
     }
     fn abs(self) -> Self {
         self.chain(self.value.abs(), self.value.sign())

@@ -300,6 +300,75 @@ impl Enclosure {
         Self::widened(self.lo.tanh(), self.hi.tanh(), LIBM_ULPS, self.undefined).clamp(-1.0, 1.0)
     }
 
+    /// `asin x` over `[−1, 1]` (monotone); flagged where the argument leaves `[−1, 1]`.
+    #[must_use]
+    pub fn asin(self) -> Self {
+        self.unit_domain(f64::asin, true)
+    }
+
+    /// `acos x` over `[−1, 1]` (decreasing); flagged where the argument leaves `[−1, 1]`.
+    #[must_use]
+    pub fn acos(self) -> Self {
+        self.unit_domain(f64::acos, false)
+    }
+
+    fn unit_domain(self, f: fn(f64) -> f64, increasing: bool) -> Self {
+        let undefined = self.undefined || self.lo < -1.0 || self.hi > 1.0;
+        if self.hi < -1.0 || self.lo > 1.0 {
+            return Self {
+                undefined: true,
+                ..Self::ENTIRE
+            };
+        }
+        let (a, b) = (f(self.lo.max(-1.0)), f(self.hi.min(1.0)));
+        let (lo, hi) = if increasing { (a, b) } else { (b, a) };
+        Self::widened(lo, hi, LIBM_ULPS, undefined)
+    }
+
+    /// `sinh x` (monotone).
+    #[must_use]
+    pub fn sinh(self) -> Self {
+        Self::widened(self.lo.sinh(), self.hi.sinh(), LIBM_ULPS, self.undefined)
+    }
+
+    /// `cosh x` (even, smallest at the point nearest 0).
+    #[must_use]
+    pub fn cosh(self) -> Self {
+        let (a, b) = (self.lo.cosh(), self.hi.cosh());
+        let lo = if self.contains_zero() { 1.0 } else { a.min(b) };
+        Self::widened(lo, a.max(b), LIBM_ULPS, self.undefined).clamp_lo(1.0)
+    }
+
+    /// `log₁₀ x` over the positive part; flagged where `lo ≤ 0`.
+    #[must_use]
+    pub fn log10(self) -> Self {
+        self.positive_log(f64::log10)
+    }
+
+    /// `log₂ x` over the positive part; flagged where `lo ≤ 0`.
+    #[must_use]
+    pub fn log2(self) -> Self {
+        self.positive_log(f64::log2)
+    }
+
+    fn positive_log(self, f: fn(f64) -> f64) -> Self {
+        if self.hi <= 0.0 {
+            return Self {
+                lo: f64::NEG_INFINITY,
+                hi: f64::NEG_INFINITY,
+                undefined: true,
+            };
+        }
+        let lo = if self.lo <= 0.0 { f64::NEG_INFINITY } else { f(self.lo) };
+        Self::widened(lo, f(self.hi), LIBM_ULPS, self.undefined || self.lo <= 0.0)
+    }
+
+    /// `∛x` (monotone, defined everywhere).
+    #[must_use]
+    pub fn cbrt(self) -> Self {
+        Self::widened(self.lo.cbrt(), self.hi.cbrt(), LIBM_ULPS, self.undefined)
+    }
+
     /// `sign(x)` as an enclosure of the derivative of `|x|`: `[−1, 1]` across 0.
     #[must_use]
     pub fn sign(self) -> Self {
@@ -404,7 +473,11 @@ mod tests {
             (100.0, 104.0),
         ];
         type Pair = (fn(Enclosure) -> Enclosure, fn(f64) -> f64);
-        let functions: [Pair; 8] = [
+        let functions: [Pair; 12] = [
+            (Enclosure::sinh, f64::sinh),
+            (Enclosure::cosh, f64::cosh),
+            (Enclosure::cbrt, f64::cbrt),
+            (|e| (e * Enclosure::point(0.05)).asin(), |x| (x * 0.05).asin()),
             (Enclosure::sin, f64::sin),
             (Enclosure::cos, f64::cos),
             (Enclosure::exp, f64::exp),
@@ -420,7 +493,11 @@ mod tests {
                 let r = fi(e);
                 for k in 0..=200 {
                     let x = lo + (hi - lo) * f64::from(k) / 200.0;
-                    assert!(r.contains(f(x)), "[{lo}, {hi}] at {x}: {} ∉ {r:?}", f(x));
+                    if f(x).is_nan() {
+                        assert!(r.undefined, "[{lo}, {hi}] at {x}: undefined but not flagged");
+                    } else {
+                        assert!(r.contains(f(x)), "[{lo}, {hi}] at {x}: {} ∉ {r:?}", f(x));
+                    }
                 }
             }
         }
