@@ -205,6 +205,13 @@ impl Implicit for Function {
             Phi::Closure(_) => None,
         }
     }
+
+    fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> {
+        match &self.phi {
+            Phi::Expression(e) => Some(e.enclose_value_along(ray, segment)),
+            Phi::Closure(_) => None,
+        }
+    }
 }
 
 impl Intersect for Function {

@@ -106,8 +106,14 @@ pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
         let enclosure = match known {
             Some(e) => e,
             None => {
+                // the value alone first: most pieces are pruned by it
                 evaluations += 1;
-                match surface.enclose_along(ray, Interval::new(a, b)) {
+                let piece = Interval::new(a, b);
+                let value = surface.enclose_value_along(ray, piece).unwrap_or(Enclosure::ENTIRE);
+                if !value.undefined && !value.contains_zero() {
+                    continue; // 1. root-free
+                }
+                match surface.enclose_along(ray, piece) {
                     Some(e) => e,
                     None => Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE),
                 }

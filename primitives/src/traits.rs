@@ -64,6 +64,13 @@ pub trait Implicit {
         None
     }
 
+    /// The `value` part of [`Implicit::enclose_along`] alone. The interval root finder asks for it
+    /// first on every piece, and for the slope only where the value cannot exclude 0, so a type
+    /// that can enclose the value more cheaply than value and slope together overrides this.
+    fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> {
+        self.enclose_along(ray, segment).map(|jet| jet.value)
+    }
+
     /// Whether a point of Φ's zero set belongs to the surface. Open surfaces whose Φ describes
     /// their supporting surface (a polygon's plane, a disk's plane, an open cylinder's infinite
     /// tube) restrict it here; the default keeps the whole zero set.
@@ -178,6 +185,7 @@ macro_rules! forward_through_pointer {
             fn lipschitz(&self) -> Option<f64> { (**self).lipschitz() }
             fn within_boundary(&self, p: DVec3) -> bool { (**self).within_boundary(p) }
             fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> { (**self).enclose_along(ray, segment) }
+            fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> { (**self).enclose_value_along(ray, segment) }
         }
         impl<P: Intersect + ?Sized> Intersect for $($ptr)::+<P> {
             fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> { (**self).intersect(ray, range) }

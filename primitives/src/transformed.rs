@@ -125,6 +125,10 @@ impl<P: Implicit> Implicit for Transformed<P> {
     fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> {
         self.inner.enclose_along(&self.local_ray(ray), segment)
     }
+
+    fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> {
+        self.inner.enclose_value_along(&self.local_ray(ray), segment)
+    }
 }
 
 impl<P: Intersect> Intersect for Transformed<P> {

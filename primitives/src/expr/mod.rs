@@ -191,7 +191,9 @@ fn checked(node: &Node, p: &[f64; 3]) -> Result<f64, DomainError> {
             let a = checked(a, p)?;
             match f {
                 Func1::Sqrt if a < 0.0 => return fail(*column, "sqrt of a negative number"),
-                Func1::Ln | Func1::Log10 | Func1::Log2 if a <= 0.0 => return fail(*column, "logarithm of a number ≤ 0"),
+                Func1::Ln | Func1::Log10 | Func1::Log2 if a <= 0.0 => {
+                    return fail(*column, "logarithm of a number ≤ 0")
+                }
                 Func1::Asin | Func1::Acos if !(-1.0..=1.0).contains(&a) => {
                     return fail(*column, "asin/acos of a number outside [−1, 1]")
                 }
@@ -255,6 +257,19 @@ impl Expr {
     pub fn enclose_along(&self, ray: &Ray, segment: Interval) -> Jet<Enclosure> {
         let t = Enclosure::new(segment.min, segment.max);
         let coordinate = |o: f64, d: f64| Jet::new(Enclosure::point(o) + t * Enclosure::point(d), Enclosure::point(d));
+        self.eval_in([
+            coordinate(ray.origin.x, ray.dir.x),
+            coordinate(ray.origin.y, ray.dir.y),
+            coordinate(ray.origin.z, ray.dir.z),
+        ])
+    }
+
+    /// An enclosure of `g(t) = Φ(origin + t·dir)` for all `t` in `segment` (the value part of
+    /// [`Expr::enclose_along`], about a third of its cost).
+    #[must_use]
+    pub fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Enclosure {
+        let t = Enclosure::new(segment.min, segment.max);
+        let coordinate = |o: f64, d: f64| Enclosure::point(o) + t * Enclosure::point(d);
         self.eval_in([
             coordinate(ray.origin.x, ray.dir.x),
             coordinate(ray.origin.y, ray.dir.y),
@@ -361,6 +376,7 @@ mod tests {
                 let t = 1.0 + 1.5 * f;
                 let q = ray.at(t);
                 assert!(along.value.contains(e.eval(q)), "{text} at t = {t}");
+                assert!(e.enclose_value_along(&ray, Interval::new(1.0, 2.5)).contains(e.eval(q)));
                 let slope = e.gradient(q).dot(ray.dir);
                 assert!(
                     along.slope.contains(slope),
