@@ -278,10 +278,11 @@ mod tests {
             Triangle::new(a, b, DVec3::new(2.0, 0.0, 0.0)).unwrap(), // collinear
             Triangle::new(a, b, b).unwrap(),                         // repeated vertex
             Triangle::new(a, a, a).unwrap(),                         // a point
+            // exactly collinear in f64 (0.1·3 would round off the line: a regular sliver)
             Triangle::new(
-                DVec3::new(0.1, 0.2, 0.3),
-                DVec3::new(0.1, 0.2, 0.3) * 3.0,
-                DVec3::new(0.1, 0.2, 0.3) * 5.0,
+                DVec3::new(0.125, 0.25, 0.375),
+                DVec3::new(0.125, 0.25, 0.375) * 3.0,
+                DVec3::new(0.125, 0.25, 0.375) * 5.0,
             )
             .unwrap(),
         ];
