@@ -147,7 +147,8 @@ impl SceneShape for TransformedDesc {
 /// `sqrt exp ln log10 log2 sin cos tan asin acos atan sinh cosh tanh cbrt abs sq min max pow`, constants `pi`, `e`, `tau`; see
 /// `zeroset_primitives::expr`), the surface searched inside the box `[min, max]`. The first root
 /// along a ray is isolated by interval arithmetic (`zeroset_primitives::isolation`): no
-/// Lipschitz bound is needed (`lipschitz` is still accepted, validated and unused), thin
+/// Lipschitz bound is needed (an optional `lipschitz` only serves `SmoothUnion` and `Offset`
+/// around the function, whose generic finder marches with it), thin
 /// features are not stepped over, and rays that cannot be decided within `tolerance` (units of
 /// `t`) or `budget` (enclosure and point evaluations per ray) are counted and reported after
 /// the render or query. Where the expression is undefined Φ is `+∞` (outside); a point of the box
@@ -161,7 +162,9 @@ pub struct FunctionDesc {
     pub min: DVec3,
     /// Upper corner of the search box.
     pub max: DVec3,
-    /// Accepted for older scenes; not needed (interval isolation uses no Lipschitz bound).
+    /// Optional bound on |∇Φ| in the box: not needed by the function itself (interval isolation
+    /// uses none), only read by `SmoothUnion` / `Offset` around it, which march the generic
+    /// finder.
     #[serde(default)]
     pub lipschitz: Option<f64>,
     /// Width of the final bracket around a root, in units of `t`; default `1e-7`.
@@ -187,7 +190,10 @@ impl SceneShape for FunctionDesc {
             max_evaluations: self.budget.unwrap_or(defaults.max_evaluations),
             ..defaults
         };
-        let function = Function::from_expr(expr, Aabb::new(self.min, self.max), options)?;
+        let mut function = Function::from_expr(expr, Aabb::new(self.min, self.max), options)?;
+        if let Some(l) = self.lipschitz {
+            function = function.with_lipschitz(l)?;
+        }
         if function.may_be_undefined() {
             context.warn(format!(
                 "`{}` may be undefined in parts of its box (interval evaluation could not exclude it); \

@@ -186,7 +186,10 @@ fn function_expressions_errors_and_guaranteed_roots() {
         r#"Function(phi: "x^2 + y^2 + z^2 - 1", min: (-1, -1, -1), max: (1, 1, 1), lipschitz: 2)"#,
     ));
     assert_ok(&old, "lipschitz still accepted");
-    assert!(stderr(&old).contains("warning") && stderr(&old).contains("lipschitz"));
+    let negative = render(&scene_with(
+        r#"Function(phi: "x^2 + y^2 + z^2 - 1", min: (-1, -1, -1), max: (1, 1, 1), lipschitz: -2)"#,
+    ));
+    assert_fails(&negative, &["lipschitz"], "negative lipschitz");
 
     // a shell 1e-4 thick, queried on a grid of rays: every ray through it hits at the outer sphere
     let shell = scene_with(

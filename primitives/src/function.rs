@@ -147,6 +147,19 @@ impl Function {
         })
     }
 
+    /// The same function declaring a Lipschitz bound `lipschitz > 0` of Φ over the box. An
+    /// expression function does not need it (its roots are isolated by interval arithmetic), but
+    /// combinators that march their zero set with the generic finder (`SmoothUnion`, `Offset`)
+    /// read it from their children.
+    ///
+    /// # Errors
+    /// A bound that is not finite and positive.
+    pub fn with_lipschitz(mut self, lipschitz: f64) -> Result<Self, PrimitiveError> {
+        crate::error::require_positive("Function", "lipschitz", lipschitz)?;
+        self.lipschitz = Some(lipschitz);
+        Ok(self)
+    }
+
     /// The expression, for an expression function.
     #[must_use]
     pub fn expr(&self) -> Option<&Expr> {
