@@ -232,3 +232,81 @@ impl Intersect for Function {
         self.options
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Interval;
+
+    fn unit_box() -> Aabb {
+        Aabb::new(DVec3::splat(-1.0), DVec3::splat(1.0))
+    }
+
+    fn build(text: &str, bounds: Aabb) -> Result<Function, PrimitiveError> {
+        Function::from_expr(Expr::parse(text).unwrap(), bounds, RootOptions::default())
+    }
+
+    #[test]
+    fn domain_errors_are_found_at_construction() {
+        let cases = [
+            ("x + sqrt(-1)", "sqrt of a negative number (column 5)"),
+            ("1/0 + x", "division by zero (column 2)"),
+            ("ln(x) - 1", "logarithm of a number ≤ 0 (column 1)"),
+            ("x^2 + y^2 - 1/x", "division by zero (column 14)"),
+        ];
+        for (text, message) in cases {
+            let e = build(text, unit_box()).unwrap_err();
+            assert_eq!(e.field, "phi", "{text}");
+            assert!(e.problem.contains(message), "{text}: {}", e.problem);
+        }
+        // defined over the whole box: no error, and the interval check says so
+        let fine = build("ln(x + 2) + 1/(y + 3) + sqrt(z + 1)", unit_box()).unwrap();
+        assert!(!fine.may_be_undefined());
+        let away = build("1/x - 1.5", Aabb::new(DVec3::new(0.5, -1.0, -1.0), DVec3::ONE)).unwrap();
+        assert!(!away.may_be_undefined());
+    }
+
+    #[test]
+    fn options_and_bounds_are_validated() {
+        let expr = || Expr::parse("x").unwrap();
+        let bad_tolerance = RootOptions {
+            tolerance: 0.0,
+            ..RootOptions::default()
+        };
+        assert_eq!(
+            Function::from_expr(expr(), unit_box(), bad_tolerance)
+                .unwrap_err()
+                .field,
+            "tolerance"
+        );
+        let bad_budget = RootOptions {
+            max_evaluations: 1,
+            ..RootOptions::default()
+        };
+        assert_eq!(
+            Function::from_expr(expr(), unit_box(), bad_budget).unwrap_err().field,
+            "budget"
+        );
+        let infinite = Aabb::new(DVec3::splat(-1.0), DVec3::splat(f64::INFINITY));
+        assert_eq!(
+            Function::from_expr(expr(), infinite, RootOptions::default())
+                .unwrap_err()
+                .field,
+            "bounds"
+        );
+        assert!(build("x", unit_box()).unwrap().with_lipschitz(-1.0).is_err());
+    }
+
+    #[test]
+    fn expression_gradient_and_first_hit() {
+        let f = build("x^2 + y^2 + z^2 - 0.25", unit_box()).unwrap();
+        let p = DVec3::new(0.3, -0.2, 0.1);
+        assert_eq!(f.gradient(p), 2.0 * p);
+        let ray = Ray::new(DVec3::new(-3.0, 0.0, 0.0), DVec3::X);
+        let hit = f.intersect(&ray, Interval::POSITIVE).unwrap();
+        assert!((hit.t - 2.5).abs() <= 1e-7, "{}", hit.t);
+        // the range is respected: starting past the front, the back is the first hit
+        let back = f.intersect(&ray, Interval::new(3.0, 10.0)).unwrap();
+        assert!((back.t - 3.5).abs() <= 1e-7, "{}", back.t);
+    }
+}

@@ -1,11 +1,14 @@
 //! Interval arithmetic: an [`Enclosure`] `[lo, hi]` is a set of reals guaranteed to contain the
 //! exact value of an expression whose arguments lie in the argument enclosures.
 //!
-//! **Rounding.** Rust has no directed rounding, so every result is computed in round-to-nearest
-//! and then widened outward: by one ulp for `+ − × ÷ √` (correctly rounded in IEEE 754, so the
-//! rounded bound is within half an ulp of the exact one) and by [`LIBM_ULPS`] ulps for the
-//! elementary functions (`exp ln sin cos tan atan tanh`, within 1–2 ulp in every mainstream libm).
-//! Hence `lo ≤ exact ≤ hi` for every exact argument in the argument enclosures.
+//! **Rounding.** Rust has no directed rounding, so `+ − × ÷ √` are rounded to nearest and then
+//! corrected with their exact rounding error (two-sum for sums, a fused multiply-add for the
+//! residual of products, quotients and square roots): a bound moves one ulp outward only when
+//! the rounded value lies on the wrong side of the exact one, so these are exactly the directed
+//! roundings (an exact result, such as `−1 + 1 = 0`, stays exact). The elementary functions
+//! (`exp ln sin cos …`, faithful to 1–2 ulp in every mainstream libm) are widened by
+//! [`LIBM_ULPS`] ulps. Hence `lo ≤ exact ≤ hi` for every exact argument in the argument
+//! enclosures.
 //!
 //! **Domain.** Where an operation is undefined for part of its argument (`√` of a negative, `ln`
 //! of a non-positive, `÷` by an enclosure containing 0, `tan` across a pole) the result is
@@ -46,6 +49,56 @@ fn up(x: f64, ulps: u32) -> f64 {
     x
 }
 
+/// `a + b` rounded towards −∞ (`DOWN`) or +∞, from the exact error of the nearest sum.
+fn add_directed<const DOWN: bool>(a: f64, b: f64) -> f64 {
+    let s = a + b;
+    let bb = s - a;
+    let e = (a - (s - bb)) + (b - bb);
+    directed::<DOWN>(s, e)
+}
+
+/// `a · b` rounded towards −∞ and towards +∞ (one product and one fused multiply-add for the
+/// exact error); `0 · ∞ = 0` (the exact product of a finite zero factor with an unbounded one).
+fn mul_both(a: f64, b: f64) -> (f64, f64) {
+    if a == 0.0 || b == 0.0 {
+        return (0.0, 0.0);
+    }
+    let p = a * b;
+    let e = a.mul_add(b, -p);
+    (directed::<true>(p, e), directed::<false>(p, e))
+}
+
+/// `a / b` rounded towards −∞ and towards +∞: the residual `a − q·b` (exact by FMA) has the
+/// sign of `(a/b − q)·b`.
+fn div_both(a: f64, b: f64) -> (f64, f64) {
+    let q = a / b;
+    let r = (-q).mul_add(b, a);
+    let e = if b > 0.0 { r } else { -r };
+    (directed::<true>(q, e), directed::<false>(q, e))
+}
+
+/// `√x` rounded towards −∞ (`DOWN`) or +∞: the residual `x − s²` has the sign of `√x − s`.
+fn sqrt_directed<const DOWN: bool>(x: f64) -> f64 {
+    let s = x.sqrt();
+    directed::<DOWN>(s, (-s).mul_add(s, x))
+}
+
+/// The rounded value `v` of an exact value `v + e`, moved one ulp to the requested side where it
+/// lies on the other; non-finite values or errors fall back to one ulp outward.
+fn directed<const DOWN: bool>(v: f64, e: f64) -> f64 {
+    if !v.is_finite() || !e.is_finite() {
+        // an overflow to ±∞ or a NaN error: the plain outward step is still sound
+        return if DOWN { v.next_down() } else { v.next_up() };
+    }
+    if DOWN && e < 0.0 {
+        v.next_down()
+    } else if !DOWN && e > 0.0 {
+        v.next_up()
+    } else {
+        v
+    }
+}
+
 impl Enclosure {
     /// Every real number.
     pub const ENTIRE: Self = Self {
@@ -75,6 +128,15 @@ impl Enclosure {
         let lo = if lo.is_nan() { f64::NEG_INFINITY } else { down(lo, ulps) };
         let hi = if hi.is_nan() { f64::INFINITY } else { up(hi, ulps) };
         Self { lo, hi, undefined }
+    }
+
+    /// `[lo, hi]` with NaN bounds (`∞ − ∞`, `∞ / ∞`) replaced by infinities.
+    fn checked(lo: f64, hi: f64, undefined: bool) -> Self {
+        Self {
+            lo: if lo.is_nan() { f64::NEG_INFINITY } else { lo },
+            hi: if hi.is_nan() { f64::INFINITY } else { hi },
+            undefined,
+        }
     }
 
     /// Whether `0 ∈ [lo, hi]`.
@@ -119,13 +181,11 @@ impl Enclosure {
                 undefined: true,
             };
         }
-        Self::widened(
-            self.lo.max(0.0).sqrt(),
-            self.hi.sqrt(),
-            1,
-            self.undefined || self.lo < 0.0,
-        )
-        .clamp_lo(0.0)
+        Self {
+            lo: sqrt_directed::<true>(self.lo.max(0.0)).max(0.0),
+            hi: sqrt_directed::<false>(self.hi),
+            undefined: self.undefined || self.lo < 0.0,
+        }
     }
 
     fn clamp_lo(mut self, lo: f64) -> Self {
@@ -405,38 +465,42 @@ impl Neg for Enclosure {
 impl Add for Enclosure {
     type Output = Self;
     fn add(self, o: Self) -> Self {
-        Self::widened(self.lo + o.lo, self.hi + o.hi, 1, self.flag(o))
+        Self::checked(
+            add_directed::<true>(self.lo, o.lo),
+            add_directed::<false>(self.hi, o.hi),
+            self.flag(o),
+        )
     }
 }
 
 impl Sub for Enclosure {
     type Output = Self;
     fn sub(self, o: Self) -> Self {
-        Self::widened(self.lo - o.hi, self.hi - o.lo, 1, self.flag(o))
+        Self::checked(
+            add_directed::<true>(self.lo, -o.hi),
+            add_directed::<false>(self.hi, -o.lo),
+            self.flag(o),
+        )
     }
 }
 
-/// A product of bounds where `0 · ∞` counts as 0 (the exact product of a finite zero factor).
-fn product(a: f64, b: f64) -> f64 {
-    if a == 0.0 || b == 0.0 {
-        0.0
-    } else {
-        a * b
-    }
+/// The smallest lower and largest upper bound of four directed results.
+fn hull_of(bounds: [(f64, f64); 4]) -> (f64, f64) {
+    let lo = bounds[0].0.min(bounds[1].0).min(bounds[2].0.min(bounds[3].0));
+    let hi = bounds[0].1.max(bounds[1].1).max(bounds[2].1.max(bounds[3].1));
+    (lo, hi)
 }
 
 impl Mul for Enclosure {
     type Output = Self;
     fn mul(self, o: Self) -> Self {
-        let p = [
-            product(self.lo, o.lo),
-            product(self.lo, o.hi),
-            product(self.hi, o.lo),
-            product(self.hi, o.hi),
-        ];
-        let lo = p.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = p.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        Self::widened(lo, hi, 1, self.flag(o))
+        let (lo, hi) = hull_of([
+            mul_both(self.lo, o.lo),
+            mul_both(self.lo, o.hi),
+            mul_both(self.hi, o.lo),
+            mul_both(self.hi, o.hi),
+        ]);
+        Self::checked(lo, hi, self.flag(o))
     }
 }
 
@@ -449,10 +513,13 @@ impl Div for Enclosure {
                 ..Self::ENTIRE
             };
         }
-        let q = [self.lo / o.lo, self.lo / o.hi, self.hi / o.lo, self.hi / o.hi];
-        let lo = q.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = q.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        Self::widened(lo, hi, 1, self.flag(o))
+        let (lo, hi) = hull_of([
+            div_both(self.lo, o.lo),
+            div_both(self.lo, o.hi),
+            div_both(self.hi, o.lo),
+            div_both(self.hi, o.hi),
+        ]);
+        Self::checked(lo, hi, self.flag(o))
     }
 }
 
@@ -518,6 +585,17 @@ mod tests {
         let sq = Enclosure::new(-2.0, 1.0).powi(2);
         assert!(sq.lo == 0.0 && sq.hi >= 4.0 && sq.hi < 4.0 + 1e-14);
         let m = Enclosure::new(-2.0, 3.0) * Enclosure::new(-1.0, 0.5);
-        assert!(m.lo <= -3.0 && m.lo > -3.0 - 1e-14 && m.hi >= 2.0 && m.hi < 2.0 + 1e-14);
+        assert_eq!((m.lo, m.hi), (-3.0, 2.0), "exact products stay exact");
+        let z = Enclosure::new(-1.0, 1.0) + Enclosure::point(1.0);
+        assert_eq!(z.lo, 0.0, "an exact sum is not widened");
+        assert!(!z.sqrt().undefined);
+        // inexact results: directed, and tight
+        let third = Enclosure::point(1.0) / Enclosure::point(3.0);
+        assert!(third.lo < third.hi && third.hi == third.lo.next_up());
+        assert!(third.lo <= 1.0 / 3.0 && 1.0 / 3.0 <= third.hi);
+        let tenth = Enclosure::point(0.1) + Enclosure::point(0.2);
+        assert!(tenth.contains(0.1 + 0.2) && tenth.hi == tenth.lo.next_up());
+        let root = Enclosure::point(2.0).sqrt();
+        assert!(root.hi == root.lo.next_up() && root.lo * root.lo < 2.0 && root.hi * root.hi > 2.0);
     }
 }
