@@ -218,6 +218,25 @@ fn function_expressions_errors_and_guaranteed_roots() {
     }
     println!("[cli] thin shell 1e-4: {} rays, worst |Δt| {worst:e}", hits.len());
     assert!(worst < 1e-7, "{worst:e}");
+    assert!(!stderr(&out).contains("not decided exactly"), "{}", stderr(&out));
+
+    // undecided rays are counted and reported, never dropped silently: a double root everywhere
+    // (touches, reported as hits) and a budget too small to isolate anything (misses)
+    let touch = scene_with(r#"Function(phi: "(x^2 + y^2 + z^2 - 1)^2", min: (-2, -2, -2), max: (2, 2, 2))"#);
+    let (out, hits) = query(&touch, "0,0,-5,0,0,1\n0.5,0,-5,0,0,1\n", &[]);
+    assert_ok(&out, "double root");
+    assert!(hits.iter().all(Option::is_some), "{hits:?}");
+    assert!(stderr(&out).contains("2 rays touch"), "{}", stderr(&out));
+    let starved = scene_with(
+        r#"Function(phi: "abs(sqrt(x^2 + y^2 + z^2) - 1) - 1e-4", min: (-2, -2, -2), max: (2, 2, 2), budget: 2)"#,
+    );
+    let (out, _) = query(&starved, "0,0,-5,0,0,1\n", &[]);
+    assert_ok(&out, "starved");
+    assert!(
+        stderr(&out).contains("1 rays ran out of their budget"),
+        "{}",
+        stderr(&out)
+    );
 }
 
 #[test]
