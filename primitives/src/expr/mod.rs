@@ -213,6 +213,21 @@ fn checked(node: &Node, p: &[f64; 3]) -> Result<f64, DomainError> {
     })
 }
 
+/// Enclosures of the coordinates `oᵢ + t·dᵢ`, `t ∈ segment`, intersected with `[lo, hi]`.
+fn coordinates_along(ray: &Ray, segment: Interval, lo: DVec3, hi: DVec3) -> Option<[Enclosure; 3]> {
+    let t = Enclosure::new(segment.min, segment.max);
+    let mut out = [Enclosure::ENTIRE; 3];
+    for (axis, slot) in out.iter_mut().enumerate() {
+        let c = Enclosure::point(ray.origin[axis]) + t * Enclosure::point(ray.dir[axis]);
+        let (a, b) = (c.lo.max(lo[axis]), c.hi.min(hi[axis]));
+        if !(a <= b) {
+            return None;
+        }
+        *slot = Enclosure::new(a, b);
+    }
+    Some(out)
+}
+
 impl Expr {
     /// Parses standard notation (see the module docs); errors carry the column.
     pub fn parse(text: &str) -> Result<Self, ParseError> {
@@ -255,26 +270,38 @@ impl Expr {
     /// `segment`. The coordinates `oᵢ + t·dᵢ` are themselves enclosed (rounding included).
     #[must_use]
     pub fn enclose_along(&self, ray: &Ray, segment: Interval) -> Jet<Enclosure> {
-        let t = Enclosure::new(segment.min, segment.max);
-        let coordinate = |o: f64, d: f64| Jet::new(Enclosure::point(o) + t * Enclosure::point(d), Enclosure::point(d));
-        self.eval_in([
-            coordinate(ray.origin.x, ray.dir.x),
-            coordinate(ray.origin.y, ray.dir.y),
-            coordinate(ray.origin.z, ray.dir.z),
-        ])
+        let everywhere = DVec3::splat(f64::INFINITY);
+        self.enclose_along_in(ray, segment, -everywhere, everywhere)
+            .expect("every segment meets the whole space")
+    }
+
+    /// [`Expr::enclose_along`] for the points of the segment inside the box `[lo, hi]` (each
+    /// coordinate enclosure intersected with the box's range); `None` where none is inside.
+    /// This is what a function defined only inside its box needs: rounding of the clipped
+    /// segment's ends cannot bring in points outside the box (where Φ may be undefined).
+    #[must_use]
+    pub fn enclose_along_in(&self, ray: &Ray, segment: Interval, lo: DVec3, hi: DVec3) -> Option<Jet<Enclosure>> {
+        let c = coordinates_along(ray, segment, lo, hi)?;
+        Some(self.eval_in([
+            Jet::new(c[0], Enclosure::point(ray.dir.x)),
+            Jet::new(c[1], Enclosure::point(ray.dir.y)),
+            Jet::new(c[2], Enclosure::point(ray.dir.z)),
+        ]))
     }
 
     /// An enclosure of `g(t) = Φ(origin + t·dir)` for all `t` in `segment` (the value part of
     /// [`Expr::enclose_along`], about a third of its cost).
     #[must_use]
     pub fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Enclosure {
-        let t = Enclosure::new(segment.min, segment.max);
-        let coordinate = |o: f64, d: f64| Enclosure::point(o) + t * Enclosure::point(d);
-        self.eval_in([
-            coordinate(ray.origin.x, ray.dir.x),
-            coordinate(ray.origin.y, ray.dir.y),
-            coordinate(ray.origin.z, ray.dir.z),
-        ])
+        let everywhere = DVec3::splat(f64::INFINITY);
+        self.enclose_value_along_in(ray, segment, -everywhere, everywhere)
+            .expect("every segment meets the whole space")
+    }
+
+    /// [`Expr::enclose_value_along`] for the points of the segment inside the box `[lo, hi]`.
+    #[must_use]
+    pub fn enclose_value_along_in(&self, ray: &Ray, segment: Interval, lo: DVec3, hi: DVec3) -> Option<Enclosure> {
+        coordinates_along(ray, segment, lo, hi).map(|c| self.eval_in(c))
     }
 
     /// The analytic gradient ∇Φ at `p` (forward mode, one pass per axis).
