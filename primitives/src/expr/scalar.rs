@@ -122,7 +122,13 @@ impl Scalar for f64 {
         }
     }
     fn powi(self, n: i32) -> Self {
-        f64::powi(self, n)
+        // small powers inline (a runtime exponent would otherwise be a library call)
+        match n {
+            1 => self,
+            2 => self * self,
+            3 => self * self * self,
+            _ => f64::powi(self, n),
+        }
     }
     fn pow(self, y: Self) -> Self {
         if self > 0.0 {
@@ -351,10 +357,10 @@ impl<T: Scalar> Scalar for Jet<T> {
         Self::new(self.value.sign(), T::constant(0.0))
     }
     fn powi(self, n: i32) -> Self {
-        let derivative = if n == 1 {
-            T::constant(1.0)
-        } else {
-            T::constant(f64::from(n)) * self.value.powi(n - 1)
+        let derivative = match n {
+            1 => T::constant(1.0),
+            2 => T::constant(2.0) * self.value,
+            _ => T::constant(f64::from(n)) * self.value.powi(n - 1),
         };
         self.chain(self.value.powi(n), derivative)
     }

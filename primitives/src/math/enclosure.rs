@@ -272,6 +272,21 @@ impl Enclosure {
         if n < 0 {
             return Self::point(1.0) / self.powi(-n);
         }
+        if n == 1 {
+            return self;
+        }
+        if n == 2 {
+            // the square, with directed products: exact where the square is representable
+            let (lo2, hi2) = (mul_both(self.lo, self.lo), mul_both(self.hi, self.hi));
+            let (lo, hi) = if self.lo >= 0.0 {
+                (lo2.0, hi2.1)
+            } else if self.hi <= 0.0 {
+                (hi2.0, lo2.1)
+            } else {
+                (0.0, lo2.1.max(hi2.1))
+            };
+            return Self::checked(lo, hi, self.undefined);
+        }
         // each powi rounds at most ~n times; widen by n ulps (relative error ≤ γₙ)
         let ulps = n.unsigned_abs() + 1;
         let (a, b) = (self.lo.powi(n), self.hi.powi(n));
