@@ -98,6 +98,37 @@ pub(crate) enum Node {
     Call2(Func2, Box<Node>, Box<Node>, usize),
 }
 
+impl Node {
+    /// Moves the children out (replaced by constants) onto `out`.
+    fn take_children(&mut self, out: &mut Vec<Node>) {
+        let mut take = |child: &mut Box<Node>| out.push(std::mem::replace(&mut **child, Node::Const(0.0)));
+        match self {
+            Node::Const(_) | Node::Var(_) => {}
+            Node::Neg(a, _) | Node::PowI(a, _, _) | Node::Call1(_, a, _) => take(a),
+            Node::Add(a, b, _)
+            | Node::Sub(a, b, _)
+            | Node::Mul(a, b, _)
+            | Node::Div(a, b, _)
+            | Node::Call2(_, a, b, _) => {
+                take(a);
+                take(b);
+            }
+        }
+    }
+}
+
+/// Dropped without recursion: a rejected expression may be a chain of 10⁵ operations, deeper than
+/// a thread's stack allows a recursive drop to go.
+impl Drop for Node {
+    fn drop(&mut self) {
+        let mut pending = Vec::new();
+        self.take_children(&mut pending);
+        while let Some(mut node) = pending.pop() {
+            node.take_children(&mut pending);
+        }
+    }
+}
+
 /// An operation evaluated outside its domain.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct DomainError {
@@ -366,6 +397,22 @@ mod tests {
             assert_eq!(e.column, column, "{text}: {e}");
             assert!(e.message.contains(message), "{text}: {e}");
         }
+    }
+
+    #[test]
+    fn deep_expressions_are_errors_not_stack_overflows() {
+        let nested = format!("{}x{}", "(".repeat(100_000), ")".repeat(100_000));
+        let e = Expr::parse(&nested).unwrap_err();
+        assert!(e.message.contains("nested more than 200"), "{e}");
+        assert_eq!(e.column, 201);
+        let signs = format!("{}x", "-".repeat(100_000));
+        assert!(Expr::parse(&signs).unwrap_err().message.contains("nested"));
+        let long_sum = vec!["x"; 100_000].join(" + ");
+        let e = Expr::parse(&long_sum).unwrap_err();
+        assert!(e.message.contains("more than 1000"), "{e}");
+        // a sum of 500 terms is fine, and evaluates
+        let ok = vec!["x"; 500].join(" + ");
+        assert_eq!(Expr::parse(&ok).unwrap().eval(DVec3::new(2.0, 0.0, 0.0)), 1000.0);
     }
 
     #[test]

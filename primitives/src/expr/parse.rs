@@ -135,9 +135,17 @@ const FUNCTIONS_1: [(&str, Func1); 18] = [
 /// Names of the two-argument functions.
 const FUNCTIONS_2: [(&str, Func2); 3] = [("min", Func2::Min), ("max", Func2::Max), ("pow", Func2::Pow)];
 
+/// Most nested parentheses, calls and signs (the parser recurses once per level).
+const MAX_NESTING: usize = 200;
+
+/// Deepest syntax tree accepted (evaluation walks it recursively, also on worker threads with
+/// small stacks); a sum of a thousand terms is still fine.
+pub(super) const MAX_DEPTH: usize = 1000;
+
 struct Parser {
     tokens: Vec<Lexed>,
     at: usize,
+    nesting: usize,
 }
 
 impl Parser {
@@ -203,6 +211,16 @@ impl Parser {
     }
 
     fn unary(&mut self) -> Result<Node, ParseError> {
+        if self.nesting >= MAX_NESTING {
+            return self.error(format!("nested more than {MAX_NESTING} levels deep"));
+        }
+        self.nesting += 1;
+        let node = self.unary_inner();
+        self.nesting -= 1;
+        node
+    }
+
+    fn unary_inner(&mut self) -> Result<Node, ParseError> {
         let column = self.column();
         if self.eat("-") {
             Ok(match self.unary()? {
@@ -345,6 +363,7 @@ pub(super) fn parse(text: &str) -> Result<Node, ParseError> {
     let mut parser = Parser {
         tokens: tokenize(text)?,
         at: 0,
+        nesting: 0,
     };
     if parser.peek() == &Token::End {
         return parser.error("the expression is empty");
@@ -356,5 +375,34 @@ pub(super) fn parse(text: &str) -> Result<Node, ParseError> {
             parser.describe()
         ));
     }
+    let depth = tree_depth(&node);
+    if depth > MAX_DEPTH {
+        return Err(ParseError {
+            column: 1,
+            message: format!("the expression is {depth} operations deep, more than {MAX_DEPTH}"),
+        });
+    }
     Ok(node)
+}
+
+/// The depth of a tree, computed without recursion (an explicit stack).
+fn tree_depth(root: &Node) -> usize {
+    let mut deepest = 0;
+    let mut stack = vec![(root, 1usize)];
+    while let Some((node, depth)) = stack.pop() {
+        deepest = deepest.max(depth);
+        match node {
+            Node::Const(_) | Node::Var(_) => {}
+            Node::Neg(a, _) | Node::PowI(a, _, _) | Node::Call1(_, a, _) => stack.push((a, depth + 1)),
+            Node::Add(a, b, _)
+            | Node::Sub(a, b, _)
+            | Node::Mul(a, b, _)
+            | Node::Div(a, b, _)
+            | Node::Call2(_, a, b, _) => {
+                stack.push((a, depth + 1));
+                stack.push((b, depth + 1));
+            }
+        }
+    }
+    deepest
 }
