@@ -19,6 +19,16 @@
 //! - **Frames.** Each primitive is defined by world-space parameters as listed in its module;
 //!   [`Transformed`] places any primitive under an affine map, preserving `t`.
 //!
+//! ## Expressions and guaranteed roots
+//! [`Expr`] parses Φ written in standard notation and evaluates it at points, over boxes
+//! (interval arithmetic, [`math::enclosure`]) and along rays with its derivative; a [`Function`]
+//! built from one has its first root along each ray isolated with a guarantee
+//! ([`isolation`]), or the ray counted as uncertain ([`uncertain_counts`]).
+//!
+//! ## Rays from stored points
+//! [`offset::spawn_origin`] starts a ray from a point known only to f32, f64 or an explicit
+//! error bound, so that it cannot re-hit the surface it starts on through rounding.
+//!
 //! ## Two-stage intersection
 //! [`Intersect::intersect`] returns a cheap [`RawHit`]; the closest one is finished once with
 //! [`SurfaceHit::complete`], computing only what a [`HitRequest`] asks for.

@@ -4,7 +4,9 @@
 //! The minimum a new primitive type writes is [`Implicit::phi`] and [`Implicit::bounds`] plus an
 //! empty `impl Intersect for MyType {}`: the gradient (normals) comes from central differences and
 //! the intersection from the generic root finder in [`crate::root`]. Built-ins override both with
-//! closed forms.
+//! closed forms. A type that can bound Φ by interval arithmetic along a ray segment
+//! ([`Implicit::enclose_along`]) gets guaranteed first roots ([`crate::isolation`]) instead of the
+//! sampling / Lipschitz march.
 
 use crate::bounds::Aabb;
 use crate::expr::Jet;
