@@ -15,7 +15,7 @@
 //! as `2`, `.5`, `1e-3`; variables `x y z`; constants `pi`, `e`, `tau`; functions `sqrt exp ln`
 //! (`log` is `ln`) `log10 log2 sin cos tan asin acos atan sinh cosh tanh cbrt abs sq` and
 //! `min max pow` of two arguments. See
-//! [`parse`](mod@parse) for the grammar.
+//! `expr/parse.rs` for the grammar.
 //!
 //! **Evaluations.** One tree walk generic over [`Scalar`]:
 //! - [`Expr::eval`]: `f64` at a point (`NaN`/`±∞` where undefined);
