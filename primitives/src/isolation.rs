@@ -73,52 +73,45 @@ fn differ(ga: f64, gb: f64) -> bool {
 }
 
 /// The first root of Φ along `ray` in `segment` (already clipped to the bounds), by interval
-/// isolation; `whole` is the enclosure of the whole segment (see the module docs). The budget is
-/// [`RootOptions::max_evaluations`], counting enclosures and point values alike.
+/// isolation (see the module docs). The budget is [`RootOptions::max_evaluations`], counting
+/// enclosures and point values alike.
 pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
     surface: &I,
     ray: &Ray,
     segment: Interval,
-    whole: Jet<Enclosure>,
     options: &RootOptions,
 ) -> RootReport {
     let tolerance = options.tolerance.max(f64::MIN_POSITIVE);
     let mut report = RootReport {
         hit: None,
         lipschitz_violated: false,
-        evaluations: 1,
+        evaluations: 0,
         uncertain: false,
     };
     let mut undefined_seen = false;
-    let mut evaluations = 1u32;
+    let mut evaluations = 0u32;
     let point = |t: f64, evaluations: &mut u32| {
         *evaluations = evaluations.saturating_add(1);
         surface.phi(ray.at(t))
     };
-    // pieces to examine, the front one last (popped first), with their enclosure when known
-    let mut stack: Vec<(f64, f64, Option<Jet<Enclosure>>)> = vec![(segment.min, segment.max, Some(whole))];
-    while let Some((a, b, known)) = stack.pop() {
+    // pieces to examine, the front one last (popped first)
+    let mut stack: Vec<(f64, f64)> = vec![(segment.min, segment.max)];
+    while let Some((a, b)) = stack.pop() {
         if evaluations >= options.max_evaluations {
             EXHAUSTED.fetch_add(1, Ordering::Relaxed);
             report.uncertain = true;
             break;
         }
-        let enclosure = match known {
-            Some(e) => e,
-            None => {
-                // the value alone first: most pieces are pruned by it
-                evaluations += 1;
-                let piece = Interval::new(a, b);
-                let value = surface.enclose_value_along(ray, piece).unwrap_or(Enclosure::ENTIRE);
-                if !value.undefined && !value.contains_zero() {
-                    continue; // 1. root-free
-                }
-                match surface.enclose_along(ray, piece) {
-                    Some(e) => e,
-                    None => Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE),
-                }
-            }
-        };
+        // the value alone first: most pieces (and whole rays that miss) are pruned by it
+        evaluations += 1;
+        let piece = Interval::new(a, b);
+        let value = surface.enclose_value_along(ray, piece).unwrap_or(Enclosure::ENTIRE);
+        if !value.undefined && !value.contains_zero() {
+            continue; // 1. root-free
+        }
+        let enclosure = surface
+            .enclose_along(ray, piece)
+            .unwrap_or(Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE));
         let value = enclosure.value;
         let defined = !value.undefined;
         if defined && !value.contains_zero() {
@@ -143,8 +136,8 @@ pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
             }
         } else if splittable {
             // 3. subdivide, front half on top
-            stack.push((mid, b, None));
-            stack.push((a, mid, None));
+            stack.push((mid, b));
+            stack.push((a, mid));
             continue;
         } else if !defined {
             undefined_seen = true;
@@ -166,7 +159,7 @@ pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
         // not part of the surface: go on after it
         let next = t + tolerance;
         if next < b {
-            stack.push((next, b, None));
+            stack.push((next, b));
         }
     }
     if undefined_seen {

@@ -186,8 +186,8 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
     if !clipped.min.is_finite() || !clipped.max.is_finite() || !ray.is_valid() {
         return report;
     }
-    if let Some(whole) = surface.enclose_along(ray, clipped) {
-        return crate::isolation::isolate_first_root(surface, ray, clipped, whole, options);
+    if surface.enclose_value_along(ray, clipped).is_some() {
+        return crate::isolation::isolate_first_root(surface, ray, clipped, options);
     }
     let dir_len = ray.dir.length();
     let tolerance = options.tolerance.max(f64::MIN_POSITIVE);

@@ -10,12 +10,11 @@
 //! assert_eq!(err.column, 5);
 //! ```
 //!
-//! **Language.** `+ − × ÷` (`+ - * /`), powers `^` or `**` (an integer constant exponent is an
-//! exact repeated product, any other needs a positive base), unary signs, parentheses; numbers
+//! **Language.** `+ − × ÷` (`+ - * /`), powers `^` or `**` (an integer constant exponent up to
+//! 64 in magnitude is an integer power, defined for any base; any other needs a positive base), unary signs, parentheses; numbers
 //! as `2`, `.5`, `1e-3`; variables `x y z`; constants `pi`, `e`, `tau`; functions `sqrt exp ln`
 //! (`log` is `ln`) `log10 log2 sin cos tan asin acos atan sinh cosh tanh cbrt abs sq` and
-//! `min max pow` of two arguments. See
-//! `expr/parse.rs` for the grammar.
+//! `min max pow` of two arguments. See `expr/parse.rs` for the grammar.
 //!
 //! **Evaluations.** One tree walk generic over [`Scalar`]:
 //! - [`Expr::eval`]: `f64` at a point (`NaN`/`±∞` where undefined);
