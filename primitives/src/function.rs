@@ -19,6 +19,7 @@
 use crate::bounds::Aabb;
 use crate::error::PrimitiveError;
 use crate::expr::{Expr, Jet};
+use crate::hit::RawHit;
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::root::RootOptions;
@@ -237,6 +238,14 @@ impl Implicit for Function {
 impl Intersect for Function {
     fn root_options(&self) -> RootOptions {
         self.options
+    }
+
+    /// The rounding bound of the default plus the root's own uncertainty: the hit lies within
+    /// the tolerance (in units of `t`) of a root along the ray, so within `tolerance·|dir|` of
+    /// the surface. Secondary rays ([`crate::SurfaceHit::secondary_origin`]) start beyond it.
+    fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
+        crate::offset::point_error_bound(ray, raw.t, crate::offset::magnitude(&self.bounds))
+            + self.options.tolerance * ray.dir.length()
     }
 }
 

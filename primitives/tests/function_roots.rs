@@ -482,3 +482,34 @@ fn loose_tolerance_errors_are_only_on_flagged_rays() {
         assert_eq!(bad, 0);
     }
 }
+
+/// Secondary rays from `Function` hits (the library's shadow rays) start beyond the root's
+/// tolerance (`Function::hit_error`): leaving rays never re-hit the surface they start on.
+#[test]
+fn secondary_rays_from_function_hits_do_not_self_hit() {
+    let f = function("sqrt(x^2 + y^2 + z^2) - 1 + 0.05*sin(7*x)*sin(5*y)", 1.5);
+    let mut rng = StdRng::seed_from_u64(12);
+    let (mut spawned, mut self_hits) = (0, 0);
+    for _ in 0..4000 {
+        let ray = aim_through(1.0)(&mut rng);
+        let Some(raw) = f.intersect(&ray, Interval::POSITIVE) else {
+            continue;
+        };
+        let hit = SurfaceHit::complete(&f, &ray, &raw, HitRequest::ALL);
+        let n = hit.facing_normal(ray.dir).unwrap();
+        let cos = 10f64.powf(rng.random_range(-4.0..0.0));
+        let tangent = random_unit(&mut rng).cross(n).normalize_or(n.any_orthonormal_vector());
+        let dir = (n * cos + tangent * (1.0 - cos * cos).sqrt()).normalize();
+        let origin = hit.secondary_origin(ray.dir);
+        spawned += 1;
+        if let Some(h) = f.intersect(&Ray::new(origin, dir), Interval::POSITIVE) {
+            // a genuine re-hit crosses Φ; a self-hit sits at the origin's surface within the tolerance
+            if h.t < 10.0 * TOLERANCE {
+                self_hits += 1;
+            }
+        }
+    }
+    println!("[roots] secondary rays from Function hits: {spawned} spawned, {self_hits} self-hits");
+    assert!(spawned > 1000);
+    assert_eq!(self_hits, 0);
+}
