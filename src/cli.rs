@@ -3,12 +3,14 @@
 
 use crate::aov::Aov;
 use crate::camera::Camera;
+use crate::diagnostics::{uncertain_message, uncertain_since};
 use crate::output::atomic::{check_destination, write_atomically, AtomicFile};
 use crate::output::cameras_json::{cameras_json, exr_camera_attributes, transforms_json};
 use crate::output::exr::{size_estimate, write_exr_with, ExrCompression, ExrHeader};
 use crate::output::merge::merge_crops;
 use crate::output::png::write_previews;
 use crate::query::{run_batch, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS};
+use crate::query_rays::{scene_magnitude, RangeConvention, RaySetup};
 use crate::render::{render_view, Frame, RenderOptions, Window};
 use crate::resources::{capped_threads, check_memory, process_cpu_seconds, render_memory_estimate};
 use crate::scene::Scene;
@@ -133,8 +135,9 @@ impl BatchFormat {
 pub struct QueryArgs {
     /// Scene file (RON).
     pub scene: PathBuf,
-    /// Rays: CSV `ox,oy,oz,dx,dy,dz[,tmin,tmax]` per line, or a `.npy` array of shape (N, 6) or
-    /// (N, 8); `-` for stdin.
+    /// Rays: CSV `ox,oy,oz,dx,dy,dz[,tmin,tmax][,nx,ny,nz]` per line, or a `.npy` array of shape
+    /// (N, 6), (N, 8), (N, 9) or (N, 11); `-` for stdin. The range is open at `tmin` (default 0):
+    /// the first hit with `t > tmin`, so an origin on a surface does not report it at `t = 0`.
     #[arg(long, required_unless_present = "pixels", conflicts_with = "pixels")]
     pub rays: Option<PathBuf>,
     /// Image positions instead of rays, one per line: `x,y[,view]` (pixel (i, j)'s centre is
@@ -147,6 +150,15 @@ pub struct QueryArgs {
     /// Format of `--rays` (default: from its extension, `.npy` or CSV).
     #[arg(long, value_enum, ignore_case = true)]
     pub rays_format: Option<BatchFormat>,
+    /// Include `tmin` in the range (`tmin ≤ t ≤ tmax`; default `tmin < t ≤ tmax`).
+    #[arg(long)]
+    pub closed_range: bool,
+    /// The origins are surface points known to this precision (`f32`, `f64`, or an absolute error
+    /// bound such as `1e-6`); every ray then gives the surface normal `nx,ny,nz` and the origin
+    /// is moved off the surface so the ray cannot re-hit it through rounding (see
+    /// `docs/numerics.md`, "Spawning rays").
+    #[arg(long, value_name = "f32|f64|E")]
+    pub origin_precision: Option<zeroset_primitives::offset::PointPrecision>,
     /// Output (`-` for stdout): CSV, or `.npy` (f8, shape (N, 11)).
     #[arg(short, long, default_value = "-")]
     pub output: PathBuf,
@@ -156,8 +168,8 @@ pub struct QueryArgs {
     /// Worker threads (default: all cores; at most 4 × the cores).
     #[arg(short = 't', long)]
     pub threads: Option<usize>,
-    /// Add an `uncertain` column: 1 where the root finder ran out of its evaluation budget on
-    /// the ray (its answer may be wrong).
+    /// Add an `uncertain` column: 1 where the ray's answer is not guaranteed (the root finder ran
+    /// out of its evaluation budget, or a `Function` root could not be decided exactly).
     #[arg(long)]
     pub uncertain: bool,
 }
@@ -255,6 +267,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let wall = Instant::now();
     let mut scene = Scene::load(&args.scene)?;
     let load_time = wall.elapsed();
+    crate::diagnostics::print_load_warnings(&scene);
     if args.width.is_some() || args.height.is_some() {
         let w = args.width.unwrap_or(scene.camera.width);
         let h = args.height.unwrap_or(scene.camera.height);
@@ -414,10 +427,11 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     };
     let cpu_before_trace = process_cpu_seconds();
     let exhausted_before = budget_exhaustions();
+    let function_before = zeroset_primitives::uncertain_counts();
     let trace_start = Instant::now();
     let (trace_seconds, rays) = if cameras.len() == 1 {
         let frame = render_view(&scene, cameras[0], &options);
-        warn_uncertain(budget_exhaustions() - exhausted_before);
+        warn_uncertain(uncertain_events_since(exhausted_before, function_before));
         write_view(0, &frame)?;
         let rays = u64::from(frame.window.width()) * u64::from(frame.window.height()) * u64::from(frame.spp);
         (frame.elapsed.as_secs_f64(), rays)
@@ -429,11 +443,14 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             rays.fetch_add(pixels * u64::from(frame.spp), Ordering::Relaxed);
             Ok::<(), anyhow::Error>(())
         })?;
-        warn_uncertain(budget_exhaustions() - exhausted_before);
+        warn_uncertain(uncertain_events_since(exhausted_before, function_before));
         // views trace and write at once: the trace time is the total less the writing
         let total = trace_start.elapsed().as_secs_f64();
         (total, rays.into_inner())
     };
+    if let Some(message) = uncertain_message(uncertain_since(function_before)) {
+        eprintln!("{message}");
+    }
     let write_seconds = write_seconds
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -463,7 +480,14 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// Warns when rays exhausted the root finder's budget during a render.
+/// Uncertain events since the counts taken before tracing: the generic root finder's budget
+/// exhaustions and the `Function` roots the interval isolation could not decide.
+fn uncertain_events_since(exhausted_before: u64, function_before: zeroset_primitives::UncertainCounts) -> u64 {
+    let f = uncertain_since(function_before);
+    budget_exhaustions() - exhausted_before + f.tangent + f.exhausted + f.undefined
+}
+
+/// Warns when rays' answers are uncertain after a render.
 fn warn_uncertain(exhausted: u64) {
     if exhausted > 0 {
         eprintln!(
@@ -492,9 +516,9 @@ fn write_camera_files(views: &[(&Camera, String)], dir: &Path, stem: &str, trans
 /// The warning for rays whose root finder ran out of its evaluation budget.
 fn uncertain_warning(count: u64, what: &str, flag: &str) -> String {
     format!(
-        "warning: {count} {what} ran out of the root finder's evaluation budget and may be wrong \
-         (counted as misses past that point; a tighter `lipschitz` bound or search box helps); \
-         {flag} flags them"
+        "warning: {count} {what} may be wrong: the root finder ran out of its evaluation budget \
+         (counted as misses past that point; a tighter `lipschitz` bound or search box helps) or \
+         a `Function` root could not be decided exactly (below); {flag} flags them"
     )
 }
 
@@ -530,6 +554,17 @@ fn output_location(output: &Path, scene: &Path) -> Result<(PathBuf, String)> {
 fn query_command(args: &QueryArgs) -> Result<()> {
     let wall = Instant::now();
     let scene = Scene::load(&args.scene)?;
+    crate::diagnostics::print_load_warnings(&scene);
+    let setup = RaySetup {
+        range: if args.closed_range {
+            RangeConvention::Closed
+        } else {
+            RangeConvention::OpenStart
+        },
+        origin_precision: args.origin_precision,
+        magnitude: scene_magnitude(&scene),
+    };
+    let function_before = zeroset_primitives::uncertain_counts();
     let mut source: Box<dyn RaySource> = match (&args.rays, &args.pixels) {
         (Some(rays), _) => {
             let rays_name = rays.display().to_string();
@@ -540,8 +575,8 @@ fn query_command(args: &QueryArgs) -> Result<()> {
             };
             let input = BufReader::with_capacity(1 << 20, input);
             match args.rays_format.unwrap_or_else(|| BatchFormat::of(rays)) {
-                BatchFormat::Csv => Box::new(CsvRays::new(input, &rays_name)),
-                BatchFormat::Npy => Box::new(NpyRays::new(input, &rays_name)?),
+                BatchFormat::Csv => Box::new(CsvRays::with_setup(input, &rays_name, setup)),
+                BatchFormat::Npy => Box::new(NpyRays::with_setup(input, &rays_name, setup)?),
             }
         }
         (None, Some(pixels)) => Box::new(VecRays::new(crate::pixels::pixel_rays_from_files(
@@ -583,6 +618,9 @@ fn query_command(args: &QueryArgs) -> Result<()> {
     let elapsed = wall.elapsed().as_secs_f64();
     if counts.uncertain > 0 {
         eprintln!("{}", uncertain_warning(counts.uncertain, "rays", "--uncertain"));
+    }
+    if let Some(message) = uncertain_message(uncertain_since(function_before)) {
+        eprintln!("{message}");
     }
     eprintln!(
         "{} rays, {} hits in {elapsed:.3} s end to end ({:.2} Mrays/s; chunks of {CHUNK_RAYS})",

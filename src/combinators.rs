@@ -8,16 +8,17 @@
 //! SmoothUnion(a: Sphere(...), b: Sphere(...), radius: 0.3)
 //! Offset(shape: Box(...), distance: 0.1)                    // rounded box
 //! Transformed(shape: Cylinder(), transform: (rotate: (axis: (1, 0, 0), degrees: 90)))
-//! Function(phi: "x^2 + y^2 + z^2 - 1", min: (-1, -1, -1), max: (1, 1, 1), lipschitz: 2)
+//! Function(phi: "x^2 + y^2 + z^2 - 1", min: (-1, -1, -1), max: (1, 1, 1), tolerance: 1e-7)
 //! ```
 
 use crate::registry::{parser_for, BuildContext, SceneShape, ShapeDesc, ShapeParserFn};
 use crate::scene::TransformDesc;
-use exmex::prelude::*;
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
-use zeroset_primitives::{Aabb, Csg, CsgOp, Function, Offset, Primitive, PrimitiveError, SmoothUnion, Transformed};
+use zeroset_primitives::{
+    Aabb, Csg, CsgOp, Expr, Function, Offset, Primitive, PrimitiveError, RootOptions, SmoothUnion, Transformed,
+};
 
 /// Calls `add(name, parser)` for every combinator.
 pub(crate) fn register(add: &mut dyn FnMut(&str, ShapeParserFn)) {
@@ -141,12 +142,17 @@ impl SceneShape for TransformedDesc {
     }
 }
 
-/// `Function(phi: "expr in x, y, z", min: (..), max: (..), lipschitz: L)`: Φ written as an
-/// expression (operators `+ - * / ^`, `sin cos tan exp ln sqrt abs …`, constants `PI`, `E`), the
-/// surface searched inside the box `[min, max]` by the generic root finder. A declared
-/// `lipschitz` bound makes the search unable to skip thin features (and is checked along every
-/// ray); without it the box is sampled uniformly. Where the expression is not finite, Φ is
-/// taken as `+∞` (outside).
+/// `Function(phi: "expr in x, y, z", min: (..), max: (..), tolerance: 1e-7, budget: 100000)`: Φ
+/// written as an expression in standard notation (`+ - * / ^`, numbers such as `1e-3`,
+/// `sqrt exp ln log10 log2 sin cos tan asin acos atan sinh cosh tanh cbrt abs sq min max pow`, constants `pi`, `e`, `tau`; see
+/// `zeroset_primitives::expr`), the surface searched inside the box `[min, max]`. The first root
+/// along a ray is isolated by interval arithmetic (`zeroset_primitives::isolation`): no
+/// Lipschitz bound is needed (an optional `lipschitz` only serves `SmoothUnion` and `Offset`
+/// around the function, whose generic finder marches with it), thin
+/// features are not stepped over, and rays that cannot be decided within `tolerance` (units of
+/// `t`) or `budget` (enclosure and point evaluations per ray) are counted and reported after
+/// the render or query. Where the expression is undefined Φ is `+∞` (outside); a point of the box
+/// where it is undefined is a load error naming the operation's column.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields, rename = "Function")]
 pub struct FunctionDesc {
@@ -156,44 +162,45 @@ pub struct FunctionDesc {
     pub min: DVec3,
     /// Upper corner of the search box.
     pub max: DVec3,
-    /// A bound on |∇Φ| inside the box, if known.
+    /// Optional bound on |∇Φ| in the box: not needed by the function itself (interval isolation
+    /// uses none), only read by `SmoothUnion` / `Offset` around it, which march the generic
+    /// finder.
     #[serde(default)]
     pub lipschitz: Option<f64>,
+    /// Width of the final bracket around a root, in units of `t`; default `1e-7`.
+    #[serde(default)]
+    pub tolerance: Option<f64>,
+    /// Most enclosure and point evaluations per ray; default 100,000.
+    #[serde(default)]
+    pub budget: Option<u32>,
 }
 
 impl SceneShape for FunctionDesc {
-    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
-        let expr = exmex::parse::<f64>(&self.phi)
-            .map_err(|e| PrimitiveError::new("Function", "phi", format!("cannot parse `{}`: {e}", self.phi)))?;
-        let mut axes = Vec::new();
-        for name in expr.var_names() {
-            match name.as_str() {
-                "x" => axes.push(0),
-                "y" => axes.push(1),
-                "z" => axes.push(2),
-                other => {
-                    return Err(PrimitiveError::new(
-                        "Function",
-                        "phi",
-                        format!("unknown variable `{other}`; use x, y and z"),
-                    ))
-                }
-            }
+    fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        let expr = Expr::parse(&self.phi)
+            .map_err(|e| PrimitiveError::new("Function", "phi", format!("syntax error in `{}` at {e}", self.phi)))?;
+        if let Some(l) = self.lipschitz {
+            zeroset_primitives::error::require_positive("Function", "lipschitz", l)?;
+            context
+                .warn("`lipschitz` is not needed any more (roots are isolated by interval arithmetic) and is ignored");
         }
-        let phi = move |p: DVec3| {
-            let mut values = [0.0; 3];
-            for (slot, &axis) in values.iter_mut().zip(&axes) {
-                *slot = p[axis];
-            }
-            match expr.eval(&values[..axes.len()]) {
-                Ok(v) if v.is_finite() => v,
-                _ => f64::INFINITY,
-            }
+        let defaults = RootOptions::default();
+        let options = RootOptions {
+            tolerance: self.tolerance.unwrap_or(defaults.tolerance),
+            max_evaluations: self.budget.unwrap_or(defaults.max_evaluations),
+            ..defaults
         };
-        Ok(Arc::new(Function::new(
-            phi,
-            Aabb::new(self.min, self.max),
-            self.lipschitz,
-        )?))
+        let mut function = Function::from_expr(expr, Aabb::new(self.min, self.max), options)?;
+        if let Some(l) = self.lipschitz {
+            function = function.with_lipschitz(l)?;
+        }
+        if function.may_be_undefined() {
+            context.warn(format!(
+                "`{}` may be undefined in parts of its box (interval evaluation could not exclude it); \
+                 rays meeting such parts are counted",
+                self.phi
+            ));
+        }
+        Ok(Arc::new(function))
     }
 }

@@ -16,7 +16,8 @@ use serde::Deserialize;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use zeroset_primitives::{Mesh, Primitive, PrimitiveError};
+use zeroset_primitives::mesh::is_degenerate_triangle;
+use zeroset_primitives::{Mesh, Primitive, PrimitiveError, Triangle};
 
 /// A mesh file could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -271,6 +272,26 @@ fn yes() -> bool {
     true
 }
 
+/// For a mesh file whose triangles all have zero area (and valid indices): a degenerate
+/// [`Triangle`] at its first vertex, which is never hit, standing in for the empty surface.
+fn no_surface(data: &MeshData) -> Option<Triangle> {
+    let vertex = |i: u32| data.vertices.get(i as usize).copied();
+    let all_degenerate = !data.indices.is_empty()
+        && data
+            .indices
+            .iter()
+            .all(|t| match (vertex(t[0]), vertex(t[1]), vertex(t[2])) {
+                (Some(a), Some(b), Some(c)) => is_degenerate_triangle(a, b, c),
+                _ => false,
+            });
+    if !all_degenerate {
+        return None;
+    }
+    let v = data.vertices[data.indices[0][0] as usize].map(f64::from);
+    let p = glam::DVec3::from_array(v);
+    Triangle::new(p, p, p).ok()
+}
+
 /// `Mesh(path: "meshes/bunny.ply", normals: true)`: a triangle mesh from an OBJ or PLY file, the
 /// path relative to the scene file. Objects naming the same file (and `normals` setting) share
 /// one loaded mesh; place copies with each object's `transform`.
@@ -297,8 +318,29 @@ impl SceneShape for MeshDesc {
         if let Some(mesh) = loaded.get(&key) {
             return Ok(Arc::clone(mesh));
         }
-        let mesh: Arc<dyn Primitive> =
-            Arc::new(load_mesh(&path, self.normals).map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?);
+        let data = read_mesh(&path).map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?;
+        if let Some(stand_in) = no_surface(&data) {
+            context.warn(format!(
+                "{}: all {} triangles are degenerate (zero area): the mesh has no surface and is never hit",
+                path.display(),
+                data.indices.len()
+            ));
+            let stand_in: Arc<dyn Primitive> = Arc::new(stand_in);
+            loaded.insert(key, Arc::clone(&stand_in));
+            return Ok(stand_in);
+        }
+        let mesh = data
+            .into_mesh(&path, self.normals)
+            .map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?;
+        if mesh.skipped_triangles() > 0 {
+            context.warn(format!(
+                "{}: {} of {} triangles are degenerate (zero area) and are never hit",
+                path.display(),
+                mesh.skipped_triangles(),
+                mesh.triangle_count()
+            ));
+        }
+        let mesh: Arc<dyn Primitive> = Arc::new(mesh);
         loaded.insert(key, Arc::clone(&mesh));
         Ok(mesh)
     }

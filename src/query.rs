@@ -6,15 +6,18 @@
 //! 2. [`trace_batch`] traces a slice of rays in parallel;
 //! 3. a [`HitSink`] formats and writes the hits ([`CsvHits`], [`NpyHits`]).
 //!
-//! **CSV input**: one ray per line, `ox,oy,oz,dx,dy,dz[,tmin,tmax]` (default `tmin = 0`,
-//! `tmax = +∞`), fields separated by commas, spaces around them allowed. A UTF-8 byte-order mark
+//! **CSV input**: one ray per line, `ox,oy,oz,dx,dy,dz[,tmin,tmax][,nx,ny,nz]` (default
+//! `tmin = 0`, `tmax = +∞`; the range is open at `tmin` unless `--closed-range`, and the normal
+//! columns spawn the origin off a surface with `--origin-precision`: see [`crate::query_rays`]),
+//! fields separated by commas, spaces around them allowed. A UTF-8 byte-order mark
 //! is skipped; blank lines and lines starting with `#` are skipped. The first other line is a
-//! header only if its fields are exactly `ox,oy,oz,dx,dy,dz` or `ox,oy,oz,dx,dy,dz,tmin,tmax`;
+//! header only if its fields are exactly one of [`CSV_RAY_HEADERS`];
 //! every other line must be a ray, and anything else — a word, a semicolon, fields separated by
 //! spaces only, a trailing comma, a wrong count — is an error naming the file and line. No line
 //! is ever skipped silently.
 //!
-//! **NPY input**: a NumPy `.npy` array of shape `(N, 6)` or `(N, 8)`, little-endian `f8` or `f4`,
+//! **NPY input**: a NumPy `.npy` array of shape `(N, 6)`, `(N, 8)`, `(N, 9)` or `(N, 11)`,
+//! little-endian `f8` or `f4`,
 //! C order, with the same columns; errors name the row (0-based, as NumPy indexes it).
 //!
 //! The direction is used as given: `t` is in units of `|d|`, so normalise directions to get
@@ -34,19 +37,24 @@
 //! `hit,t,px,py,pz,nx,ny,nz,id,u,v[,uncertain]` (no name), NaN where the CSV has an empty field. Writing `.npy` to stdout needs `.npy` input
 //! (the row count goes in the header, before the rows).
 
+use crate::query_rays::RaySetup;
 use crate::scene::Scene;
-use glam::DVec3;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::io::{BufRead, Read, Seek, SeekFrom, Write};
-use zeroset_primitives::root::thread_budget_exhaustions;
+use zeroset_primitives::root::thread_uncertain_events;
 use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
 
 /// Rays read, traced and written per step of the batch loop.
 pub const CHUNK_RAYS: usize = 1 << 16;
 
 /// The documented CSV headers (without and with the `t` range).
-pub const CSV_RAY_HEADERS: [&str; 2] = ["ox,oy,oz,dx,dy,dz", "ox,oy,oz,dx,dy,dz,tmin,tmax"];
+pub const CSV_RAY_HEADERS: [&str; 4] = [
+    "ox,oy,oz,dx,dy,dz",
+    "ox,oy,oz,dx,dy,dz,tmin,tmax",
+    "ox,oy,oz,dx,dy,dz,nx,ny,nz",
+    "ox,oy,oz,dx,dy,dz,tmin,tmax,nx,ny,nz",
+];
 
 /// The CSV output header.
 pub const CSV_HIT_HEADER: &str = "hit,t,px,py,pz,nx,ny,nz,id,name,u,v";
@@ -88,7 +96,7 @@ pub fn trace_batch(scene: &Scene, rays: &[QueryRay]) -> Vec<QueryHit> {
     rays.par_iter()
         .with_min_len(256)
         .map(|q| {
-            let exhausted_before = thread_budget_exhaustions();
+            let exhausted_before = thread_uncertain_events();
             let hit = scene.intersect(&q.ray, q.range).map(|(object, raw)| {
                 (
                     object,
@@ -102,37 +110,17 @@ pub fn trace_batch(scene: &Scene, rays: &[QueryRay]) -> Vec<QueryHit> {
             });
             QueryHit {
                 hit,
-                uncertain: thread_budget_exhaustions() != exhausted_before,
+                uncertain: thread_uncertain_events() != exhausted_before,
             }
         })
         .collect()
 }
 
-/// The checks every ray passes, whatever its format: `(ox, oy, oz, dx, dy, dz[, tmin, tmax])`.
-fn ray_from_fields(v: &[f64]) -> Result<QueryRay, String> {
-    if v.len() != 6 && v.len() != 8 {
-        return Err(format!("expected 6 or 8 fields, got {}", v.len()));
-    }
-    let origin = DVec3::new(v[0], v[1], v[2]);
-    let dir = DVec3::new(v[3], v[4], v[5]);
-    let range = if v.len() == 8 {
-        Interval::new(v[6], v[7])
-    } else {
-        Interval::POSITIVE
-    };
-    if !origin.is_finite() || !dir.is_finite() {
-        return Err("origin and direction must be finite".into());
-    }
-    if dir == DVec3::ZERO {
-        return Err("direction must be non-zero".into());
-    }
-    if range.min.is_nan() || range.max.is_nan() || range.is_empty() {
-        return Err(format!("invalid t range [{}, {}]", range.min, range.max));
-    }
-    Ok(QueryRay {
-        ray: Ray::new(origin, dir),
-        range,
-    })
+/// The checks every ray passes, whatever its format, and its construction as `setup` says
+/// ([`crate::query_rays::ray_from_fields`]: range convention, spawned origins).
+fn ray_from_fields(v: &[f64], setup: &RaySetup) -> Result<QueryRay, String> {
+    let (ray, range) = crate::query_rays::ray_from_fields(v, setup)?;
+    Ok(QueryRay { ray, range })
 }
 
 /// Where rays come from, a chunk at a time.
@@ -187,7 +175,7 @@ enum CsvLine {
 }
 
 /// Parses one CSV line (see the module docs).
-fn parse_csv_line(line: &str) -> Result<CsvLine, String> {
+fn parse_csv_line(line: &str, setup: &RaySetup) -> Result<CsvLine, String> {
     let trimmed = line.trim();
     if trimmed.is_empty() || trimmed.starts_with('#') {
         return Ok(CsvLine::Skip);
@@ -214,19 +202,20 @@ fn parse_csv_line(line: &str) -> Result<CsvLine, String> {
             Ok(x) => v.push(x),
             Err(_) => {
                 return Err(format!(
-                    "field {} `{field}` is not a number; expected `ox,oy,oz,dx,dy,dz[,tmin,tmax]`",
+                    "field {} `{field}` is not a number; expected `ox,oy,oz,dx,dy,dz[,tmin,tmax][,nx,ny,nz]`",
                     k + 1
                 ))
             }
         }
     }
-    ray_from_fields(&v).map(CsvLine::Ray)
+    ray_from_fields(&v, setup).map(CsvLine::Ray)
 }
 
 /// CSV rays from any buffered reader, parsed in parallel a chunk at a time.
 pub struct CsvRays<R> {
     reader: R,
     path: String,
+    setup: RaySetup,
     /// Lines read so far.
     line_no: usize,
     /// Whether a ray (or the header) has been seen: a header is accepted only before.
@@ -236,11 +225,18 @@ pub struct CsvRays<R> {
 }
 
 impl<R: BufRead> CsvRays<R> {
-    /// A reader of `reader`, named `path` in errors.
+    /// A reader of `reader`, named `path` in errors, building rays with the default
+    /// [`RaySetup`] (range open at `tmin`, origins as given).
     pub fn new(reader: R, path: &str) -> Self {
+        Self::with_setup(reader, path, RaySetup::default())
+    }
+
+    /// A reader building each ray as `setup` says.
+    pub fn with_setup(reader: R, path: &str, setup: RaySetup) -> Self {
         Self {
             reader,
             path: path.to_string(),
+            setup,
             line_no: 0,
             seen_content: false,
             lines: Vec::new(),
@@ -278,7 +274,10 @@ impl<R: BufRead> RaySource for CsvRays<R> {
             }
             count += 1;
         }
-        let parsed: Vec<Result<CsvLine, String>> = self.lines[..count].par_iter().map(|l| parse_csv_line(l)).collect();
+        let parsed: Vec<Result<CsvLine, String>> = self.lines[..count]
+            .par_iter()
+            .map(|l| parse_csv_line(l, &self.setup))
+            .collect();
         for (k, line) in parsed.into_iter().enumerate() {
             let located = |message: String| QueryError {
                 path: self.path.clone(),
@@ -380,7 +379,7 @@ fn read_npy_header(reader: &mut impl Read, path: &str) -> Result<NpyHeader, Quer
         return Err(err(format!("shape ({shape}): expected (N, 6) or (N, 8)")));
     }
     let (rows, columns) = (parse(dims[0])?, parse(dims[1])?);
-    if columns != 6 && columns != 8 {
+    if ![6, 8, 9, 11].contains(&columns) {
         return Err(err(format!("shape ({shape}): expected (N, 6) or (N, 8)")));
     }
     Ok(NpyHeader {
@@ -394,6 +393,7 @@ fn read_npy_header(reader: &mut impl Read, path: &str) -> Result<NpyHeader, Quer
 pub struct NpyRays<R> {
     reader: R,
     path: String,
+    setup: RaySetup,
     header: NpyHeader,
     next_row: u64,
     bytes: Vec<u8>,
@@ -404,11 +404,20 @@ impl<R: Read> NpyRays<R> {
     ///
     /// # Errors
     /// Not an `.npy` file of a supported dtype and shape.
-    pub fn new(mut reader: R, path: &str) -> Result<Self, QueryError> {
+    pub fn new(reader: R, path: &str) -> Result<Self, QueryError> {
+        Self::with_setup(reader, path, RaySetup::default())
+    }
+
+    /// Reads the header; each ray is built as `setup` says.
+    ///
+    /// # Errors
+    /// Not an `.npy` file of a supported dtype and shape.
+    pub fn with_setup(mut reader: R, path: &str, setup: RaySetup) -> Result<Self, QueryError> {
         let header = read_npy_header(&mut reader, path)?;
         Ok(Self {
             reader,
             path: path.to_string(),
+            setup,
             header,
             next_row: 0,
             bytes: Vec::new(),
@@ -429,6 +438,7 @@ impl<R: Read> RaySource for NpyRays<R> {
             message: format!("reading {rows} rows: {e} (the file is shorter than its shape says)"),
         })?;
         let double = self.header.double;
+        let setup = self.setup;
         let parsed: Vec<Result<QueryRay, String>> = self
             .bytes
             .par_chunks_exact(columns * width)
@@ -443,7 +453,7 @@ impl<R: Read> RaySource for NpyRays<R> {
                         }
                     })
                     .collect();
-                ray_from_fields(&v)
+                ray_from_fields(&v, &setup)
             })
             .collect();
         for (k, ray) in parsed.into_iter().enumerate() {
@@ -764,12 +774,20 @@ pub fn run_batch(scene: &Scene, source: &mut dyn RaySource, sink: &mut dyn HitSi
     Ok(counts)
 }
 
-/// Parses a whole CSV text at once (for tests and small batches).
+/// Parses a whole CSV text at once (for tests and small batches) with the default [`RaySetup`].
 ///
 /// # Errors
 /// The first malformed line.
 pub fn parse_rays(text: &str, path: &str) -> Result<Vec<QueryRay>, QueryError> {
-    let mut source = CsvRays::new(text.as_bytes(), path);
+    parse_rays_with(text, path, &RaySetup::default())
+}
+
+/// Parses a whole CSV text at once, building each ray as `setup` says.
+///
+/// # Errors
+/// The first malformed line.
+pub fn parse_rays_with(text: &str, path: &str, setup: &RaySetup) -> Result<Vec<QueryRay>, QueryError> {
+    let mut source = CsvRays::with_setup(text.as_bytes(), path, *setup);
     let (mut all, mut chunk) = (Vec::new(), Vec::new());
     while source.read_chunk(CHUNK_RAYS, &mut chunk)? {
         all.append(&mut chunk);
@@ -832,12 +850,12 @@ mod tests {
 
     #[test]
     fn npy_preamble_is_aligned_and_round_trips() {
-        let p = npy_preamble(12_345_678_901, NPY_HIT_COLUMNS);
+        let p = npy_preamble(12_345_678_901, NPY_HIT_COLUMNS + 1);
         assert_eq!(p.len(), NPY_PREAMBLE_LEN);
         assert_eq!(p.len() % 64, 0, "NumPy aligns the data to 64 bytes");
         let header = read_npy_header(&mut p.as_slice(), "h").unwrap_err();
-        // 11 columns are not a ray array: the header parses, the shape is refused
-        assert!(header.message.contains("(12345678901,11)"), "{header}");
+        // 12 columns are not a ray array: the header parses, the shape is refused
+        assert!(header.message.contains("(12345678901,12)"), "{header}");
         let rays = npy_preamble(7, 8);
         let h = read_npy_header(&mut rays.as_slice(), "h").unwrap();
         assert_eq!((h.rows, h.columns, h.double), (7, 8, true));

@@ -44,6 +44,9 @@ pub struct BuildContext {
     /// Primitives already built from files, by resolved path, so that objects naming the same file
     /// share one copy (instancing without copying).
     pub loaded: std::sync::Mutex<BTreeMap<std::path::PathBuf, Arc<dyn Primitive>>>,
+    /// Warnings raised while building (valid input the user may want to know about, such as
+    /// degenerate triangles); the scene collects them per object ([`crate::scene::Scene::warnings`]).
+    pub warnings: std::sync::Mutex<Vec<String>>,
 }
 
 impl BuildContext {
@@ -53,7 +56,21 @@ impl BuildContext {
         Self {
             scene_dir: scene_dir.into(),
             loaded: std::sync::Mutex::default(),
+            warnings: std::sync::Mutex::default(),
         }
+    }
+
+    /// Records a warning about the primitive being built.
+    pub fn warn(&self, message: impl Into<String>) {
+        self.warnings
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(message.into());
+    }
+
+    /// Takes the warnings recorded so far.
+    pub fn take_warnings(&self) -> Vec<String> {
+        std::mem::take(&mut *self.warnings.lock().unwrap_or_else(|e| e.into_inner()))
     }
 
     /// `path` resolved against the scene's directory (absolute paths are kept).

@@ -34,7 +34,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
-use zeroset_primitives::root::thread_budget_exhaustions;
+use zeroset_primitives::root::thread_uncertain_events;
 use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
 
 /// A pixel rectangle `[x0, x1) × [y0, y1)` of the full image.
@@ -253,7 +253,7 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
         } else {
             for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
                 let x = window.x0 + column as u32;
-                let exhausted_before = thread_budget_exhaustions();
+                let exhausted_before = thread_uncertain_events();
                 let ray = match camera.pixel_ray(x, y) {
                     Ok(ray) => ray,
                     Err(reason) => {
@@ -341,7 +341,7 @@ struct RowContext<'a> {
 #[inline(always)]
 fn flag_uncertain(pixel: &mut [f32], context: &RowContext, exhausted_before: u64) {
     if let Some(at) = context.uncertain_offset {
-        pixel[at] = if thread_budget_exhaustions() == exhausted_before {
+        pixel[at] = if thread_uncertain_events() == exhausted_before {
             0.0
         } else {
             1.0
@@ -370,7 +370,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
     let mut counts: Vec<(u32, u32, f64)> = Vec::new();
     for (column, pixel) in out.chunks_exact_mut(context.channels).enumerate() {
         let x = x0 + column as u32;
-        let exhausted_before = thread_budget_exhaustions();
+        let exhausted_before = thread_uncertain_events();
         pixel_samples(&scene.sampling, camera.shutter, x, y, &mut points, &mut scratch);
         let (cx, cy) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
         let (mut weights, mut covered, mut colour) = (0.0, 0.0, DVec3::ZERO);

@@ -198,10 +198,16 @@ impl RotationDesc {
 }
 
 /// `transform: (translate: …, rotate: (axis: …, degrees: …), scale: (sx, sy, sz))`: applied as
-/// scale, then rotation, then translation (`world_from_local = T·R·S`).
+/// scale, then rotation, then translation (`world_from_local = T·R·S`); or
+/// `transform: (matrix: [[m00, m01, m02, m03], [m10, …], [m20, …]])`: the affine map
+/// `world_from_local` itself, row-major, 3×4 or 4×4 with last row `[0, 0, 0, 1]`, used as given
+/// (no decomposition): finite, invertible; any linear part (shears and mirrors included).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TransformDesc {
+    /// A row-major affine matrix, exclusive with the other fields; default none.
+    #[serde(default)]
+    pub matrix: Option<Vec<Vec<f64>>>,
     /// Translation; default none.
     #[serde(default)]
     pub translate: DVec3,
@@ -343,6 +349,10 @@ pub struct Scene {
     /// The cameras of the scene's `views`, in order; empty when there are none (then `camera`
     /// is the one view).
     pub views: Vec<Camera>,
+    /// Warnings about valid but noteworthy input, each prefixed by its object (degenerate
+    /// triangles left out, a `Function` that may be undefined in parts of its box, …); the CLI
+    /// prints them.
+    pub warnings: Vec<String>,
     /// Objects tested on every ray: those with infinite bounds, and a lone bounded object.
     unbounded: Vec<u32>,
     bvh: Bvh,
@@ -408,6 +418,7 @@ impl Scene {
         check_finite("scene", "ambient", desc.ambient)?;
         check_finite("scene", "background", desc.background)?;
         let mut objects = Vec::with_capacity(desc.objects.len());
+        let mut warnings = Vec::new();
         for (index, object) in desc.objects.into_iter().enumerate() {
             let location = match &object.name {
                 Some(name) => format!("objects[{index}] {name:?} ({})", object.shape.name),
@@ -418,6 +429,7 @@ impl Scene {
                 .shape
                 .build(context)
                 .map_err(|e| (location.clone(), format!("field `{}`: {}", e.field, e.problem)))?;
+            warnings.extend(context.take_warnings().into_iter().map(|w| format!("{location}: {w}")));
             let motion = match &object.transform_close {
                 None => None,
                 Some(close) => {
@@ -488,6 +500,7 @@ impl Scene {
         );
         scene.sampling = desc.sampling;
         scene.views = views;
+        scene.warnings = warnings;
         Ok(scene)
     }
 
@@ -530,6 +543,7 @@ impl Scene {
             outputs,
             sampling: Sampling::default(),
             views: Vec::new(),
+            warnings: Vec::new(),
             unbounded,
             bvh,
         }
@@ -705,6 +719,13 @@ impl TransformDesc {
 /// The components of a transform description, validated as [`TransformDesc::to_affine`] does.
 fn placement(t: &TransformDesc) -> Result<Placement, String> {
     build_transform(t)?;
+    if t.matrix.is_some() {
+        return Err(
+            "field `transform.matrix`: a moving object (with `transform_close`) needs translate/rotate/scale \
+             placements, which are interpolated; a matrix is not decomposed"
+                .into(),
+        );
+    }
     Ok(Placement {
         scale: t.scale,
         rotation: match &t.rotate {
@@ -715,7 +736,51 @@ fn placement(t: &TransformDesc) -> Result<Placement, String> {
     })
 }
 
+/// The affine map of a `matrix:` (see [`TransformDesc`]), validated: 3 or 4 rows of 4 finite
+/// numbers, a 4th row of exactly `[0, 0, 0, 1]`, an invertible linear part (checked again, with
+/// the same rule, by `Transformed::new`).
+pub fn affine_from_rows(rows: &[Vec<f64>]) -> Result<DAffine3, String> {
+    let field = "field `transform.matrix`";
+    if rows.len() != 3 && rows.len() != 4 {
+        return Err(format!(
+            "{field}: expected 3 or 4 rows of 4 numbers (row-major affine), got {} rows",
+            rows.len()
+        ));
+    }
+    for (i, row) in rows.iter().enumerate() {
+        if row.len() != 4 {
+            return Err(format!("{field}: row {i} has {} numbers, expected 4", row.len()));
+        }
+        if let Some(j) = row.iter().position(|x| !x.is_finite()) {
+            return Err(format!("{field}: entry [{i}][{j}] must be finite, got {}", row[j]));
+        }
+    }
+    if rows.len() == 4 && rows[3] != [0.0, 0.0, 0.0, 1.0] {
+        return Err(format!(
+            "{field}: the last row must be [0, 0, 0, 1] (an affine map, not a projection), got {:?}",
+            rows[3]
+        ));
+    }
+    let column = |j: usize| DVec3::new(rows[0][j], rows[1][j], rows[2][j]);
+    let linear = glam::DMat3::from_cols(column(0), column(1), column(2));
+    let det = linear.determinant();
+    let frobenius = (column(0).length_squared() + column(1).length_squared() + column(2).length_squared()).sqrt();
+    // NaN-rejecting: a NaN determinant is singular too
+    if det.abs().partial_cmp(&(1e-12 * frobenius.powi(3))) != Some(std::cmp::Ordering::Greater) {
+        return Err(format!(
+            "{field}: the 3×3 linear part is singular (determinant {det:e}); a transform must be invertible"
+        ));
+    }
+    Ok(DAffine3::from_mat3_translation(linear, column(3)))
+}
+
 fn build_transform(t: &TransformDesc) -> Result<DAffine3, String> {
+    if let Some(rows) = &t.matrix {
+        if t.translate != DVec3::ZERO || t.rotate.is_some() || t.scale != DVec3::ONE {
+            return Err("field `transform.matrix`: cannot be combined with translate, rotate or scale".into());
+        }
+        return affine_from_rows(rows);
+    }
     if !t.translate.is_finite() {
         return Err(format!(
             "field `transform.translate`: must be finite, got {}",

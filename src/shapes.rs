@@ -205,7 +205,8 @@ impl SceneShape for EllipsoidDesc {
 }
 
 /// `Triangle(a: (0, 0, 0), b: (1, 0, 0), c: (0, 1, 0))`: counter-clockwise `a → b → c` seen from
-/// the front (the side the normal `(b − a) × (c − a)` points to).
+/// the front (the side the normal `(b − a) × (c − a)` points to). Collinear or repeated vertices
+/// are accepted with a warning: such a triangle has no area and is never hit.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields, rename = "Triangle")]
 pub struct TriangleDesc {
@@ -218,8 +219,12 @@ pub struct TriangleDesc {
 }
 
 impl SceneShape for TriangleDesc {
-    fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
-        Ok(Arc::new(Triangle::new(self.a, self.b, self.c)?))
+    fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+        let triangle = Triangle::new(self.a, self.b, self.c)?;
+        if triangle.is_degenerate() {
+            context.warn("1 degenerate triangle (collinear or repeated vertices): it is never hit");
+        }
+        Ok(Arc::new(triangle))
     }
 }
 

@@ -281,7 +281,7 @@ impl Report {
 fn torus_markdown(t: &TorusResult) -> String {
     let mut s = format!(
         "## Generic implicit intersector: torus R = 1, r = 0.35 ({} random rays through its bounds)\n\n\
-         | method | ns/ray | max abs t err | max rel t err | disagree | holes (missed, depth > tol) | rays reporting a violated bound |\n\
+         | method | ns/ray | max abs t err | max rel t err | disagree | holes (missed, depth > tol) | rays reporting a violated bound (interval: flagged uncertain) |\n\
          |---|---:|---:|---:|---:|---:|---:|\n",
         t.rays
     );

@@ -1,7 +1,10 @@
 //! The generic implicit intersector against a closed form, on the torus `R = 1`, `r = 0.35`
 //! (POV-Ray's isosurface reference case): `examples/custom-primitives`' Φ-only `Torus` marched by
 //! `first_root` with a declared Lipschitz bound, against its `QuarticTorus` (Ferrari + Newton).
-//! Also a wrong bound (0.25 < 1), counting holes and the violations `RootReport` reports.
+//! Also a wrong bound (0.25 < 1), counting holes and the violations `RootReport` reports, and
+//! the same Φ written as a `Function` expression, whose first root is isolated by interval
+//! arithmetic without any Lipschitz bound (the "interval" rows; `violations` counts the rays it
+//! flags uncertain there).
 
 use crate::cases::{f32_exact, Rng, T_MAX};
 use crate::dd::{Dd, V3};
@@ -9,7 +12,7 @@ use crate::measure::{measure, Measured, Ref};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use zeroset_custom_primitives::{solve_quartic, QuarticTorus, Torus};
-use zeroset_primitives::{first_root, Aabb, Implicit, Intersect, Interval, Ray, RootOptions};
+use zeroset_primitives::{first_root, Aabb, Expr, Function, Implicit, Intersect, Interval, Ray, RootOptions};
 
 const MAJOR: f64 = 1.0;
 const MINOR: f64 = 0.35;
@@ -228,5 +231,34 @@ pub fn run(n: usize, passes: usize, seed: u64) -> TorusResult {
         generic(1.0, tolerance, "generic Torus, L = 1 (true)");
     }
     generic(0.25, 1e-6, "generic Torus, L = 0.25 (wrong)");
+
+    // interval isolation of the same Φ as an expression: no Lipschitz bound
+    let torus_box = Torus {
+        major: MAJOR,
+        minor: MINOR,
+    }
+    .bounds();
+    for tolerance in [1e-3, 1e-5, 1e-7] {
+        let expr = Expr::parse(&format!("sqrt((sqrt(x^2 + z^2) - {MAJOR})^2 + y^2) - {MINOR}"))
+            .expect("the torus expression parses");
+        let options = RootOptions::with_tolerance(tolerance);
+        let surface = Function::from_expr(expr, torus_box, options).expect("a valid function");
+        let m = measure(&rays, &refs, passes, false, |r: &Ray| {
+            surface.intersect(r, range).map(|h| (h.t, surface.normal_at(r, &h)))
+        });
+        let reports: Vec<_> = rays.iter().map(|r| first_root(&surface, r, range, &options)).collect();
+        let answers: Vec<Option<f64>> = reports.iter().map(|x| x.hit.map(|h| h.t)).collect();
+        let uncertain = reports.iter().filter(|x| x.uncertain).count();
+        let (max_abs_t, holes) = abs_errors(&answers, tolerance);
+        rows.push(TorusRow {
+            method: format!("interval Function expression, no bound, tol {tolerance:.0e}"),
+            tolerance: Some(tolerance),
+            declared_lipschitz: None,
+            m,
+            max_abs_t,
+            holes,
+            violations: uncertain,
+        });
+    }
     TorusResult { rays: n, rows }
 }

@@ -1,5 +1,5 @@
-//! Implicit combinators: Boolean set operations, smooth blend, offset, and a bounded user
-//! function.
+//! Implicit combinators: Boolean set operations, smooth blend and offset (a user function Φ is
+//! [`crate::Function`], in `function.rs`).
 //!
 //! | combinator            | Φ                                                   | ∇Φ (active branch)               |
 //! |-----------------------|-----------------------------------------------------|----------------------------------|
@@ -8,7 +8,6 @@
 //! | [`Csg`] `Difference`  | `max(Φ₀, −min_{i≥1} Φᵢ)` (first minus all others)   | `∇Φ₀` or `−∇Φᵢ`                  |
 //! | [`SmoothUnion`]       | `min(a, b) − k·h²/4` with `h = max(k − |a − b|, 0)/k` (polynomial smooth minimum of radius `k`) | `w∇a + (1 − w)∇b`, `w = clamp(½ + (b − a)/(2k), 0, 1)` |
 //! | [`Offset`]            | `Φ − r`                                             | `∇Φ`                             |
-//! | [`Function`]          | a user closure                                      | central differences              |
 //!
 //! Each keeps the sign convention (Φ < 0 inside) and a Lipschitz bound `max Lᵢ` when every child
 //! declares one (min, max, negation and the polynomial smooth minimum do not increase it).
@@ -17,8 +16,8 @@
 //! boundary crossings along the ray in order, tracking which children the ray is inside
 //! (entering where `dir · n < 0`, leaving where `> 0`, tangent contacts ignored), and reports the
 //! first crossing where the Boolean combination changes. Its `t` is therefore exactly a child's
-//! `t`, and its normal that child's normal (negated for subtracted children). [`SmoothUnion`],
-//! [`Offset`] and [`Function`] change the zero set itself, so they use the generic root finder
+//! `t`, and its normal that child's normal (negated for subtracted children). [`SmoothUnion`] and
+//! [`Offset`] change the zero set itself, so they use the generic root finder
 //! ([`crate::root`]).
 
 use crate::bounds::Aabb;
@@ -26,7 +25,6 @@ use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Primitive};
 use glam::{DVec2, DVec3};
-use std::fmt;
 use std::sync::Arc;
 
 /// Which Boolean combination a [`Csg`] node forms.
@@ -315,61 +313,3 @@ impl Implicit for Offset {
 }
 
 impl Intersect for Offset {}
-
-/// Φ given by a closure inside an explicit box (the surface outside the box is ignored).
-#[derive(Clone)]
-pub struct Function {
-    phi: Arc<dyn Fn(DVec3) -> f64 + Send + Sync>,
-    bounds: Aabb,
-    lipschitz: Option<f64>,
-}
-
-impl fmt::Debug for Function {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("Function")
-            .field("bounds", &self.bounds)
-            .field("lipschitz", &self.lipschitz)
-            .finish_non_exhaustive()
-    }
-}
-
-impl Function {
-    /// Φ = `phi` inside `bounds` (finite, non-empty), with an optional Lipschitz bound.
-    pub fn new(
-        phi: impl Fn(DVec3) -> f64 + Send + Sync + 'static,
-        bounds: Aabb,
-        lipschitz: Option<f64>,
-    ) -> Result<Self, crate::PrimitiveError> {
-        if !bounds.is_finite() || bounds.is_empty() {
-            return Err(crate::PrimitiveError::new(
-                "Function",
-                "bounds",
-                "must be a finite, non-empty box",
-            ));
-        }
-        if let Some(l) = lipschitz {
-            crate::error::require_positive("Function", "lipschitz", l)?;
-        }
-        Ok(Self {
-            phi: Arc::new(phi),
-            bounds,
-            lipschitz,
-        })
-    }
-}
-
-impl Implicit for Function {
-    fn phi(&self, p: DVec3) -> f64 {
-        (self.phi)(p)
-    }
-
-    fn bounds(&self) -> Aabb {
-        self.bounds
-    }
-
-    fn lipschitz(&self) -> Option<f64> {
-        self.lipschitz
-    }
-}
-
-impl Intersect for Function {}

@@ -113,12 +113,19 @@ impl SurfaceHit {
     }
 
     /// Origin for a secondary ray from this hit, on the side the arriving ray (direction `dir`)
-    /// came from: the point moved by [`SurfaceHit::error`] along the facing normal and rounded
-    /// away ([`crate::offset::offset_origin`]). Without a normal, the point itself.
+    /// came from: [`crate::offset::spawn_origin`] with the absolute bound `SurfaceHit::error / 2`
+    /// (so the point moves by `error + γ₃₂·‖p‖∞` along the facing normal, rounded away; `error`
+    /// already covers the re-intersection's rounding). Without a normal, the point itself.
     #[must_use]
     pub fn secondary_origin(&self, dir: DVec3) -> DVec3 {
         match self.facing_normal(dir) {
-            Some(n) => crate::offset::offset_origin(self.point, n, self.error),
+            Some(n) => crate::offset::spawn_origin(
+                self.point,
+                n,
+                n,
+                crate::offset::PointPrecision::Absolute(0.5 * self.error),
+                0.0,
+            ),
             None => self.point,
         }
     }

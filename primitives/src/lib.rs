@@ -19,6 +19,16 @@
 //! - **Frames.** Each primitive is defined by world-space parameters as listed in its module;
 //!   [`Transformed`] places any primitive under an affine map, preserving `t`.
 //!
+//! ## Expressions and guaranteed roots
+//! [`Expr`] parses Φ written in standard notation and evaluates it at points, over boxes
+//! (interval arithmetic, [`math::enclosure`]) and along rays with its derivative; a [`Function`]
+//! built from one has its first root along each ray isolated with a guarantee
+//! ([`isolation`]), or the ray counted as uncertain ([`uncertain_counts`]).
+//!
+//! ## Rays from stored points
+//! [`offset::spawn_origin`] starts a ray from a point known only to f32, f64 or an explicit
+//! error bound, so that it cannot re-hit the surface it starts on through rounding.
+//!
 //! ## Two-stage intersection
 //! [`Intersect::intersect`] returns a cheap [`RawHit`]; the closest one is finished once with
 //! [`SurfaceHit::complete`], computing only what a [`HitRequest`] asks for.
@@ -32,7 +42,9 @@
 pub mod bounds;
 pub mod bvh;
 pub mod error;
+pub mod expr;
 pub mod hit;
+pub mod isolation;
 pub mod math;
 pub mod offset;
 pub mod ray;
@@ -52,8 +64,9 @@ pub mod polygon;
 pub mod sphere;
 pub mod triangle;
 
-// implicit combinators
+// implicit combinators and user functions
 pub mod csg;
+pub mod function;
 
 #[cfg(feature = "testing")]
 pub mod testing;
@@ -78,6 +91,9 @@ pub use polygon::Polygon;
 pub use sphere::Sphere;
 pub use triangle::Triangle;
 
-pub use csg::{Csg, CsgOp, Function, Offset, SmoothUnion};
+pub use csg::{Csg, CsgOp, Offset, SmoothUnion};
+pub use expr::Expr;
+pub use function::Function;
+pub use isolation::{uncertain_counts, UncertainCounts};
 
 pub use glam;

@@ -84,6 +84,14 @@ fn v64(v: [f32; 3]) -> DVec3 {
     DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))
 }
 
+/// Whether the triangle `a, b, c` has zero area, exactly: `(b−a)×(c−a) = 0` computed in f64 from
+/// the f32 vertices (the differences are exact and so are their products, so the test is exact).
+/// Such triangles (collinear or repeated vertices) are left out of a [`Mesh`] and never hit.
+#[must_use]
+pub fn is_degenerate_triangle(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> bool {
+    (v64(b) - v64(a)).cross(v64(c) - v64(a)) == DVec3::ZERO
+}
+
 /// Per-query f32 ray data (see the module docs).
 struct MeshRay {
     slab: SlabRay,
@@ -272,8 +280,7 @@ impl Mesh {
             .enumerate()
             .filter_map(|(id, t)| {
                 let [a, b, c] = t.map(|i| vertices[i as usize]);
-                let area = (v64(b) - v64(a)).cross(v64(c) - v64(a));
-                if area == DVec3::ZERO {
+                if is_degenerate_triangle(a, b, c) {
                     return None;
                 }
                 let (a, b, c) = (Vec3A::from_array(a), Vec3A::from_array(b), Vec3A::from_array(c));

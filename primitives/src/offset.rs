@@ -24,6 +24,24 @@
 //! Measured over ≥ 100k rays per primitive type in `primitives/tests/hard_cases.rs`
 //! (`recast_*` tests), including transforms with translation `10⁵` and scales `10⁻³…10³`; see
 //! `docs/numerics.md`.
+//!
+//! # Spawning from a point known only approximately
+//! [`spawn_origin`] generalises this to a point the caller got from elsewhere (a float32 EXR, a
+//! CSV written as float32, another program) with its [`PointPrecision`]: `f32`, `f64` or an
+//! explicit absolute error bound `E`. With `δₚ` the point's error bound
+//! ([`PointPrecision::error_bound`]) and `δᵣ = γ₃₂·(‖p‖∞ + m)` the rounding of re-intersecting a
+//! surface whose closed form computes with numbers up to `m` from an origin of magnitude `‖p‖∞`
+//! (as in [`point_error_bound`] at `t = 0`), the origin is `p` moved by `D = 2δₚ + δᵣ` along the
+//! unit normal on the side the new ray leaves to, each component rounded one ulp further.
+//!
+//! **Claim.** If the exact surface point `s` has `|p − s| ≤ δₚ` and the surface is its tangent
+//! plane within `D` of `s` (curvature radius ≫ `D`), then (1) the origin `o` is at a distance
+//! `≥ D − δₚ ≥ δₚ + δᵣ > δᵣ` from the surface on the leaving side, and every point `o + t·d`,
+//! `t > 0`, of a ray leaving to that side (`d·n > 0`) is farther still, so no rounding of size
+//! `δᵣ` can produce a hit on that surface near `t = 0` (**no self-hit**); (2) `|o − p| ≤ D + 3`
+//! ulps, so any other surface farther than [`spawn_distance`] from `p` along the ray is still hit
+//! (**no lost hit beyond the bound**). Shown on every built-in primitive from f32-rounded points at
+//! scales `10⁻³…10⁵` and grazing angles in `primitives/tests/spawn.rs`.
 
 use crate::bounds::Aabb;
 use crate::math::gamma;
@@ -82,6 +100,76 @@ pub fn offset_origin(point: DVec3, normal: DVec3, error_bound: f64) -> DVec3 {
     )
 }
 
+/// How precisely a point is known: the bound `δₚ` on its distance from the exact surface point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PointPrecision {
+    /// The exact point rounded to f64 after a computation of magnitude `‖p‖∞` (zeroset's own
+    /// hit points, or CSV output printed in full): `δₚ = √3·γ₃₂·‖p‖∞`.
+    F64,
+    /// The exact point rounded to f32 (an EXR `P` channel, float32 output):
+    /// `δₚ = √3·(2⁻²⁴ + γ₃₂)·‖p‖∞ + √3·2⁻¹⁴⁹` (half an f32 ulp per coordinate, relative, plus the
+    /// f64 error the value had before rounding, plus the f32 subnormal spacing).
+    F32,
+    /// An absolute bound `E ≥ 0` supplied by the caller (for points of other or unknown origin).
+    Absolute(f64),
+}
+
+impl PointPrecision {
+    /// `δₚ` for the point `p` (see the variants).
+    #[must_use]
+    pub fn error_bound(&self, p: DVec3) -> f64 {
+        let m = p.abs().max_element();
+        let sqrt3 = 3f64.sqrt();
+        match *self {
+            PointPrecision::F64 => sqrt3 * gamma(OFFSET_GAMMA) * m,
+            PointPrecision::F32 => sqrt3 * ((2f64.powi(-24) + gamma(OFFSET_GAMMA)) * m + 2f64.powi(-149)),
+            PointPrecision::Absolute(e) => e,
+        }
+    }
+}
+
+impl std::str::FromStr for PointPrecision {
+    type Err = String;
+
+    /// `f32`, `f64`, or a finite number `E ≥ 0` (an absolute bound).
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "f32" => Ok(Self::F32),
+            "f64" => Ok(Self::F64),
+            other => match other.parse::<f64>() {
+                Ok(e) if e.is_finite() && e >= 0.0 => Ok(Self::Absolute(e)),
+                _ => Err(format!(
+                    "expected `f32`, `f64` or an absolute error bound ≥ 0, got `{other}`"
+                )),
+            },
+        }
+    }
+}
+
+/// The offset `D = 2δₚ + γ₃₂·(‖p‖∞ + magnitude)` [`spawn_origin`] moves a point by (before the
+/// final one-ulp rounding of each component). `magnitude` is the largest coordinate magnitude the
+/// surfaces' closed forms compute with ([`magnitude`] of their bounds; 0 for planes).
+#[must_use]
+pub fn spawn_distance(point: DVec3, precision: PointPrecision, magnitude: f64) -> f64 {
+    2.0 * precision.error_bound(point) + gamma(OFFSET_GAMMA) * (point.abs().max_element() + magnitude)
+}
+
+/// A ray origin for a ray leaving the surface through `point` in direction `dir`, where `point`
+/// is known to `precision` and `normal` is the surface normal there (either orientation; unit or
+/// not, non-zero): `point` moved by [`spawn_distance`] along the normal on the side `dir` points
+/// to, rounded away (see the module docs for what is guaranteed). A `dir` tangent to the surface
+/// leaves on the side `normal` points to. Returns `point` unchanged for a zero or non-finite
+/// normal.
+#[must_use]
+pub fn spawn_origin(point: DVec3, normal: DVec3, dir: DVec3, precision: PointPrecision, magnitude: f64) -> DVec3 {
+    let n = normal.normalize_or_zero();
+    if n == DVec3::ZERO {
+        return point;
+    }
+    let n = if dir.dot(n) < 0.0 { -n } else { n };
+    offset_origin(point, n, spawn_distance(point, precision, magnitude))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -95,6 +183,24 @@ mod tests {
         assert_eq!(step_towards(3.0, 0.0), 3.0);
         let p = offset_origin(DVec3::new(1e5, 0.0, -2.0), DVec3::X, 1e-10);
         assert!(p.x > 1e5 + 1e-10 * 0.99 && p.y == 0.0 && p.z == -2.0, "{p}");
+    }
+
+    #[test]
+    fn spawn_moves_to_the_leaving_side_by_the_stated_distance() {
+        let p = DVec3::new(1.0, 2.0, 3.0);
+        let n = DVec3::new(0.0, 0.0, 2.0);
+        let up = spawn_origin(p, n, DVec3::new(1.0, 0.0, 0.1), PointPrecision::F32, 0.0);
+        let down = spawn_origin(p, n, DVec3::new(1.0, 0.0, -0.1), PointPrecision::F32, 0.0);
+        let d = spawn_distance(p, PointPrecision::F32, 0.0);
+        // half an f32 ulp of 3 is 2⁻²³·… : δₚ ≈ √3·2⁻²⁴·3
+        assert!((d - 2.0 * 3f64.sqrt() * 3.0 * 2f64.powi(-24)).abs() < 1e-12, "{d:e}");
+        assert!(up.z - 3.0 >= d && up.z - 3.0 < d * 1.000_001, "{up}");
+        assert!(3.0 - down.z >= d && 3.0 - down.z < d * 1.000_001, "{down}");
+        assert_eq!((up.x, up.y), (1.0, 2.0));
+        assert_eq!(spawn_origin(p, DVec3::ZERO, DVec3::X, PointPrecision::F64, 0.0), p);
+        assert_eq!("f32".parse::<PointPrecision>(), Ok(PointPrecision::F32));
+        assert_eq!("1e-6".parse::<PointPrecision>(), Ok(PointPrecision::Absolute(1e-6)));
+        assert!("-1".parse::<PointPrecision>().is_err() && "nan".parse::<PointPrecision>().is_err());
     }
 
     #[test]

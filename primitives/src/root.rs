@@ -22,6 +22,10 @@
 //!    tolerance of a root.
 //!
 //! Points rejected by [`Implicit::within_boundary`] are stepped over and the march continues.
+//!
+//! Types that enclose Φ along a ray segment ([`Implicit::enclose_along`], e.g. every `Function`
+//! expression) skip steps 2–3: their first root is isolated with a guarantee by interval
+//! arithmetic instead ([`crate::isolation`]), and no Lipschitz bound is needed.
 
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
@@ -32,7 +36,7 @@ static LIPSCHITZ_VIOLATIONS: AtomicU64 = AtomicU64::new(0);
 static BUDGET_EXHAUSTIONS: AtomicU64 = AtomicU64::new(0);
 
 thread_local! {
-    static THREAD_BUDGET_EXHAUSTIONS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+    static THREAD_UNCERTAIN_EVENTS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
 }
 
 /// How many rays, process-wide, ran out of [`RootOptions::max_evaluations`] before the end of
@@ -42,16 +46,23 @@ pub fn budget_exhaustions() -> u64 {
     BUDGET_EXHAUSTIONS.load(Ordering::Relaxed)
 }
 
-/// [`budget_exhaustions`] of the calling thread alone: read it before and after tracing one ray
-/// on a thread to learn whether that ray's answer is uncertain.
+/// Events on the calling thread that leave a ray's answer uncertain: this finder's budget
+/// exhaustions ([`budget_exhaustions`]) and the interval isolation's undecided cases
+/// ([`crate::isolation::uncertain_counts`]). Read it before and after tracing one ray on a
+/// thread to learn whether that ray's answer is uncertain.
 #[must_use]
-pub fn thread_budget_exhaustions() -> u64 {
-    THREAD_BUDGET_EXHAUSTIONS.with(std::cell::Cell::get)
+pub fn thread_uncertain_events() -> u64 {
+    THREAD_UNCERTAIN_EVENTS.with(std::cell::Cell::get)
+}
+
+/// Counts one uncertain event on the calling thread (see [`thread_uncertain_events`]).
+pub(crate) fn note_uncertain_on_thread() {
+    THREAD_UNCERTAIN_EVENTS.with(|c| c.set(c.get() + 1));
 }
 
 fn record_budget_exhaustion() {
     BUDGET_EXHAUSTIONS.fetch_add(1, Ordering::Relaxed);
-    THREAD_BUDGET_EXHAUSTIONS.with(|c| c.set(c.get() + 1));
+    note_uncertain_on_thread();
 }
 
 /// Over-relaxation factor ω of the sphere-tracing steps: a step of `ω·|g|/k` is kept only if the
@@ -73,7 +84,9 @@ pub struct RootOptions {
     /// Number of uniform samples over the clipped interval when the type declares no Lipschitz
     /// bound. The default is 512.
     pub samples: u32,
-    /// Most Φ evaluations spent on one ray before giving up (a miss). The default is 100,000.
+    /// Most Φ evaluations spent on one ray before giving up (a miss; for interval isolation a
+    /// miss counted as exhausted, see [`crate::isolation::uncertain_counts`]). The default is
+    /// 100,000.
     pub max_evaluations: u32,
 }
 
@@ -105,8 +118,11 @@ pub struct RootReport {
     pub hit: Option<RawHit>,
     /// Whether Φ was seen to change faster than the declared Lipschitz bound.
     pub lipschitz_violated: bool,
-    /// Φ evaluations spent.
+    /// Φ evaluations spent (for interval isolation: enclosures and point values).
     pub evaluations: u32,
+    /// Whether the interval root finder ([`crate::isolation`]) could not decide this ray exactly:
+    /// the hit is a touch within the tolerance (tangent, double root), or the budget ran out.
+    pub uncertain: bool,
 }
 
 struct Marcher<'a, I: Implicit + ?Sized> {
@@ -120,62 +136,67 @@ impl<I: Implicit + ?Sized> Marcher<'_, I> {
         self.evaluations = self.evaluations.saturating_add(1);
         self.surface.phi(self.ray.at(t))
     }
+}
 
-    /// Refines a bracket `[a, b]` with `g(a)`, `g(b)` of opposite signs (Illinois + bisection).
-    fn refine(&mut self, mut a: f64, mut ga: f64, mut b: f64, mut gb: f64, tolerance: f64) -> f64 {
-        let mut side = 0i8;
-        let mut width = b - a;
-        // also stop where no f64 lies strictly between a and b (t far from 0 whose ulp exceeds
-        // the tolerance): the bracket cannot shrink further
-        while b - a > tolerance && 0.5 * (a + b) > a && 0.5 * (a + b) < b {
-            // secant point, kept strictly inside
-            let mut t = (a * gb - b * ga) / (gb - ga);
-            if !(t > a && t < b) {
-                t = 0.5 * (a + b);
-            }
-            let gt = self.g(t);
-            if gt == 0.0 {
-                return t;
-            }
-            if (gt < 0.0) == (ga < 0.0) {
-                a = t;
-                ga = gt;
-                if side == -1 {
-                    gb *= 0.5;
-                }
-                side = -1;
-            } else {
-                b = t;
-                gb = gt;
-                if side == 1 {
-                    ga *= 0.5;
-                }
-                side = 1;
-            }
-            // bisect if the secant made poor progress
-            if b - a > 0.5 * width {
-                let m = 0.5 * (a + b);
-                let gm = self.g(m);
-                if gm == 0.0 {
-                    return m;
-                }
-                if (gm < 0.0) == (ga < 0.0) {
-                    a = m;
-                    ga = gm;
-                } else {
-                    b = m;
-                    gb = gm;
-                }
-                side = 0;
-            }
-            width = b - a;
+/// Refines a bracket `[a, b]` with `g(a)`, `g(b)` of opposite signs to a width `tolerance` by the
+/// Illinois variant of regula falsi, bisecting whenever a step fails to halve the bracket; also
+/// stops where no f64 lies strictly between `a` and `b`. Returns the end with the smaller `|g|`
+/// (or a point where `g` is exactly 0).
+pub(crate) fn refine_bracket(
+    mut g: impl FnMut(f64) -> f64,
+    (mut a, mut ga): (f64, f64),
+    (mut b, mut gb): (f64, f64),
+    tolerance: f64,
+) -> f64 {
+    let mut side = 0i8;
+    let mut width = b - a;
+    while b - a > tolerance && 0.5 * (a + b) > a && 0.5 * (a + b) < b {
+        // secant point, kept strictly inside
+        let mut t = (a * gb - b * ga) / (gb - ga);
+        if !(t > a && t < b) {
+            t = 0.5 * (a + b);
         }
-        // the endpoint with the smaller |g| is the better estimate
-        if ga.abs() <= gb.abs() {
-            a
+        let gt = g(t);
+        if gt == 0.0 {
+            return t;
+        }
+        if (gt < 0.0) == (ga < 0.0) {
+            a = t;
+            ga = gt;
+            if side == -1 {
+                gb *= 0.5;
+            }
+            side = -1;
         } else {
-            b
+            b = t;
+            gb = gt;
+            if side == 1 {
+                ga *= 0.5;
+            }
+            side = 1;
         }
+        // bisect if the secant made poor progress
+        if b - a > 0.5 * width {
+            let m = 0.5 * (a + b);
+            let gm = g(m);
+            if gm == 0.0 {
+                return m;
+            }
+            if (gm < 0.0) == (ga < 0.0) {
+                a = m;
+                ga = gm;
+            } else {
+                b = m;
+                gb = gm;
+            }
+            side = 0;
+        }
+        width = b - a;
+    }
+    if ga.abs() <= gb.abs() {
+        a
+    } else {
+        b
     }
 }
 
@@ -185,6 +206,7 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
         hit: None,
         lipschitz_violated: false,
         evaluations: 0,
+        uncertain: false,
     };
     // grow the bounds by the tolerance, so that the march starts strictly outside a surface
     // that touches its bounds (a box), not on it with a Φ of either sign from rounding
@@ -194,6 +216,9 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
     };
     if !clipped.min.is_finite() || !clipped.max.is_finite() || !ray.is_valid() {
         return report;
+    }
+    if surface.enclose_value_along(ray, clipped).is_some() {
+        return crate::isolation::isolate_first_root(surface, ray, clipped, options);
     }
     let dir_len = ray.dir.length();
     let tolerance = options.tolerance.max(f64::MIN_POSITIVE);
@@ -262,7 +287,7 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
             let t = if g1 == 0.0 {
                 t1
             } else {
-                m.refine(t0, g0, t1, g1, tolerance)
+                refine_bracket(|t| m.g(t), (t0, g0), (t1, g1), tolerance)
             };
             if surface.within_boundary(ray.at(t)) {
                 report.hit = Some(RawHit::at(t));

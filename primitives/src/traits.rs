@@ -4,11 +4,15 @@
 //! The minimum a new primitive type writes is [`Implicit::phi`] and [`Implicit::bounds`] plus an
 //! empty `impl Intersect for MyType {}`: the gradient (normals) comes from central differences and
 //! the intersection from the generic root finder in [`crate::root`]. Built-ins override both with
-//! closed forms.
+//! closed forms. A type that can bound Φ by interval arithmetic along a ray segment
+//! ([`Implicit::enclose_along`]) gets guaranteed first roots ([`crate::isolation`]) instead of the
+//! sampling / Lipschitz march.
 
 use crate::bounds::Aabb;
+use crate::expr::Jet;
 use crate::hit::RawHit;
 use crate::math::central_difference;
+use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::root::{self, RootOptions};
 use glam::{DVec2, DVec3};
@@ -46,6 +50,27 @@ pub trait Implicit {
     /// features thinner than one sample spacing.
     fn lipschitz(&self) -> Option<f64> {
         None
+    }
+
+    /// Enclosures of `g(t) = Φ(ray.at(t))` (`value`) and of `g′(t) = ∇Φ·dir` (`slope`) valid for
+    /// every `t` in `segment`, if the type can bound Φ by interval arithmetic (see
+    /// [`crate::math::enclosure`]; [`crate::expr::Expr::enclose_along`] does it for an
+    /// expression). A type that returns `Some` gets the guaranteed first root of
+    /// [`crate::isolation`] from the generic intersector, without a Lipschitz bound. The default
+    /// is `None` (the sampling / sphere-tracing finder of [`crate::root`]).
+    ///
+    /// The enclosures must be **sound**: a value or slope outside them is a bug that can lose
+    /// roots.
+    fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> {
+        let _ = (ray, segment);
+        None
+    }
+
+    /// The `value` part of [`Implicit::enclose_along`] alone. The interval root finder asks for it
+    /// first on every piece, and for the slope only where the value cannot exclude 0, so a type
+    /// that can enclose the value more cheaply than value and slope together overrides this.
+    fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> {
+        self.enclose_along(ray, segment).map(|jet| jet.value)
     }
 
     /// Whether a point of Φ's zero set belongs to the surface. Open surfaces whose Φ describes
@@ -161,6 +186,8 @@ macro_rules! forward_through_pointer {
             fn gradient(&self, p: DVec3) -> DVec3 { (**self).gradient(p) }
             fn lipschitz(&self) -> Option<f64> { (**self).lipschitz() }
             fn within_boundary(&self, p: DVec3) -> bool { (**self).within_boundary(p) }
+            fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> { (**self).enclose_along(ray, segment) }
+            fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> { (**self).enclose_value_along(ray, segment) }
         }
         impl<P: Intersect + ?Sized> Intersect for $($ptr)::+<P> {
             fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> { (**self).intersect(ray, range) }

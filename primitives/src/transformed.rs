@@ -13,7 +13,9 @@
 
 use crate::bounds::Aabb;
 use crate::error::PrimitiveError;
+use crate::expr::Jet;
 use crate::hit::RawHit;
+use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::root::RootOptions;
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
@@ -117,6 +119,15 @@ impl<P: Implicit> Implicit for Transformed<P> {
 
     fn within_boundary(&self, p: DVec3) -> bool {
         self.inner.within_boundary(self.local_point(p))
+    }
+
+    /// The inner enclosures along the local ray (the same `t`).
+    fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> {
+        self.inner.enclose_along(&self.local_ray(ray), segment)
+    }
+
+    fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> {
+        self.inner.enclose_value_along(&self.local_ray(ray), segment)
     }
 }
 

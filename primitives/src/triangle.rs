@@ -4,7 +4,7 @@
 //! |-------|--------------|-------------------------------------------------------|
 //! | `a`   | first vertex | finite                                                |
 //! | `b`   | second       | finite                                                |
-//! | `c`   | third        | finite; `|(b−a)×(c−a)| > 10⁻¹² × (longest edge)²`     |
+//! | `c`   | third        | finite                                                |
 //!
 //! - **Orientation**: `a → b → c` counter-clockwise seen from the front; the unit normal is
 //!   `n = (b−a)×(c−a) / |(b−a)×(c−a)|` and points to the front.
@@ -27,6 +27,11 @@
 //!   rounding. The barycentrics `(u, v)` of the hit are kept in [`RawHit::local`]. `t` itself is
 //!   then taken from the plane, `⟨a − o, N⟩ / ⟨d, N⟩` with `N = (b−a)×(c−a)` computed accurately
 //!   and compensated sums, which keeps slivers (aspect 10⁷) at f64 accuracy.
+//! - **Degenerate triangles** (collinear or repeated vertices: `(b−a)×(c−a)` computed with
+//!   compensated products is exactly 0, the rule a [`crate::Mesh`] uses too) are valid input with
+//!   no area: never hit ([`Triangle::is_degenerate`]). Their Φ is the unsigned distance to the
+//!   segment (or point) they collapse to, so Φ ≥ 0 everywhere and its zero set has no interior.
+//!   Triangles of any positive area, slivers included, are regular triangles.
 
 use crate::bounds::Aabb;
 use crate::error::{require_finite, PrimitiveError};
@@ -49,35 +54,69 @@ pub struct Triangle {
     cross: DVec3,
 }
 
+/// The closest point to `p` on the segment `[a, b]` (`a` when `a = b`).
+fn closest_on_segment(a: DVec3, b: DVec3, p: DVec3) -> DVec3 {
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    if len2 == 0.0 {
+        return a;
+    }
+    a + ((p - a).dot(ab) / len2).clamp(0.0, 1.0) * ab
+}
+
 impl Triangle {
-    /// The triangle `a → b → c`; errors on a non-finite vertex or a (nearly) zero area relative to
-    /// the longest edge (`|(b−a)×(c−a)| ≤ 10⁻¹² × longest²`, which includes collinear vertices).
+    /// The triangle `a → b → c`; errors on a non-finite vertex. Collinear or repeated vertices
+    /// give a degenerate triangle that is never hit (see the module docs).
     pub fn new(a: DVec3, b: DVec3, c: DVec3) -> Result<Self, PrimitiveError> {
         let a = require_finite("Triangle", "a", a)?;
         let b = require_finite("Triangle", "b", b)?;
         let c = require_finite("Triangle", "c", c)?;
         let cross = cross_accurate(b - a, c - a);
-        let longest = (b - a)
-            .length_squared()
-            .max((c - b).length_squared())
-            .max((a - c).length_squared());
         let area2 = cross.length();
-        let large_enough = area2.is_finite() && area2 > 1e-12 * longest;
-        if !large_enough {
+        if !area2.is_finite() {
             return Err(PrimitiveError::new(
                 "Triangle",
                 "c",
-                format!("the vertices are (nearly) collinear: |(b−a)×(c−a)| = {area2:e}, longest edge² = {longest:e}"),
+                format!("the vertices are too far apart for f64: |(b−a)×(c−a)| = {area2:e}"),
             ));
         }
+        // a degenerate triangle keeps zero normals (its `cross` is exactly zero)
+        let (normal, scaled_normal) = if area2 > 0.0 {
+            (cross / area2, cross / (area2 * area2))
+        } else {
+            (DVec3::ZERO, DVec3::ZERO)
+        };
         Ok(Self {
             a,
             b,
             c,
-            normal: cross / area2,
-            scaled_normal: cross / (area2 * area2),
+            normal,
+            scaled_normal,
             cross,
         })
+    }
+
+    /// Whether the vertices are collinear or repeated (zero area): such a triangle is never hit.
+    #[must_use]
+    pub fn is_degenerate(&self) -> bool {
+        self.cross == DVec3::ZERO
+    }
+
+    /// The closest point of a degenerate triangle to `p`: on the longest of its three edges.
+    fn closest_on_degenerate(&self, p: DVec3) -> DVec3 {
+        let (a, b, c) = (self.a, self.b, self.c);
+        let (ab, bc, ca) = (
+            (b - a).length_squared(),
+            (c - b).length_squared(),
+            (a - c).length_squared(),
+        );
+        if ab >= bc && ab >= ca {
+            closest_on_segment(a, b, p)
+        } else if bc >= ca {
+            closest_on_segment(b, c, p)
+        } else {
+            closest_on_segment(c, a, p)
+        }
     }
 
     /// The vertices `[a, b, c]`.
@@ -119,11 +158,18 @@ fn edge_function(x1: f64, y1: f64, x2: f64, y2: f64) -> f64 {
 }
 
 impl Implicit for Triangle {
+    /// The signed plane distance; for a degenerate triangle the distance to its segment.
     fn phi(&self, p: DVec3) -> f64 {
+        if self.is_degenerate() {
+            return (p - self.closest_on_degenerate(p)).length();
+        }
         (p - self.a).dot(self.normal)
     }
 
-    fn gradient(&self, _p: DVec3) -> DVec3 {
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        if self.is_degenerate() {
+            return (p - self.closest_on_degenerate(p)).normalize_or_zero();
+        }
         self.normal
     }
 
@@ -136,6 +182,9 @@ impl Implicit for Triangle {
     }
 
     fn within_boundary(&self, p: DVec3) -> bool {
+        if self.is_degenerate() {
+            return false;
+        }
         let l = self.barycentric(p);
         l.x >= 0.0 && l.y >= 0.0 && l.z >= 0.0
     }
@@ -144,6 +193,9 @@ impl Implicit for Triangle {
 impl Intersect for Triangle {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        if self.is_degenerate() {
+            return None;
+        }
         // permute so the largest direction component is z, keeping the winding
         let d = ray.dir;
         let kz = d.abs().max_position();
@@ -220,18 +272,59 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     #[test]
-    fn rejects_degenerate_and_non_finite_vertices() {
+    fn degenerate_triangles_are_valid_and_never_hit() {
         let (a, b) = (DVec3::ZERO, DVec3::X);
-        assert!(Triangle::new(a, b, DVec3::new(2.0, 0.0, 0.0)).is_err(), "collinear");
-        assert!(Triangle::new(a, b, b).is_err(), "repeated vertex");
-        assert!(Triangle::new(a, a, a).is_err(), "a point");
-        assert!(
-            Triangle::new(a, DVec3::new(1e6, 0.0, 0.0), DVec3::new(0.5, 1e-8, 0.0)).is_err(),
-            "sliver"
-        );
+        let degenerate = [
+            Triangle::new(a, b, DVec3::new(2.0, 0.0, 0.0)).unwrap(), // collinear
+            Triangle::new(a, b, b).unwrap(),                         // repeated vertex
+            Triangle::new(a, a, a).unwrap(),                         // a point
+            // exactly collinear in f64 (0.1·3 would round off the line: a regular sliver)
+            Triangle::new(
+                DVec3::new(0.125, 0.25, 0.375),
+                DVec3::new(0.125, 0.25, 0.375) * 3.0,
+                DVec3::new(0.125, 0.25, 0.375) * 5.0,
+            )
+            .unwrap(),
+        ];
+        let mut rng = StdRng::seed_from_u64(5);
+        for tri in degenerate {
+            assert!(tri.is_degenerate());
+            let [p, q, r] = tri.vertices();
+            for _ in 0..2000 {
+                // rays aimed exactly at a vertex or at points along an edge, from anywhere
+                let w: f64 = rng.random();
+                let target = [p, q, r][rng.random_range(0..3)].lerp(q, w);
+                let origin = DVec3::new(rng.random(), rng.random(), rng.random()) * 4.0 - 2.0;
+                let ray = Ray::new(origin, target - origin);
+                assert_eq!(
+                    tri.intersect(&ray, Interval::new(f64::NEG_INFINITY, f64::INFINITY)),
+                    None
+                );
+                // Φ: distance to the collapsed set, never negative, 0 on it
+                assert!(tri.phi(origin) >= 0.0);
+            }
+            assert!(tri.phi(p).abs() < 1e-15 && tri.phi(q).abs() < 1e-15);
+        }
+        // distance from the collinear one: (0.5, 1, 0) is 1 above the segment [0, 2]×{0}
+        let t = Triangle::new(a, b, DVec3::new(2.0, 0.0, 0.0)).unwrap();
+        assert_eq!(t.phi(DVec3::new(0.5, 1.0, 0.0)), 1.0);
+        assert_eq!(t.phi(DVec3::new(3.0, 0.0, 0.0)), 1.0);
         assert!(Triangle::new(a, b, DVec3::new(f64::NAN, 1.0, 0.0)).is_err());
         assert!(Triangle::new(DVec3::new(0.0, f64::INFINITY, 0.0), b, DVec3::Y).is_err());
-        assert!(Triangle::new(a, b, DVec3::new(0.5, 1e-4, 0.0)).is_ok(), "thin but fine");
+        let thin = Triangle::new(a, b, DVec3::new(0.5, 1e-4, 0.0)).unwrap();
+        assert!(!thin.is_degenerate(), "thin but regular");
+    }
+
+    #[test]
+    fn sliver_is_a_regular_triangle() {
+        // aspect 10¹⁴ (ratio |cross|/longest² = 10⁻¹⁴): hit where the plane says
+        let tri = Triangle::new(DVec3::ZERO, DVec3::new(1e6, 0.0, 0.0), DVec3::new(0.5, 1e-8, 0.0)).unwrap();
+        assert!(!tri.is_degenerate());
+        let ray = Ray::new(DVec3::new(0.4, 2e-9, 1.0), DVec3::new(0.0, 0.0, -1.0));
+        let hit = tri.intersect(&ray, Interval::POSITIVE).expect("inside the sliver");
+        assert_eq!(hit.t, 1.0);
+        let outside = Ray::new(DVec3::new(0.4, 2e-8, 1.0), DVec3::new(0.0, 0.0, -1.0));
+        assert_eq!(tri.intersect(&outside, Interval::POSITIVE), None);
     }
 
     #[test]

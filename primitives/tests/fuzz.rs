@@ -3,7 +3,8 @@
 //! Subjects: Sphere, Plane, Triangle, Disk, Polygon, Cuboid, Cylinder (capped/open), Cone
 //! (pointed/frustum, capped/open), Ellipsoid, each also under a random affine map
 //! ([`Transformed`]: non-uniform scales 10⁻³…10³, any rotation, translation up to 10⁵), and the
-//! combinators [`Csg`] (union, intersection, difference), [`SmoothUnion`] and [`Offset`] over
+//! `Function` expressions (interval isolation), combinators [`Csg`] (union, intersection,
+//! difference), [`SmoothUnion`] and [`Offset`] over
 //! them.
 //!
 //! Rays: origins at random near the subject, **exactly on the surface** (`Parametric::point`),
@@ -145,7 +146,8 @@ fn affine(t: AffineSpec) -> DAffine3 {
 /// What the subject is made of.
 #[derive(Clone, Debug)]
 struct Recipe {
-    /// 0: base; 1–3: union/intersection/difference; 4: smooth union; 5: offset.
+    /// 0: base; 1–3: union/intersection/difference; 4: smooth union; 5: offset; 6: a `Function`
+    /// expression (a wavy spherical shell, interval isolation), transformed like the bases.
     combinator: u8,
     kinds: (u8, u8),
     params: ([f64; 12], [f64; 12]),
@@ -160,6 +162,32 @@ impl Recipe {
             return base(self.kinds.0 % BASE_KINDS, self.params.0, m);
         }
         let a = base(closed_kind(self.kinds.0), self.params.0, m)?;
+        if self.combinator == 6 {
+            let p = self.params.1;
+            let (c, r) = (DVec3::new(p[0], p[1], p[2]), 0.05 + 2.0 * p[3].abs());
+            let w = r * 10f64.powf(-1.0 - 3.0 * p[4].abs());
+            let text = format!(
+                "abs(sqrt((x - {})^2 + (y - {})^2 + (z - {})^2) - {r}) - {w} + {} * sin({} * x) * cos({} * y)",
+                c.x,
+                c.y,
+                c.z,
+                0.1 * w * p[5],
+                3.0 / r,
+                2.0 / r
+            );
+            let bounds = Aabb::new(c - DVec3::splat(1.2 * r + w), c + DVec3::splat(1.2 * r + w));
+            let f = Function::from_expr(Expr::parse(&text).expect("valid"), bounds, RootOptions::default()).ok()?;
+            let prim: Arc<dyn Primitive> = match m {
+                None => Arc::new(f),
+                Some(m) => Arc::new(Transformed::new(f, m).ok()?),
+            };
+            return Some(Subject {
+                prim,
+                surface: a.surface.clone(),
+                implicit_only: true,
+                name: format!("Function({text})"),
+            });
+        }
         let b = base(closed_kind(self.kinds.1), self.params.1, m)?;
         let scale = a.prim.bounds().diagonal_length();
         let (prim, name): (Arc<dyn Primitive>, &str) = match self.combinator {
@@ -203,7 +231,7 @@ fn recipe() -> impl Strategy<Value = Recipe> {
         ),
     );
     (
-        prop_oneof![4 => Just(0u8), 1 => 1u8..6],
+        prop_oneof![4 => Just(0u8), 1 => 1u8..7],
         (0u8..BASE_KINDS, 0u8..BASE_KINDS),
         (unit_params(), unit_params()),
         transform,
@@ -406,10 +434,10 @@ fn runner() -> TestRunner {
 
 #[test]
 fn every_primitive_survives_adversarial_rays() {
-    let built = std::cell::RefCell::new([0usize; 7]);
+    let built = std::cell::RefCell::new([0usize; 8]);
     let result = runner().run(&(recipe(), prop::collection::vec(ray_spec(), 12)), |(recipe, rays)| {
         let Some(subject) = recipe.build() else {
-            built.borrow_mut()[6] += 1;
+            built.borrow_mut()[7] += 1;
             return Ok(());
         };
         built.borrow_mut()[usize::from(recipe.combinator)] += 1;
@@ -424,7 +452,8 @@ fn every_primitive_survives_adversarial_rays() {
     }
     let built = built.into_inner();
     println!(
-        "[fuzz] {} cases × 12 rays; built: base {}, union {}, intersection {}, difference {}, smooth union {}, offset {}; rejected by a constructor {}",
+        "[fuzz] {} cases × 12 rays; built: base {}, union {}, intersection {}, difference {}, smooth union {}, offset {}, \
+         function {}; rejected by a constructor {}",
         cases(),
         built[0],
         built[1],
@@ -432,6 +461,7 @@ fn every_primitive_survives_adversarial_rays() {
         built[3],
         built[4],
         built[5],
-        built[6]
+        built[6],
+        built[7]
     );
 }

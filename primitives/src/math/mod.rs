@@ -3,6 +3,7 @@
 //! solver.
 
 pub mod basis;
+pub mod enclosure;
 pub mod polygon2d;
 pub mod quadratic;
 

@@ -1,0 +1,396 @@
+//! The number types an expression is evaluated in: `f64` (a point), [`Enclosure`] (an interval)
+//! and [`Jet`] (a value with its derivative along one direction, forward-mode differentiation),
+//! all behind one [`Scalar`] trait so that one tree walk serves every evaluation.
+
+use crate::math::enclosure::Enclosure;
+use std::cmp::Ordering;
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+/// What an expression needs from a number type.
+pub trait Scalar:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self>
+{
+    /// The number `c`.
+    fn constant(c: f64) -> Self;
+    /// `√x`.
+    fn sqrt(self) -> Self;
+    /// `eˣ`.
+    fn exp(self) -> Self;
+    /// `ln x`.
+    fn ln(self) -> Self;
+    /// `sin x`.
+    fn sin(self) -> Self;
+    /// `cos x`.
+    fn cos(self) -> Self;
+    /// `tan x`.
+    fn tan(self) -> Self;
+    /// `atan x`.
+    fn atan(self) -> Self;
+    /// `tanh x`.
+    fn tanh(self) -> Self;
+    /// `asin x`.
+    fn asin(self) -> Self;
+    /// `acos x`.
+    fn acos(self) -> Self;
+    /// `sinh x`.
+    fn sinh(self) -> Self;
+    /// `cosh x`.
+    fn cosh(self) -> Self;
+    /// `log₁₀ x`.
+    fn log10(self) -> Self;
+    /// `log₂ x`.
+    fn log2(self) -> Self;
+    /// `∛x`.
+    fn cbrt(self) -> Self;
+    /// `|x|`.
+    fn abs(self) -> Self;
+    /// The derivative of `|x|`: `sign(x)` (an enclosure of it across 0).
+    fn sign(self) -> Self;
+    /// `xⁿ`.
+    fn powi(self, n: i32) -> Self;
+    /// `xʸ` (positive base).
+    fn pow(self, y: Self) -> Self;
+    /// `min(x, y)`.
+    fn min(self, y: Self) -> Self;
+    /// `max(x, y)`.
+    fn max(self, y: Self) -> Self;
+    /// The certain order of two values, if there is one (`None` for overlapping enclosures).
+    fn certain_order(self, y: Self) -> Option<Ordering>;
+    /// A value covering both (for a branch that cannot be decided); a point type returns `self`.
+    fn either(self, y: Self) -> Self;
+}
+
+impl Scalar for f64 {
+    fn constant(c: f64) -> Self {
+        c
+    }
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+    fn exp(self) -> Self {
+        f64::exp(self)
+    }
+    fn ln(self) -> Self {
+        f64::ln(self)
+    }
+    fn sin(self) -> Self {
+        f64::sin(self)
+    }
+    fn cos(self) -> Self {
+        f64::cos(self)
+    }
+    fn tan(self) -> Self {
+        f64::tan(self)
+    }
+    fn atan(self) -> Self {
+        f64::atan(self)
+    }
+    fn tanh(self) -> Self {
+        f64::tanh(self)
+    }
+    fn asin(self) -> Self {
+        f64::asin(self)
+    }
+    fn acos(self) -> Self {
+        f64::acos(self)
+    }
+    fn sinh(self) -> Self {
+        f64::sinh(self)
+    }
+    fn cosh(self) -> Self {
+        f64::cosh(self)
+    }
+    fn log10(self) -> Self {
+        f64::log10(self)
+    }
+    fn log2(self) -> Self {
+        f64::log2(self)
+    }
+    fn cbrt(self) -> Self {
+        f64::cbrt(self)
+    }
+    fn abs(self) -> Self {
+        f64::abs(self)
+    }
+    fn sign(self) -> Self {
+        if self > 0.0 {
+            1.0
+        } else if self < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    }
+    fn powi(self, n: i32) -> Self {
+        // small powers inline (a runtime exponent would otherwise be a library call)
+        match n {
+            1 => self,
+            2 => self * self,
+            3 => self * self * self,
+            _ => f64::powi(self, n),
+        }
+    }
+    fn pow(self, y: Self) -> Self {
+        if self > 0.0 {
+            f64::powf(self, y)
+        } else {
+            f64::NAN
+        }
+    }
+    fn min(self, y: Self) -> Self {
+        f64::min(self, y)
+    }
+    fn max(self, y: Self) -> Self {
+        f64::max(self, y)
+    }
+    fn certain_order(self, y: Self) -> Option<Ordering> {
+        self.partial_cmp(&y)
+    }
+    fn either(self, _: Self) -> Self {
+        self
+    }
+}
+
+impl Scalar for Enclosure {
+    fn constant(c: f64) -> Self {
+        Enclosure::point(c)
+    }
+    fn sqrt(self) -> Self {
+        Enclosure::sqrt(self)
+    }
+    fn exp(self) -> Self {
+        Enclosure::exp(self)
+    }
+    fn ln(self) -> Self {
+        Enclosure::ln(self)
+    }
+    fn sin(self) -> Self {
+        Enclosure::sin(self)
+    }
+    fn cos(self) -> Self {
+        Enclosure::cos(self)
+    }
+    fn tan(self) -> Self {
+        Enclosure::tan(self)
+    }
+    fn atan(self) -> Self {
+        Enclosure::atan(self)
+    }
+    fn tanh(self) -> Self {
+        Enclosure::tanh(self)
+    }
+    fn asin(self) -> Self {
+        Enclosure::asin(self)
+    }
+    fn acos(self) -> Self {
+        Enclosure::acos(self)
+    }
+    fn sinh(self) -> Self {
+        Enclosure::sinh(self)
+    }
+    fn cosh(self) -> Self {
+        Enclosure::cosh(self)
+    }
+    fn log10(self) -> Self {
+        Enclosure::log10(self)
+    }
+    fn log2(self) -> Self {
+        Enclosure::log2(self)
+    }
+    fn cbrt(self) -> Self {
+        Enclosure::cbrt(self)
+    }
+    fn abs(self) -> Self {
+        Enclosure::abs(self)
+    }
+    fn sign(self) -> Self {
+        Enclosure::sign(self)
+    }
+    fn powi(self, n: i32) -> Self {
+        Enclosure::powi(self, n)
+    }
+    fn pow(self, y: Self) -> Self {
+        Enclosure::pow(self, y)
+    }
+    fn min(self, y: Self) -> Self {
+        Enclosure::min(self, y)
+    }
+    fn max(self, y: Self) -> Self {
+        Enclosure::max(self, y)
+    }
+    fn certain_order(self, y: Self) -> Option<Ordering> {
+        if self.hi < y.lo {
+            Some(Ordering::Less)
+        } else if self.lo > y.hi {
+            Some(Ordering::Greater)
+        } else {
+            None
+        }
+    }
+    fn either(self, y: Self) -> Self {
+        self.hull(y)
+    }
+}
+
+/// `value + slope·h`: a number with its derivative along one direction (forward mode).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Jet<T> {
+    /// The value.
+    pub value: T,
+    /// Its derivative.
+    pub slope: T,
+}
+
+impl<T: Scalar> Jet<T> {
+    /// A variable with value `value` whose derivative along the direction is `slope`.
+    pub fn new(value: T, slope: T) -> Self {
+        Self { value, slope }
+    }
+
+    fn chain(self, value: T, derivative: T) -> Self {
+        Self {
+            value,
+            slope: derivative * self.slope,
+        }
+    }
+}
+
+impl<T: Scalar> Add for Jet<T> {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self::new(self.value + o.value, self.slope + o.slope)
+    }
+}
+
+impl<T: Scalar> Sub for Jet<T> {
+    type Output = Self;
+    fn sub(self, o: Self) -> Self {
+        Self::new(self.value - o.value, self.slope - o.slope)
+    }
+}
+
+impl<T: Scalar> Mul for Jet<T> {
+    type Output = Self;
+    fn mul(self, o: Self) -> Self {
+        Self::new(self.value * o.value, self.slope * o.value + self.value * o.slope)
+    }
+}
+
+impl<T: Scalar> Div for Jet<T> {
+    type Output = Self;
+    fn div(self, o: Self) -> Self {
+        let q = self.value / o.value;
+        Self::new(q, (self.slope - q * o.slope) / o.value)
+    }
+}
+
+impl<T: Scalar> Neg for Jet<T> {
+    type Output = Self;
+    fn neg(self) -> Self {
+        Self::new(-self.value, -self.slope)
+    }
+}
+
+impl<T: Scalar> Scalar for Jet<T> {
+    fn constant(c: f64) -> Self {
+        Self::new(T::constant(c), T::constant(0.0))
+    }
+    fn sqrt(self) -> Self {
+        let s = self.value.sqrt();
+        self.chain(s, T::constant(0.5) / s)
+    }
+    fn exp(self) -> Self {
+        let e = self.value.exp();
+        self.chain(e, e)
+    }
+    fn ln(self) -> Self {
+        self.chain(self.value.ln(), T::constant(1.0) / self.value)
+    }
+    fn sin(self) -> Self {
+        self.chain(self.value.sin(), self.value.cos())
+    }
+    fn cos(self) -> Self {
+        self.chain(self.value.cos(), -self.value.sin())
+    }
+    fn tan(self) -> Self {
+        let t = self.value.tan();
+        self.chain(t, T::constant(1.0) + t.powi(2))
+    }
+    fn atan(self) -> Self {
+        self.chain(
+            self.value.atan(),
+            T::constant(1.0) / (T::constant(1.0) + self.value.powi(2)),
+        )
+    }
+    fn tanh(self) -> Self {
+        let t = self.value.tanh();
+        self.chain(t, T::constant(1.0) - t.powi(2))
+    }
+    fn asin(self) -> Self {
+        let one = T::constant(1.0);
+        self.chain(self.value.asin(), one / (one - self.value.powi(2)).sqrt())
+    }
+    fn acos(self) -> Self {
+        let one = T::constant(1.0);
+        self.chain(self.value.acos(), -(one / (one - self.value.powi(2)).sqrt()))
+    }
+    fn sinh(self) -> Self {
+        self.chain(self.value.sinh(), self.value.cosh())
+    }
+    fn cosh(self) -> Self {
+        self.chain(self.value.cosh(), self.value.sinh())
+    }
+    fn log10(self) -> Self {
+        self.chain(self.value.log10(), T::constant(std::f64::consts::LOG10_E) / self.value)
+    }
+    fn log2(self) -> Self {
+        self.chain(self.value.log2(), T::constant(std::f64::consts::LOG2_E) / self.value)
+    }
+    fn cbrt(self) -> Self {
+        let c = self.value.cbrt();
+        self.chain(c, T::constant(1.0) / (T::constant(3.0) * c.powi(2)))
+    }
+    fn abs(self) -> Self {
+        self.chain(self.value.abs(), self.value.sign())
+    }
+    fn sign(self) -> Self {
+        Self::new(self.value.sign(), T::constant(0.0))
+    }
+    fn powi(self, n: i32) -> Self {
+        let derivative = match n {
+            1 => T::constant(1.0),
+            2 => T::constant(2.0) * self.value,
+            _ => T::constant(f64::from(n)) * self.value.powi(n - 1),
+        };
+        self.chain(self.value.powi(n), derivative)
+    }
+    fn pow(self, y: Self) -> Self {
+        let r = self.value.pow(y.value);
+        Self::new(r, r * (y.slope * self.value.ln() + y.value * self.slope / self.value))
+    }
+    fn min(self, y: Self) -> Self {
+        let value = self.value.min(y.value);
+        let slope = match self.value.certain_order(y.value) {
+            Some(Ordering::Less) => self.slope,
+            Some(Ordering::Greater) => y.slope,
+            // equal points take the first; overlapping enclosures cover both branches
+            _ => self.slope.either(y.slope),
+        };
+        Self::new(value, slope)
+    }
+    fn max(self, y: Self) -> Self {
+        let value = self.value.max(y.value);
+        let slope = match self.value.certain_order(y.value) {
+            Some(Ordering::Greater) => self.slope,
+            Some(Ordering::Less) => y.slope,
+            _ => self.slope.either(y.slope),
+        };
+        Self::new(value, slope)
+    }
+    fn certain_order(self, y: Self) -> Option<Ordering> {
+        self.value.certain_order(y.value)
+    }
+    fn either(self, y: Self) -> Self {
+        Self::new(self.value.either(y.value), self.slope.either(y.slope))
+    }
+}

@@ -1,0 +1,173 @@
+//! Guaranteed first roots by interval root isolation, for types that enclose Φ along a ray
+//! ([`Implicit::enclose_along`]; every `Function` expression does).
+//!
+//! With `g(t) = Φ(o + t·d)` on the clipped segment, a stack of pieces is processed front to back
+//! (after Mitchell 1990, "Robust ray intersection with interval arithmetic", and Knoll et al.
+//! 2009, "Fast ray tracing of arbitrary implicit surfaces with interval and affine arithmetic"):
+//!
+//! 1. **Prune.** An enclosure `G ⊇ g([a, b])` with `0 ∉ G` proves the piece root-free.
+//! 2. **Certify monotone pieces.** An enclosure `G′ ⊇ g′([a, b])` with `0 ∉ G′` proves `g`
+//!    strictly monotone there: it has a root iff `g(a)` and `g(b)` differ in sign, and then
+//!    exactly one, refined by regula falsi / bisection ([`crate::root`]) to the tolerance.
+//! 3. **Subdivide** otherwise, at the midpoint, front half first.
+//! 4. A piece no wider than the tolerance that can be neither pruned nor certified is
+//!    - a **root** if `g` changes sign across it (a crossing within the tolerance);
+//!    - else **uncertain**: `g` may touch 0 there without crossing (a tangent ray, a double root,
+//!      or a near miss closer than the enclosures can separate). It is returned as the hit, so
+//!      there is no hole, and counted ([`uncertain_counts`]).
+//!
+//! Every piece in front of the returned one was proven root-free, so the result is the **first**
+//! root to the tolerance (or the first place a root cannot be excluded). A piece where Φ may be
+//! undefined (`√` of a negative…) is subdivided like any other; at the tolerance it is skipped
+//! and counted as a domain error. When the budget of enclosure evaluations runs out the ray
+//! reports no hit and is counted as exhausted: never a silent hole.
+//!
+//! The point values `g(a)`, `g(b)` are f64 evaluations: a root closer to an end than the rounding
+//! of Φ there may be attributed to the neighbouring piece (the ends are shared, so a sign change
+//! is never lost between two pieces).
+
+use crate::expr::Jet;
+use crate::hit::RawHit;
+use crate::math::enclosure::Enclosure;
+use crate::ray::{Interval, Ray};
+use crate::root::{refine_bracket, RootOptions, RootReport};
+use crate::traits::Implicit;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+static TANGENT: AtomicU64 = AtomicU64::new(0);
+static EXHAUSTED: AtomicU64 = AtomicU64::new(0);
+static UNDEFINED: AtomicU64 = AtomicU64::new(0);
+
+/// Process-wide counts of rays the interval root finder could not decide exactly.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UncertainCounts {
+    /// Rays whose first hit is a place where Φ touches 0 within the tolerance without a proven
+    /// crossing (tangent rays, double roots, near misses): reported as hits.
+    pub tangent: u64,
+    /// Rays that spent their budget before isolating a root: reported as misses.
+    pub exhausted: u64,
+    /// Rays that met pieces, no wider than the tolerance, where Φ may be undefined (skipped).
+    pub undefined: u64,
+}
+
+impl UncertainCounts {
+    /// Whether every count is 0.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// The counts so far in this process.
+#[must_use]
+pub fn uncertain_counts() -> UncertainCounts {
+    UncertainCounts {
+        tangent: TANGENT.load(Ordering::Relaxed),
+        exhausted: EXHAUSTED.load(Ordering::Relaxed),
+        undefined: UNDEFINED.load(Ordering::Relaxed),
+    }
+}
+
+fn differ(ga: f64, gb: f64) -> bool {
+    ga == 0.0 || gb == 0.0 || (ga < 0.0) != (gb < 0.0)
+}
+
+/// The first root of Φ along `ray` in `segment` (already clipped to the bounds), by interval
+/// isolation (see the module docs). The budget is [`RootOptions::max_evaluations`], counting
+/// enclosures and point values alike.
+pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
+    surface: &I,
+    ray: &Ray,
+    segment: Interval,
+    options: &RootOptions,
+) -> RootReport {
+    let tolerance = options.tolerance.max(f64::MIN_POSITIVE);
+    let mut report = RootReport {
+        hit: None,
+        lipschitz_violated: false,
+        evaluations: 0,
+        uncertain: false,
+    };
+    let mut undefined_seen = false;
+    let mut evaluations = 0u32;
+    let point = |t: f64, evaluations: &mut u32| {
+        *evaluations = evaluations.saturating_add(1);
+        surface.phi(ray.at(t))
+    };
+    // pieces to examine, the front one last (popped first)
+    let mut stack: Vec<(f64, f64)> = vec![(segment.min, segment.max)];
+    while let Some((a, b)) = stack.pop() {
+        if evaluations >= options.max_evaluations {
+            EXHAUSTED.fetch_add(1, Ordering::Relaxed);
+            crate::root::note_uncertain_on_thread();
+            report.uncertain = true;
+            break;
+        }
+        // the value alone first: most pieces (and whole rays that miss) are pruned by it
+        evaluations += 1;
+        let piece = Interval::new(a, b);
+        let value = surface.enclose_value_along(ray, piece).unwrap_or(Enclosure::ENTIRE);
+        if !value.undefined && !value.contains_zero() {
+            continue; // 1. root-free
+        }
+        let enclosure = surface
+            .enclose_along(ray, piece)
+            .unwrap_or(Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE));
+        let value = enclosure.value;
+        let defined = !value.undefined;
+        if defined && !value.contains_zero() {
+            continue; // 1. root-free
+        }
+        let mid = 0.5 * (a + b);
+        let splittable = b - a > tolerance && mid > a && mid < b;
+        let (t, uncertain) = if defined && !enclosure.slope.contains_zero() {
+            // 2. strictly monotone: a root iff the end values differ in sign
+            let (ga, gb) = (point(a, &mut evaluations), point(b, &mut evaluations));
+            if differ(ga, gb) {
+                let t = if ga == 0.0 {
+                    a
+                } else if gb == 0.0 {
+                    b
+                } else {
+                    refine_bracket(|t| point(t, &mut evaluations), (a, ga), (b, gb), tolerance)
+                };
+                (t, false)
+            } else {
+                continue;
+            }
+        } else if splittable {
+            // 3. subdivide, front half on top
+            stack.push((mid, b));
+            stack.push((a, mid));
+            continue;
+        } else if !defined {
+            undefined_seen = true;
+            continue;
+        } else {
+            // 4. at the tolerance: a crossing, or a touch that cannot be excluded
+            let (ga, gb) = (point(a, &mut evaluations), point(b, &mut evaluations));
+            let t = if ga.abs() <= gb.abs() { a } else { b };
+            (t, !differ(ga, gb))
+        };
+        if surface.within_boundary(ray.at(t)) {
+            if uncertain {
+                TANGENT.fetch_add(1, Ordering::Relaxed);
+                crate::root::note_uncertain_on_thread();
+                report.uncertain = true;
+            }
+            report.hit = Some(RawHit::at(t));
+            break;
+        }
+        // not part of the surface: go on after it
+        let next = t + tolerance;
+        if next < b {
+            stack.push((next, b));
+        }
+    }
+    if undefined_seen {
+        UNDEFINED.fetch_add(1, Ordering::Relaxed);
+        crate::root::note_uncertain_on_thread();
+    }
+    report.evaluations = evaluations;
+    report
+}
