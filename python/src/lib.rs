@@ -19,8 +19,10 @@ use std::sync::{Arc, Mutex};
 use zeroset::aov::Aov;
 use zeroset::camera::{Camera, Model, NoRay, OpenCv};
 use zeroset::output::exr::{write_exr as write_frame, ExrHeader};
-use zeroset::primitives::{Interval, Mesh, Primitive, Ray, Transformed};
-use zeroset::query::{first_hits, QueryRay};
+use zeroset::primitives::{Mesh, Primitive, Ray, Transformed};
+use zeroset::query::{trace_batch, QueryRay};
+use zeroset::query_rays::{ray_from_fields, scene_magnitude, RangeConvention, RaySetup};
+use zeroset::primitives::offset::PointPrecision;
 use zeroset::registry::BuildContext;
 use zeroset::render::{render_view, Frame, RenderOptions, Window};
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
@@ -138,43 +140,92 @@ impl State {
     }
 }
 
+/// How `cast_rays` and friends build rays: the range convention of `zeroset query` (open at
+/// `tmin` unless `closed`) and, with `precision`, origins spawned off the surface along `normals`.
+struct Setup<'a> {
+    closed: bool,
+    /// The scene's coordinate magnitude (spawn offsets scale with it).
+    magnitude: f64,
+    precision: Option<PointPrecision>,
+    normals: Option<&'a PyReadonlyArray2<'a, f64>>,
+}
+
+impl Default for Setup<'_> {
+    fn default() -> Self {
+        Self {
+            closed: false,
+            magnitude: 0.0,
+            precision: None,
+            normals: None,
+        }
+    }
+}
+
+/// `origin_precision` as `zeroset query --origin-precision` takes it (`f32`, `f64` or a bound).
+fn parse_precision(text: Option<&str>, have_normals: bool) -> PyResult<Option<PointPrecision>> {
+    match (text, have_normals) {
+        (None, false) => Ok(None),
+        (None, true) => Err(error("normals are only used with origin_precision= f32, f64 or a bound")),
+        (Some(_), false) => Err(error("origin_precision needs the surface normals: pass normals=")),
+        (Some(t), true) => t
+            .parse::<PointPrecision>()
+            .map(Some)
+            .map_err(|m| error(format!("origin_precision: {m}"))),
+    }
+}
+
+/// The rays of the arrays, each built and checked by `zeroset query`'s own
+/// [`zeroset::query_rays::ray_from_fields`].
 fn query_rays(
     origins: &PyReadonlyArray2<'_, f64>,
     directions: &PyReadonlyArray2<'_, f64>,
     tmin: &PyReadonlyArray1<'_, f64>,
     tmax: &PyReadonlyArray1<'_, f64>,
+    setup: &Setup<'_>,
 ) -> PyResult<Vec<QueryRay>> {
     let o = vectors(origins, "origins")?;
     let d = vectors(directions, "directions")?;
     if o.len() != d.len() {
         return Err(error(format!("origins and directions differ in length: {} and {}", o.len(), d.len())));
     }
+    let normals = match setup.normals {
+        None => None,
+        Some(n) => {
+            let n = vectors(n, "normals")?;
+            if n.len() != o.len() {
+                return Err(error(format!("normals: expected {} rows, got {}", o.len(), n.len())));
+            }
+            Some(n)
+        }
+    };
     let (tmin, tmax) = (tmin.to_vec()?, tmax.to_vec()?);
-    let (tmin, tmax) = (tmin.as_slice(), tmax.as_slice());
-    let range_at = |i: usize, s: &[f64]| s[if s.len() == 1 { 0 } else { i }];
-    for (name, s) in [("tmin", tmin), ("tmax", tmax)] {
+    for (name, s) in [("tmin", &tmin), ("tmax", &tmax)] {
         if s.len() != 1 && s.len() != o.len() {
             return Err(error(format!("{name}: expected a scalar or {} values, got {}", o.len(), s.len())));
         }
     }
+    let at = |s: &[f64], i: usize| s[if s.len() == 1 { 0 } else { i }];
+    let ray_setup = RaySetup {
+        range: if setup.closed {
+            RangeConvention::Closed
+        } else {
+            RangeConvention::OpenStart
+        },
+        origin_precision: setup.precision,
+        magnitude: setup.magnitude,
+    };
     (0..o.len())
         .into_par_iter()
         .map(|i| {
-            let (origin, dir) = (o[i], d[i]);
-            let (lo, hi) = (range_at(i, tmin), range_at(i, tmax));
-            if !origin.is_finite() || !dir.is_finite() {
-                return Err(error(format!("ray {i}: origin and direction must be finite")));
+            let mut fields = Vec::with_capacity(11);
+            fields.extend_from_slice(&o[i].to_array());
+            fields.extend_from_slice(&d[i].to_array());
+            fields.extend_from_slice(&[at(&tmin, i), at(&tmax, i)]);
+            if let Some(n) = &normals {
+                fields.extend_from_slice(&n[i].to_array());
             }
-            if dir == DVec3::ZERO {
-                return Err(error(format!("ray {i}: direction must be non-zero")));
-            }
-            if lo.is_nan() || hi.is_nan() || lo > hi {
-                return Err(error(format!("ray {i}: invalid t range [{lo}, {hi}]")));
-            }
-            Ok(QueryRay {
-                ray: Ray::new(origin, dir),
-                range: Interval::new(lo, hi),
-            })
+            let (ray, range) = ray_from_fields(&fields, &ray_setup).map_err(|m| error(format!("ray {i}: {m}")))?;
+            Ok(QueryRay { ray, range })
         })
         .collect()
 }
@@ -326,6 +377,8 @@ impl PyScene {
     }
 
     /// First hits: the arrays of `zeroset query` (see `zeroset.Scene.cast_rays`).
+    #[pyo3(signature = (origins, directions, tmin, tmax, closed = false, origin_precision = None, normals = None))]
+    #[allow(clippy::too_many_arguments)]
     fn cast_rays<'py>(
         &self,
         py: Python<'py>,
@@ -333,22 +386,37 @@ impl PyScene {
         directions: PyReadonlyArray2<'py, f64>,
         tmin: PyReadonlyArray1<'py, f64>,
         tmax: PyReadonlyArray1<'py, f64>,
+        closed: bool,
+        origin_precision: Option<String>,
+        normals: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let rays = query_rays(&origins, &directions, &tmin, &tmax)?;
+        let precision = parse_precision(origin_precision.as_deref(), normals.is_some())?;
+        let magnitude = match precision {
+            Some(_) => self.with(py, |state| scene_magnitude(state.built())),
+            None => 0.0,
+        };
+        let setup = Setup {
+            closed,
+            magnitude,
+            precision,
+            normals: normals.as_ref(),
+        };
+        let rays = query_rays(&origins, &directions, &tmin, &tmax, &setup)?;
         let n = rays.len();
-        let (t, point, normal, object, uv, feature) = self.with(py, |state| {
-            let hits = first_hits(state.built(), &rays);
+        let (t, point, normal, object, uv, feature, uncertain) = self.with(py, |state| -> PyResult<_> {
+            let hits = trace_batch(state.built(), &rays);
             let mut t = vec![f64::INFINITY; n];
             let mut point = vec![0.0; 3 * n];
             let mut normal = vec![0.0; 3 * n];
             let mut object = vec![-1i32; n];
             let mut uv = vec![0.0; 2 * n];
             let mut feature = vec![-1i64; n];
+            let uncertain: Vec<bool> = hits.par_iter().map(|h| h.uncertain).collect();
             (t.par_iter_mut(), object.par_iter_mut(), feature.par_iter_mut(), hits.par_iter())
                 .into_par_iter()
                 .zip(point.par_chunks_mut(3).zip(normal.par_chunks_mut(3)).zip(uv.par_chunks_mut(2)))
                 .for_each(|((t, object, feature, hit), ((point, normal), uv))| {
-                    if let Some((id, h)) = hit {
+                    if let Some((id, h)) = &hit.hit {
                         *t = h.t;
                         *object = *id as i32;
                         *feature = i64::from(h.feature);
@@ -359,8 +427,8 @@ impl PyScene {
                         }
                     }
                 });
-            (t, point, normal, object, uv, feature)
-        });
+            Ok((t, point, normal, object, uv, feature, uncertain))
+        })?;
         let out = PyDict::new(py);
         let hit: Vec<bool> = object.iter().map(|&o| o >= 0).collect();
         out.set_item("t", PyArray1::from_vec(py, t))?;
@@ -370,17 +438,19 @@ impl PyScene {
         out.set_item("object_id", PyArray1::from_vec(py, object))?;
         out.set_item("uv", PyArray1::from_vec(py, uv).reshape([n, 2])?)?;
         out.set_item("primitive_id", PyArray1::from_vec(py, feature))?;
+        out.set_item("uncertain", PyArray1::from_vec(py, uncertain))?;
         Ok(out)
     }
 
-    /// Seconds the Rust query path (`zeroset::query::first_hits`) alone takes on these rays,
+    /// Seconds the Rust query path (`zeroset::query::trace_batch`) alone takes on these rays,
     /// for the benchmark's Python-overhead column.
     fn time_first_hits(&self, py: Python<'_>, origins: PyReadonlyArray2<'_, f64>, directions: PyReadonlyArray2<'_, f64>) -> PyResult<f64> {
-        let rays = query_rays(&origins, &directions, &PyArray1::from_vec(py, vec![0.0]).readonly(), &PyArray1::from_vec(py, vec![f64::INFINITY]).readonly())?;
+        let (tmin, tmax) = (PyArray1::from_vec(py, vec![0.0]), PyArray1::from_vec(py, vec![f64::INFINITY]));
+        let rays = query_rays(&origins, &directions, &tmin.readonly(), &tmax.readonly(), &Setup::default())?;
         Ok(self.with(py, |state| {
             let scene = state.built();
             let start = std::time::Instant::now();
-            let hits = first_hits(scene, &rays);
+            let hits = trace_batch(scene, &rays);
             let seconds = start.elapsed().as_secs_f64();
             drop(hits);
             seconds
@@ -388,6 +458,7 @@ impl PyScene {
     }
 
     /// Whether anything is hit within each ray's range.
+    #[pyo3(signature = (origins, directions, tmin, tmax, closed = false))]
     fn test_occlusions<'py>(
         &self,
         py: Python<'py>,
@@ -395,8 +466,9 @@ impl PyScene {
         directions: PyReadonlyArray2<'py, f64>,
         tmin: PyReadonlyArray1<'py, f64>,
         tmax: PyReadonlyArray1<'py, f64>,
+        closed: bool,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let rays = query_rays(&origins, &directions, &tmin, &tmax)?;
+        let rays = query_rays(&origins, &directions, &tmin, &tmax, &Setup { closed, ..Setup::default() })?;
         let blocked: Vec<bool> = self.with(py, |state| {
             let scene = state.built();
             rays.par_iter().map(|q| scene.occluded(&q.ray, q.range)).collect()
@@ -406,6 +478,7 @@ impl PyScene {
 
     /// Number of distinct surface crossings within each ray's range (odd: the origin is inside a
     /// closed surface). Crossings at the same `t` (a ray through a shared mesh edge) count once.
+    #[pyo3(signature = (origins, directions, tmin, tmax, closed = false))]
     fn count_intersections<'py>(
         &self,
         py: Python<'py>,
@@ -413,8 +486,9 @@ impl PyScene {
         directions: PyReadonlyArray2<'py, f64>,
         tmin: PyReadonlyArray1<'py, f64>,
         tmax: PyReadonlyArray1<'py, f64>,
+        closed: bool,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
-        let rays = query_rays(&origins, &directions, &tmin, &tmax)?;
+        let rays = query_rays(&origins, &directions, &tmin, &tmax, &Setup { closed, ..Setup::default() })?;
         let counts: Vec<i64> = self.with(py, |state| {
             let scene = state.built();
             rays.par_iter()
@@ -436,7 +510,7 @@ impl PyScene {
     }
 
     /// Renders the scene's camera (see `zeroset.Scene.render`).
-    #[pyo3(signature = (aovs = None, width = None, height = None, crop = None, spp = None, depth_miss = f32::INFINITY, view = None))]
+    #[pyo3(signature = (aovs = None, width = None, height = None, crop = None, spp = None, depth_miss = f32::INFINITY, view = None, background = false))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -448,6 +522,7 @@ impl PyScene {
         spp: Option<u32>,
         depth_miss: f32,
         view: Option<([f64; 3], [f64; 3], [f64; 3])>,
+        background: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         if depth_miss.is_nan() {
             return Err(error("depth_miss must be a number or ±inf, not NaN"));
@@ -499,6 +574,7 @@ impl PyScene {
                 crop: None,
                 depth_miss,
                 progress: false,
+                background,
             };
             let (aovs, planes) = render_planes(scene, &camera, &options, window);
             scene.sampling.spp = saved_spp;

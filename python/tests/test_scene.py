@@ -278,3 +278,41 @@ def test_rays_pinhole_with_distortion_reproduce_an_opencv_render(repo):
     assert hits["hit"].sum() > 100
     np.testing.assert_array_equal(np.isfinite(frame["Distance"]), hits["hit"])
     np.testing.assert_allclose(frame["Distance"][hits["hit"]], hits["t"][hits["hit"]], rtol=1e-6)
+
+
+def test_range_is_open_at_tmin_unless_closed():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    on_surface = np.array([[0.25, -0.5, -0.5]])  # the sphere's front pole, exactly
+    inward = np.array([[0.0, 0.0, 1.0]])
+    open_hit = scene.cast_rays(on_surface, inward)
+    assert open_hit["t"][0] == 3.0  # the far side: |2r|
+    assert scene.cast_rays(on_surface, inward, closed=True)["t"][0] == 0.0
+
+
+def test_spawned_rays_from_float32_points_equal_the_cli(cli, tmp_path):
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    rng = np.random.default_rng(21)
+    origins = rng.uniform(-5, 5, (3000, 3))
+    centre = np.array([0.25, -0.5, 1.0])
+    hits = scene.cast_rays(origins, centre - origins)
+    hit = hits["hit"] & (hits["object_id"] == 0)
+    points = hits["point"][hit].astype(np.float32).astype(np.float64)  # stored as float32
+    normals = hits["normal"][hit]
+    leaving = normals + rng.normal(size=normals.shape) * 0.3  # rays leaving the sphere
+    leaving[np.einsum("ij,ij->i", leaving, normals) <= 0] *= -1
+    naive = scene.cast_rays(points, leaving)
+    assert (naive["object_id"] == 0).sum() > 50, "float32 points re-hit their own sphere"
+    spawned = scene.cast_rays(points, leaving, origin_precision="f32", normals=normals)
+    assert (spawned["object_id"] == 0).sum() == 0
+    # the same rays through `zeroset query --origin-precision f32`
+    rays_csv = tmp_path / "rays.csv"
+    np.savetxt(rays_csv, np.hstack([points, leaving, normals]), delimiter=",", fmt="%.17g")
+    out = tmp_path / "hits.csv"
+    scene_file = tmp_path / "s.ron"
+    scene_file.write_text(SPHERE_SCENE)
+    subprocess.run([cli, "query", str(scene_file), "--rays", str(rays_csv), "--origin-precision", "f32", "-o",
+                    str(out)], check=True, capture_output=True)
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    assert [r[0] == "1" for r in rows] == spawned["hit"].tolist()
+    t_cli = np.array([float(r[1]) if r[0] == "1" else np.inf for r in rows])
+    np.testing.assert_array_equal(t_cli, spawned["t"])

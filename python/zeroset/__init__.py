@@ -230,9 +230,16 @@ class Scene:
         """The scene's camera."""
         return Camera(self._core.camera())
 
-    def cast_rays(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf) -> Dict[str, np.ndarray]:
-        """First hits of rays ``origins + t·directions`` with ``tmin ≤ t ≤ tmax`` (closed range, as
-        ``zeroset query``).
+    def cast_rays(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf, closed: bool = False,
+                  origin_precision: Any = None, normals: Any = None) -> Dict[str, np.ndarray]:
+        """First hits of rays ``origins + t·directions`` with ``tmin < t ≤ tmax`` — the range of
+        ``zeroset query``: open at ``tmin`` (an origin lying on a surface does not report it at
+        ``t = 0``), closed at both ends with ``closed=True``.
+
+        Rays cast from stored hit points (a ``P`` read from an EXR, points saved as float32):
+        pass their surface ``normals`` ``(..., 3)`` and ``origin_precision`` (``"f32"``,
+        ``"f64"`` or an absolute error bound); each origin is moved off the surface exactly as
+        ``zeroset query --origin-precision`` does, so the ray cannot re-hit it through rounding.
 
         ``origins`` and ``directions``: array-likes of float32/float64 shaped ``(..., 3)``
         (broadcast against each other); ``tmin``/``tmax``: scalars or arrays of the leading shape.
@@ -245,29 +252,42 @@ class Scene:
         * ``object_id`` int32, the object's index (-1 on a miss);
         * ``uv`` float64 ``(..., 2)``, the primitive's surface parameters (0 where it has none);
         * ``primitive_id`` int64: the part hit — a mesh's triangle index, a box's face, a
-          cylinder's side or cap (-1 on a miss).
+          cylinder's side or cap (-1 on a miss);
+        * ``uncertain`` bool: the answer is not guaranteed (a root finder ran out of its budget or
+          a ``Function`` root could not be decided exactly; ``zeroset query --uncertain``).
 
         The values equal ``zeroset query``'s on the same rays.
         """
         o, d, lead = _rays(origins, directions)
-        out = self._core.cast_rays(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax"))
+        n = None
+        if normals is not None:
+            n = np.ascontiguousarray(np.broadcast_to(np.asarray(normals, dtype=np.float64), lead + (3,)).reshape(-1, 3))
+        precision = None if origin_precision is None else str(origin_precision)
+        out = self._core.cast_rays(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax"), bool(closed),
+                                   precision, n)
         return {k: v.reshape(lead + v.shape[1:]) for k, v in out.items()}
 
-    def test_occlusions(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf) -> np.ndarray:
-        """Whether any surface is hit with ``tmin ≤ t ≤ tmax``, shaped like the leading dimensions."""
+    def test_occlusions(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf,
+                        closed: bool = False) -> np.ndarray:
+        """Whether any surface is hit with ``tmin < t ≤ tmax`` (``closed=True``: ``tmin ≤ t``),
+        shaped like the leading dimensions."""
         o, d, lead = _rays(origins, directions)
-        return self._core.test_occlusions(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax")).reshape(lead)
+        return self._core.test_occlusions(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax"),
+                                          bool(closed)).reshape(lead)
 
-    def count_intersections(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf) -> np.ndarray:
-        """Number of surface crossings with ``tmin ≤ t ≤ tmax`` (an odd count: the origin is inside
-        a closed surface). Crossings at one ``t`` (a shared mesh edge) count once."""
+    def count_intersections(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf,
+                            closed: bool = False) -> np.ndarray:
+        """Number of surface crossings with ``tmin < t ≤ tmax`` (``closed=True``: ``tmin ≤ t``; an
+        odd count: the origin is inside a closed surface). Crossings at one ``t`` (a shared mesh
+        edge) count once."""
         o, d, lead = _rays(origins, directions)
-        return self._core.count_intersections(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax")).reshape(lead)
+        return self._core.count_intersections(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax"),
+                                              bool(closed)).reshape(lead)
 
     def render(self, aovs: Optional[Sequence[str]] = None, width: Optional[int] = None,
                height: Optional[int] = None, crop: Optional[Tuple[int, int, int, int]] = None,
                spp: Optional[int] = None, depth_miss: float = float("inf"),
-               view: Optional[Dict[str, Any]] = None) -> Dict[str, np.ndarray]:
+               view: Optional[Dict[str, Any]] = None, background: bool = False) -> Dict[str, np.ndarray]:
         """Renders the scene's camera; returns ``{AOV name: float32 array}``, ``(H, W)`` for one
         channel and ``(H, W, C)`` for several, bit-identical to the EXR's channels.
 
@@ -276,6 +296,8 @@ class Scene:
         ``crop=(x0, y0, x1, y1)`` renders that window of the full frame (pixels, half-open),
         exactly as the full render has it there. ``view=dict(eye=..., look_at=..., up=(0, 1, 0))``
         places the scene's camera (its model, field of view and resolution kept) for this render.
+        ``Beauty`` is premultiplied by coverage (a miss is black), as in the EXR;
+        ``background=True`` fills the uncovered part with the scene's background instead.
         """
         pose = None
         if view is not None:
@@ -286,7 +308,7 @@ class Scene:
                     tuple(map(float, view.get("up", (0, 1, 0)))))
         return self._core.render(None if aovs is None else list(aovs), width, height,
                                  None if crop is None else tuple(int(c) for c in crop), spp, float(depth_miss),
-                                 pose)
+                                 pose, bool(background))
 
     def __repr__(self) -> str:
         return f"Scene({self.object_count} objects, camera {self.camera.width}x{self.camera.height})"

@@ -132,6 +132,7 @@ _CAST_FIELDS = {
     "object_id": ((), np.int32),
     "uv": ((2,), np.float64),
     "primitive_id": ((), np.int64),
+    "uncertain": ((), np.bool_),
 }
 
 
