@@ -33,7 +33,7 @@ use serde::{Deserialize, Deserializer};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::{Arc, LazyLock, RwLock};
-use zeroset_primitives::{Primitive, PrimitiveError};
+use zeroset_primitives::{CsgOp, Primitive, PrimitiveError};
 
 /// What a [`SceneShape`] may need from the scene being loaded.
 #[derive(Debug, Default)]
@@ -69,6 +69,13 @@ pub trait SceneShape: fmt::Debug + Send + Sync {
     /// Validates the parameters and builds the primitive (in the object's local space; the
     /// object's transform is applied by the scene).
     fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError>;
+
+    /// For a Boolean combinator (`Union`, `Intersection`, `Difference`), its operation and
+    /// operands, so that an enclosing combinator can splice same-operation chains at load
+    /// (`crate::combinators`); `None` (the default) for everything else.
+    fn boolean_operands(&self) -> Option<(CsgOp, &[ShapeDesc])> {
+        None
+    }
 }
 
 pub(crate) type ShapeParserFn =

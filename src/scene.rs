@@ -335,11 +335,42 @@ pub struct Scene {
     bvh: Bvh,
 }
 
-/// RON options used for scene files: `Some(…)` may be omitted, and a primitive's fields may be
-/// written directly inside its name's parentheses.
+/// How deeply RON values may nest in a scene file (RON's default is 128). A combinator level
+/// takes four (its name, its fields, the `children` list, the operand), so this admits generated
+/// trees of 1,000 levels; [`parse_scene_desc`] parses on a thread whose stack holds that depth.
+pub const RON_NESTING_LIMIT: usize = 4_000;
+
+/// Stack of the parsing thread for [`RON_NESTING_LIMIT`] levels: serde through `erased-serde`
+/// takes about 60 KiB of stack per RON level (measured: a 64 MiB stack holds 250 `Difference`
+/// levels but not 300), so 1 GiB leaves a margin of four. Only the pages a parse touches are
+/// ever committed.
+const PARSE_STACK_BYTES: usize = 1 << 30;
+
+/// RON options used for scene files: `Some(…)` may be omitted, a primitive's fields may be
+/// written directly inside its name's parentheses, and values may nest [`RON_NESTING_LIMIT`] deep.
 #[must_use]
 pub fn ron_options() -> ron::Options {
-    ron::Options::default().with_default_extension(Extensions::IMPLICIT_SOME | Extensions::UNWRAP_VARIANT_NEWTYPES)
+    ron::Options::default()
+        .with_default_extension(Extensions::IMPLICIT_SOME | Extensions::UNWRAP_VARIANT_NEWTYPES)
+        .with_recursion_limit(RON_NESTING_LIMIT)
+}
+
+/// Parses scene text with [`ron_options`] on a thread with a stack for [`RON_NESTING_LIMIT`]
+/// levels (the caller's may be a 2 MiB worker's).
+pub fn parse_scene_desc(text: &str) -> Result<SceneDesc, ron::error::SpannedError> {
+    std::thread::scope(|scope| {
+        let parser = std::thread::Builder::new()
+            .name("scene parser".into())
+            .stack_size(PARSE_STACK_BYTES)
+            .spawn_scoped(scope, || ron_options().from_str::<SceneDesc>(text));
+        match parser {
+            Ok(handle) => handle.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+            // no thread to be had: parse here, within RON's default limit for the caller's stack
+            Err(_) => ron::Options::default()
+                .with_default_extension(Extensions::IMPLICIT_SOME | Extensions::UNWRAP_VARIANT_NEWTYPES)
+                .from_str(text),
+        }
+    })
 }
 
 fn check_finite(location: &str, field: &str, v: DVec3) -> Result<(), (String, String)> {
@@ -374,11 +405,20 @@ impl Scene {
 
     /// Parses and validates scene text, building primitives in `context`.
     pub fn from_ron_in(text: &str, path: &str, context: &BuildContext) -> Result<Self, SceneError> {
-        let desc: SceneDesc = ron_options().from_str(text).map_err(|e| SceneError::Parse {
+        let desc: SceneDesc = parse_scene_desc(text).map_err(|e| SceneError::Parse {
             path: path.to_string(),
             line: e.span.start.line,
             column: e.span.start.col,
-            message: e.code.to_string(),
+            // the limit's error reaches here as a message when raised below a registered
+            // primitive (through `erased-serde`), so it is recognised by its text too
+            message: match e.code.to_string() {
+                m if m == ron::Error::ExceededRecursionLimit.to_string() => format!(
+                    "values nest more than {RON_NESTING_LIMIT} levels deep (about 650 nested \
+                     combinators); write a chain of the same operation as one combinator with \
+                     many `children`"
+                ),
+                m => m,
+            },
         })?;
         Self::from_desc(desc, context).map_err(|(location, message)| SceneError::Invalid {
             path: path.to_string(),
