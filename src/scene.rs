@@ -346,6 +346,11 @@ pub const RON_NESTING_LIMIT: usize = 4_000;
 /// ever committed.
 const PARSE_STACK_BYTES: usize = 1 << 30;
 
+/// Direction magnitudes (largest component) traced as given; beyond, [`Scene::intersect`] scales
+/// the direction by a power of two first.
+const DIR_SCALE_MIN: f64 = 1.0 / (1u64 << 60) as f64;
+const DIR_SCALE_MAX: f64 = (1u64 << 60) as f64;
+
 /// RON options used for scene files: `Some(…)` may be omitted, a primitive's fields may be
 /// written directly inside its name's parentheses, and values may nest [`RON_NESTING_LIMIT`] deep.
 #[must_use]
@@ -583,7 +588,7 @@ impl Scene {
     pub fn intersect_at(&self, ray: &Ray, range: Interval, time: f64) -> Option<(u32, RawHit)> {
         self.closest(
             range,
-            |id, r| self.with_primitive_at(id, time, |p| p.intersect(ray, r)),
+            |id, ray, r| self.with_primitive_at(id, time, |p| p.intersect(ray, r)),
             ray,
         )
     }
@@ -599,15 +604,43 @@ impl Scene {
     pub fn intersect(&self, ray: &Ray, range: Interval) -> Option<(u32, RawHit)> {
         self.closest(
             range,
-            |id, r| self.objects[id as usize].primitive.intersect(ray, r),
+            |id, ray, r| self.objects[id as usize].primitive.intersect(ray, r),
             ray,
         )
     }
 
-    /// The closest hit of `test(object, range)` over the always-tested objects and the BVH,
+    /// The closest hit of `test(object, ray, range)` over the always-tested objects and the BVH,
     /// shrinking `range.max` as hits are found.
+    ///
+    /// A direction whose length is far from 1 (a query's `10⁻³⁰` or `10¹⁵⁵`) is first scaled by a
+    /// power of two `k` near its largest component (exact): the ray `o + t'·(d/k)` is the same
+    /// line with `t' = t·k`, so the range is scaled by `k` and the hit's `t'` mapped back by
+    /// `1/k`. Without it, squares of the direction and the hierarchy's f32 reciprocals overflow or
+    /// underflow and every ray misses.
     #[inline(always)]
     fn closest(
+        &self,
+        range: Interval,
+        test: impl Fn(u32, &Ray, Interval) -> Option<RawHit>,
+        ray: &Ray,
+    ) -> Option<(u32, RawHit)> {
+        let size = ray.dir.abs().max_element();
+        if (DIR_SCALE_MIN..=DIR_SCALE_MAX).contains(&size) || !(size > 0.0 && size.is_finite()) {
+            return self.closest_unscaled(range, |id, r| test(id, ray, r), ray);
+        }
+        let k = zeroset_primitives::math::power_of_two_scale(size);
+        let scaled = Ray::new(ray.origin, ray.dir / k);
+        let (object, hit) = self.closest_unscaled(
+            Interval::new(range.min * k, range.max * k),
+            |id, r| test(id, &scaled, r),
+            &scaled,
+        )?;
+        let t = hit.t / k;
+        range.contains(t).then_some((object, RawHit { t, ..hit }))
+    }
+
+    #[inline(always)]
+    fn closest_unscaled(
         &self,
         mut range: Interval,
         test: impl Fn(u32, Interval) -> Option<RawHit>,

@@ -194,6 +194,13 @@ impl SlabRay {
         Self { origin, inv, pad }
     }
 
+    /// Whether the f32 slab arithmetic is meaningful for this ray: origin, reciprocals and pads
+    /// finite, and the origin well inside f32 range (so that `box − origin` cannot overflow).
+    #[inline]
+    fn is_representable(&self) -> bool {
+        self.origin.abs().max_element() <= 1e37 && self.inv.is_finite() && self.pad.is_finite()
+    }
+
     /// Entry distances into the four boxes of `quad` within `[t0, t1]`: [`SlabRay::entry`]'s
     /// arithmetic, four boxes per SSE operation.
     #[inline(always)]
@@ -342,6 +349,11 @@ impl Bvh {
     /// within `range`; `test` returns the hit parameter if it found one inside the range, which
     /// then becomes the new `range.max`. Returns the id of the item that set the final
     /// `range.max`. Walks the 4-wide nodes, entered children pushed farthest first.
+    ///
+    /// The f32 slab tests need the origin within f32 range and finite reciprocals of the
+    /// direction; a ray beyond that (an origin past `10³⁷`, a direction component below
+    /// `10⁻³⁸` but not zero) tests every item instead (slow, exact). Boxes beyond f32 range are
+    /// stored as infinite and need nothing special.
     #[inline]
     pub fn closest(
         &self,
@@ -350,8 +362,17 @@ impl Bvh {
         mut test: impl FnMut(u32, Interval) -> Option<f64>,
     ) -> Option<u32> {
         let slab = SlabRay::new(ray);
-        let t0 = round_down(range.min);
         let mut best = None;
+        if !slab.is_representable() {
+            for &id in &self.items {
+                if let Some(t) = test(id, range) {
+                    range.max = t;
+                    best = Some(id);
+                }
+            }
+            return best;
+        }
+        let t0 = round_down(range.min);
         traverse_quads(
             &self.quads,
             round_up(range.max),

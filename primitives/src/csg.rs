@@ -283,8 +283,9 @@ impl Intersect for Csg {
     }
 
     /// The children's crossing streams merged in order of `t`. A child whose bounds the ray
-    /// misses in `range` has no crossing there: only its state at the start is evaluated (by Φ,
-    /// which also covers open children whose inside reaches beyond their bounds).
+    /// misses in `range` has no crossing there: only its state at the start counts, which is
+    /// "outside" when the start lies outside its finite bounds (children are closed, their inside
+    /// is within their bounds) and else the sign of its Φ.
     fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> {
         let streams: Vec<Crossings<'a>> = self
             .children
@@ -292,6 +293,8 @@ impl Intersect for Csg {
             .zip(&self.child_bounds)
             .map(|(child, bounds)| match bounds.clip(ray, range) {
                 Some(_) => child.crossings(ray, range),
+                // a closed child's inside lies within its bounds
+                None if bounds.is_finite() && !bounds.contains(ray.at(range.min)) => Crossings::constant(false),
                 None => Crossings::constant(child.phi(ray.at(range.min)) < 0.0),
             })
             .collect();
