@@ -11,8 +11,11 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use zeroset_primitives::*;
 
+/// A built-in by name, or the constructor's refusal.
+type Built = (&'static str, Result<Box<dyn Primitive>, PrimitiveError>);
+
 /// The built-ins at scale `s` (every length multiplied by `s`).
-fn primitives_at(s: f64) -> Vec<(&'static str, Result<Box<dyn Primitive>, PrimitiveError>)> {
+fn primitives_at(s: f64) -> Vec<Built> {
     let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z) * s;
     fn boxed<P: Primitive + 'static>(r: Result<P, PrimitiveError>) -> Result<Box<dyn Primitive>, PrimitiveError> {
         r.map(|p| Box::new(p) as Box<dyn Primitive>)
