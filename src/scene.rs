@@ -297,6 +297,13 @@ pub struct SceneDesc {
     pub sampling: Sampling,
 }
 
+/// Where loading spent its time (for the loading benchmark, `benches/load.rs`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LoadTiming {
+    /// Seconds spent building the hierarchy over the objects' bounds.
+    pub hierarchy: f64,
+}
+
 /// A placed primitive with its material.
 #[derive(Clone, Debug)]
 pub struct Object {
@@ -434,6 +441,11 @@ impl Scene {
 
     /// Validates a parsed description; the error is `(location, message)`.
     pub fn from_desc(desc: SceneDesc, context: &BuildContext) -> Result<Self, (String, String)> {
+        Self::from_desc_timed(desc, context).map(|(scene, _)| scene)
+    }
+
+    /// [`Scene::from_desc`], also reporting how long the hierarchy took to build.
+    pub fn from_desc_timed(desc: SceneDesc, context: &BuildContext) -> Result<(Self, LoadTiming), (String, String)> {
         let camera = build_camera(&desc.camera)
             .map_err(|e| ("camera".to_string(), format!("field `{}`: {}", e.field, e.problem)))?;
         check_finite("scene", "ambient", desc.ambient)?;
@@ -509,6 +521,7 @@ impl Scene {
             return Err(("outputs".into(), "field `aovs`: list at least one AOV".into()));
         }
         desc.sampling.validate().map_err(|m| ("sampling".to_string(), m))?;
+        let start = std::time::Instant::now();
         let mut scene = Self::assemble(
             camera,
             objects,
@@ -517,8 +530,11 @@ impl Scene {
             desc.background,
             desc.outputs,
         );
+        let timing = LoadTiming {
+            hierarchy: start.elapsed().as_secs_f64(),
+        };
         scene.sampling = desc.sampling;
-        Ok(scene)
+        Ok((scene, timing))
     }
 
     /// Builds the acceleration structure over validated parts.
