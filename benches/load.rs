@@ -5,9 +5,37 @@
 //! peak resident memory per object. Generate a large scene with
 //! `python3 scenes/bench/make_spheres.py 1000000` (see its docstring).
 
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 use zeroset::registry::BuildContext;
 use zeroset::scene::{parse_scene_desc, Scene};
+
+/// The system allocator, counting the bytes currently allocated (the loaded scene's exact heap
+/// footprint, which RSS blurs with freed but retained memory).
+struct Counting;
+
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: forwards to `System`, only counting sizes.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        LIVE.fetch_add(layout.size(), Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        LIVE.fetch_add(new_size, Ordering::Relaxed);
+        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
 
 fn peak_rss_bytes() -> f64 {
     std::fs::read_to_string("/proc/self/status")
@@ -48,7 +76,9 @@ fn main() {
     let (mut read, mut parse, mut build, mut hierarchy) = (vec![], vec![], vec![], vec![]);
     let mut objects = 0;
     let mut retained = f64::NAN;
+    let mut heap = f64::NAN;
     let baseline = current_rss_bytes();
+    let heap_baseline = LIVE.load(Ordering::Relaxed);
     for run in 0..runs {
         let start = Instant::now();
         let text = std::fs::read_to_string(&path).expect("readable scene");
@@ -74,15 +104,17 @@ fn main() {
         hierarchy.push(timing.hierarchy);
         if run == 0 {
             retained = current_rss_bytes() - baseline;
+            heap = (LIVE.load(Ordering::Relaxed) - heap_baseline) as f64;
         }
         drop(scene);
     }
     let (p, b, h) = (median(parse), median(build), median(hierarchy));
     println!(
-        "{}: {objects} objects; median of {runs}: read {:.3} s, parse {p:.3} s, build objects {b:.3} s, hierarchy {h:.3} s; parse + build + hierarchy {:.3} s; loaded scene {:.0} B per object (RSS after the first load, text and descriptions freed), peak RSS {:.0} B per object",
+        "{}: {objects} objects; median of {runs}: read {:.3} s, parse {p:.3} s, build objects {b:.3} s, hierarchy {h:.3} s; parse + build + hierarchy {:.3} s; loaded scene {:.0} B per object on the heap ({:.0} B of RSS after the first load, text and descriptions freed), peak RSS {:.0} B per object",
         path.display(),
         median(read),
         p + b + h,
+        heap / objects.max(1) as f64,
         retained / objects.max(1) as f64,
         peak_rss_bytes() / objects.max(1) as f64
     );
