@@ -1,4 +1,5 @@
-//! Scene loading benchmark: `cargo bench --bench load -- SCENE.ron [--runs N]`.
+//! Scene loading benchmark: `cargo bench --bench load -- SCENE.ron [--runs N] [--erased]`
+//! (`--erased`: spheres, boxes and planes parsed through `erased-serde`, as user types are).
 //!
 //! Reports, per run, the time to read the file, to parse it (RON → descriptions), to build and
 //! validate the objects, and to build the hierarchy, then the median of each and the process's
@@ -66,6 +67,14 @@ fn main() {
         match a.as_str() {
             "--runs" => runs = args.next().and_then(|v| v.parse().ok()).expect("--runs N"),
             "--bench" => {}
+            // re-register the built-in leaf primitives as a user would: parsed through
+            // `erased-serde` as before the typed path, for a same-binary comparison
+            "--erased" => {
+                use zeroset::shapes::*;
+                zeroset::registry::register::<SphereDesc>("Sphere");
+                zeroset::registry::register::<BoxDesc>("Box");
+                zeroset::registry::register::<PlaneDesc>("Plane");
+            }
             other => path = Some(std::path::PathBuf::from(other)),
         }
     }
