@@ -1,5 +1,6 @@
 //! Scene loading benchmark: `cargo bench --bench load -- SCENE.ron [--runs N] [--erased]`
-//! (`--erased`: spheres, boxes and planes parsed through `erased-serde`, as user types are).
+//! (`--erased`: spheres, boxes and planes parsed through `erased-serde`, as user types are;
+//! `--sequential`: the whole text parsed in one piece, not the `objects` list split over threads).
 //!
 //! Reports, per run, the time to read the file, to parse it (RON → descriptions), to build and
 //! validate the objects, and to build the hierarchy, then the median of each and the process's
@@ -61,12 +62,15 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn main() {
     let mut runs = 3;
+    let mut sequential = false;
     let mut path = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--runs" => runs = args.next().and_then(|v| v.parse().ok()).expect("--runs N"),
             "--bench" => {}
+            // the whole text parsed in one piece, as before the parallel `objects` split
+            "--sequential" => sequential = true,
             // re-register the built-in leaf primitives as a user would: parsed through
             // `erased-serde` as before the typed path, for a same-binary comparison
             "--erased" => {
@@ -93,7 +97,19 @@ fn main() {
         let text = std::fs::read_to_string(&path).expect("readable scene");
         let t_read = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let desc = parse_scene_desc(&text).unwrap_or_else(|e| panic!("{e}"));
+        let desc = if sequential {
+            std::thread::scope(|s| {
+                std::thread::Builder::new()
+                    .stack_size(1 << 30)
+                    .spawn_scoped(s, || zeroset::scene::ron_options().from_str(&text))
+                    .expect("a parser thread")
+                    .join()
+                    .expect("no panic")
+            })
+        } else {
+            parse_scene_desc(&text)
+        }
+        .unwrap_or_else(|e| panic!("{e}"));
         let t_parse = start.elapsed().as_secs_f64();
         drop(text);
         let start = Instant::now();

@@ -13,6 +13,7 @@ pub mod combinators;
 pub mod mesh_io;
 pub mod motion;
 pub mod output;
+mod parallel_parse;
 pub mod query;
 pub mod registry;
 pub mod render;

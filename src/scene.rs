@@ -357,7 +357,7 @@ pub const RON_NESTING_LIMIT: usize = 4_000;
 /// takes about 60 KiB of stack per RON level (measured: a 64 MiB stack holds 250 `Difference`
 /// levels but not 300), so 1 GiB leaves a margin of four. Only the pages a parse touches are
 /// ever committed.
-const PARSE_STACK_BYTES: usize = 1 << 30;
+pub(crate) const PARSE_STACK_BYTES: usize = 1 << 30;
 
 /// Direction magnitudes (largest component) traced as given; beyond, [`Scene::intersect`] scales
 /// the direction by a power of two first.
@@ -374,13 +374,17 @@ pub fn ron_options() -> ron::Options {
 }
 
 /// Parses scene text with [`ron_options`] on a thread with a stack for [`RON_NESTING_LIMIT`]
-/// levels (the caller's may be a 2 MiB worker's).
+/// levels (the caller's may be a 2 MiB worker's). An `objects` list of 20,000 elements or more
+/// is split over threads (`parallel_parse`), with the same result.
 pub fn parse_scene_desc(text: &str) -> Result<SceneDesc, ron::error::SpannedError> {
     std::thread::scope(|scope| {
         let parser = std::thread::Builder::new()
             .name("scene parser".into())
             .stack_size(PARSE_STACK_BYTES)
-            .spawn_scoped(scope, || ron_options().from_str::<SceneDesc>(text));
+            .spawn_scoped(scope, || match crate::parallel_parse::parse_objects_in_parallel(text) {
+                Some(desc) => Ok(desc),
+                None => ron_options().from_str::<SceneDesc>(text),
+            });
         match parser {
             Ok(handle) => handle.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
             // no thread to be had: parse here, within RON's default limit for the caller's stack
@@ -477,8 +481,8 @@ impl Scene {
                         None => Placement::IDENTITY,
                         Some(t) => placement(t).map_err(|m| (location(), m))?,
                     };
-                    let end = placement(close)
-                        .map_err(|m| (location(), m.replace("`transform.", "`transform_close.")))?;
+                    let end =
+                        placement(close).map_err(|m| (location(), m.replace("`transform.", "`transform_close.")))?;
                     // a "motion" to the same placement is a static object, bit for bit
                     if start == end {
                         None
@@ -492,8 +496,7 @@ impl Scene {
             if let Some(t) = &object.transform {
                 let m = build_transform(t).map_err(|m| (location(), m))?;
                 primitive = Arc::new(
-                    Transformed::new(primitive, m)
-                        .map_err(|e| (location(), format!("transform: {}", e.problem)))?,
+                    Transformed::new(primitive, m).map_err(|e| (location(), format!("transform: {}", e.problem)))?,
                 );
             }
             let m = object.material;
