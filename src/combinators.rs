@@ -31,20 +31,71 @@ pub(crate) fn register(add: &mut dyn FnMut(&str, ShapeParserFn)) {
     add("Function", parser_for::<FunctionDesc>());
 }
 
-fn build_children(children: &[ShapeDesc], context: &BuildContext) -> Result<Vec<Arc<dyn Primitive>>, PrimitiveError> {
-    children
+/// An operand of a Boolean combinator after flattening, with its path from the combinator for
+/// messages (`children[0] (Difference).children[3] (Sphere)`).
+struct Operand<'a> {
+    path: String,
+    desc: &'a ShapeDesc,
+}
+
+/// `desc` with single-operand Booleans unwrapped (`Union(children: [x])` is `x`), and its path.
+fn unwrap_single(mut desc: &ShapeDesc, mut path: String) -> (&ShapeDesc, String) {
+    while let Some((_, [only])) = desc.shape.boolean_operands() {
+        path = format!("{path}.children[0] ({})", only.name);
+        desc = only;
+    }
+    (desc, path)
+}
+
+/// Appends the operands of `op` over `children` to `out`, splicing nested chains whose meaning
+/// is unchanged by it:
+/// - a `Union` inside a `Union`, an `Intersection` inside an `Intersection` (associativity);
+/// - a `Difference` as the first operand of a `Difference`: `(a − b) − c = a − b − c`;
+/// - a `Union` subtracted by a `Difference`: `a − (b ∪ c) = a − b − c`.
+///
+/// A left-deep chain of generated `Difference`s thus loads as one flat `Difference`.
+fn flatten<'a>(op: CsgOp, children: &'a [ShapeDesc], prefix: &str, out: &mut Vec<Operand<'a>>) {
+    for (i, child) in children.iter().enumerate() {
+        let (desc, path) = unwrap_single(child, format!("{prefix}children[{i}] ({})", child.name));
+        let first = out.is_empty();
+        match (op, desc.shape.boolean_operands()) {
+            // an empty operand list is kept, so that its build reports it
+            (_, Some((_, []))) => out.push(Operand { path, desc }),
+            (CsgOp::Union, Some((CsgOp::Union, inner))) | (CsgOp::Intersection, Some((CsgOp::Intersection, inner))) => {
+                flatten(op, inner, &format!("{path}."), out);
+            }
+            (CsgOp::Difference, Some((CsgOp::Difference, inner))) if first => {
+                flatten(CsgOp::Difference, inner, &format!("{path}."), out);
+            }
+            (CsgOp::Difference, Some((CsgOp::Union, inner))) if !first => {
+                flatten(CsgOp::Union, inner, &format!("{path}."), out);
+            }
+            _ => out.push(Operand { path, desc }),
+        }
+    }
+}
+
+/// Builds `op` over `children`, flattened; a single operand is built as itself.
+fn build_boolean(
+    op: CsgOp,
+    children: &[ShapeDesc],
+    context: &BuildContext,
+) -> Result<Arc<dyn Primitive>, PrimitiveError> {
+    let mut operands = Vec::with_capacity(children.len());
+    flatten(op, children, "", &mut operands);
+    let mut built = operands
         .iter()
-        .enumerate()
-        .map(|(i, c)| {
-            c.shape.build(context).map_err(|e| {
-                PrimitiveError::new(
-                    e.primitive,
-                    format!("children[{i}] ({}).{}", c.name, e.field),
-                    e.problem,
-                )
-            })
+        .map(|o| {
+            o.desc
+                .shape
+                .build(context)
+                .map_err(|e| PrimitiveError::new(e.primitive, format!("{}.{}", o.path, e.field), e.problem))
         })
-        .collect()
+        .collect::<Result<Vec<_>, _>>()?;
+    if built.len() == 1 {
+        return Ok(built.remove(0));
+    }
+    Ok(Arc::new(Csg::new(op, built)?))
 }
 
 macro_rules! boolean_desc {
@@ -58,8 +109,13 @@ macro_rules! boolean_desc {
         }
 
         impl SceneShape for $desc {
+            /// The combination with nested same-operation chains spliced (see `flatten`).
             fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
-                Ok(Arc::new(Csg::new($op, build_children(&self.children, context)?)?))
+                build_boolean($op, &self.children, context)
+            }
+
+            fn boolean_operands(&self) -> Option<(CsgOp, &[ShapeDesc])> {
+                Some(($op, &self.children))
             }
         }
     };

@@ -15,6 +15,7 @@ pub mod diagnostics;
 pub mod mesh_io;
 pub mod motion;
 pub mod output;
+mod parallel_parse;
 pub mod pixels;
 pub mod query;
 pub mod query_rays;

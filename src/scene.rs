@@ -313,18 +313,31 @@ pub struct SceneDesc {
     pub views: Vec<ViewDesc>,
 }
 
-/// A placed primitive with its material.
+/// Where loading spent its time (for the loading benchmark, `benches/load.rs`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LoadTiming {
+    /// Seconds spent building the hierarchy over the objects' bounds.
+    pub hierarchy: f64,
+}
+
+/// A placed primitive with its material: 48 bytes, plus the primitive's own allocation (a
+/// million spheres take about 150 B each with the hierarchy).
 #[derive(Clone, Debug)]
 pub struct Object {
     /// Name from the scene file, if any.
-    pub name: Option<String>,
+    pub name: Option<Box<str>>,
     /// The primitive in world space (its transform applied; for a moving object, placed at frame
     /// time 0, which is what time-less queries such as [`Scene::intersect`] see).
     pub primitive: Arc<dyn Primitive>,
     /// The motion of a moving object; `None` for a static one (which ignores ray times).
     pub motion: Option<Arc<Moving>>,
-    /// Surface material.
-    pub material: Material,
+    /// Surface material, shared by the objects that have equal ones.
+    pub material: Arc<Material>,
+}
+
+/// The bits of a material's fields: equal keys, equal materials.
+fn material_key(m: &Material) -> [u64; 5] {
+    [m.color.x, m.color.y, m.color.z, m.specular, m.shininess].map(f64::to_bits)
 }
 
 /// A loaded, validated scene.
@@ -358,11 +371,51 @@ pub struct Scene {
     bvh: Bvh,
 }
 
-/// RON options used for scene files: `Some(…)` may be omitted, and a primitive's fields may be
-/// written directly inside its name's parentheses.
+/// How deeply RON values may nest in a scene file (RON's default is 128). A combinator level
+/// takes four (its name, its fields, the `children` list, the operand), so this admits generated
+/// trees of 1,000 levels; [`parse_scene_desc`] parses on a thread whose stack holds that depth.
+pub const RON_NESTING_LIMIT: usize = 4_000;
+
+/// Stack of the parsing thread for [`RON_NESTING_LIMIT`] levels: serde through `erased-serde`
+/// takes about 60 KiB of stack per RON level (measured: a 64 MiB stack holds 250 `Difference`
+/// levels but not 300), so 1 GiB leaves a margin of four. Only the pages a parse touches are
+/// ever committed.
+pub(crate) const PARSE_STACK_BYTES: usize = 1 << 30;
+
+/// Direction magnitudes (largest component) traced as given; beyond, [`Scene::intersect`] scales
+/// the direction by a power of two first.
+const DIR_SCALE_MIN: f64 = 1.0 / (1u64 << 60) as f64;
+const DIR_SCALE_MAX: f64 = (1u64 << 60) as f64;
+
+/// RON options used for scene files: `Some(…)` may be omitted, a primitive's fields may be
+/// written directly inside its name's parentheses, and values may nest [`RON_NESTING_LIMIT`] deep.
 #[must_use]
 pub fn ron_options() -> ron::Options {
-    ron::Options::default().with_default_extension(Extensions::IMPLICIT_SOME | Extensions::UNWRAP_VARIANT_NEWTYPES)
+    ron::Options::default()
+        .with_default_extension(Extensions::IMPLICIT_SOME | Extensions::UNWRAP_VARIANT_NEWTYPES)
+        .with_recursion_limit(RON_NESTING_LIMIT)
+}
+
+/// Parses scene text with [`ron_options`] on a thread with a stack for [`RON_NESTING_LIMIT`]
+/// levels (the caller's may be a 2 MiB worker's). An `objects` list of 20,000 elements or more
+/// is split over threads (`parallel_parse`), with the same result.
+pub fn parse_scene_desc(text: &str) -> Result<SceneDesc, ron::error::SpannedError> {
+    std::thread::scope(|scope| {
+        let parser = std::thread::Builder::new()
+            .name("scene parser".into())
+            .stack_size(PARSE_STACK_BYTES)
+            .spawn_scoped(scope, || match crate::parallel_parse::parse_objects_in_parallel(text) {
+                Some(desc) => Ok(desc),
+                None => ron_options().from_str::<SceneDesc>(text),
+            });
+        match parser {
+            Ok(handle) => handle.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+            // no thread to be had: parse here, within RON's default limit for the caller's stack
+            Err(_) => ron::Options::default()
+                .with_default_extension(Extensions::IMPLICIT_SOME | Extensions::UNWRAP_VARIANT_NEWTYPES)
+                .from_str(text),
+        }
+    })
 }
 
 fn check_finite(location: &str, field: &str, v: DVec3) -> Result<(), (String, String)> {
@@ -397,11 +450,20 @@ impl Scene {
 
     /// Parses and validates scene text, building primitives in `context`.
     pub fn from_ron_in(text: &str, path: &str, context: &BuildContext) -> Result<Self, SceneError> {
-        let desc: SceneDesc = ron_options().from_str(text).map_err(|e| SceneError::Parse {
+        let desc: SceneDesc = parse_scene_desc(text).map_err(|e| SceneError::Parse {
             path: path.to_string(),
             line: e.span.start.line,
             column: e.span.start.col,
-            message: e.code.to_string(),
+            // the limit's error reaches here as a message when raised below a registered
+            // primitive (through `erased-serde`), so it is recognised by its text too
+            message: match e.code.to_string() {
+                m if m == ron::Error::ExceededRecursionLimit.to_string() => format!(
+                    "values nest more than {RON_NESTING_LIMIT} levels deep (about 650 nested \
+                     combinators); write a chain of the same operation as one combinator with \
+                     many `children`"
+                ),
+                m => m,
+            },
         })?;
         Self::from_desc(desc, context).map_err(|(location, message)| SceneError::Invalid {
             path: path.to_string(),
@@ -412,6 +474,11 @@ impl Scene {
 
     /// Validates a parsed description; the error is `(location, message)`.
     pub fn from_desc(desc: SceneDesc, context: &BuildContext) -> Result<Self, (String, String)> {
+        Self::from_desc_timed(desc, context).map(|(scene, _)| scene)
+    }
+
+    /// [`Scene::from_desc`], also reporting how long the hierarchy took to build.
+    pub fn from_desc_timed(desc: SceneDesc, context: &BuildContext) -> Result<(Self, LoadTiming), (String, String)> {
         let camera = build_camera(&desc.camera)
             .map_err(|e| ("camera".to_string(), format!("field `{}`: {}", e.field, e.problem)))?;
         let views = build_views(&desc.views, &camera, &context.scene_dir)?;
@@ -419,8 +486,11 @@ impl Scene {
         check_finite("scene", "background", desc.background)?;
         let mut objects = Vec::with_capacity(desc.objects.len());
         let mut warnings = Vec::new();
+        // equal materials share one allocation
+        let mut materials: std::collections::HashMap<[u64; 5], Arc<Material>> = std::collections::HashMap::new();
         for (index, object) in desc.objects.into_iter().enumerate() {
-            let location = match &object.name {
+            // formatted only for an error (a million objects need no million strings)
+            let location = || match &object.name {
                 Some(name) => format!("objects[{index}] {name:?} ({})", object.shape.name),
                 None => format!("objects[{index}] ({})", object.shape.name),
             };
@@ -428,47 +498,57 @@ impl Scene {
                 .shape
                 .shape
                 .build(context)
-                .map_err(|e| (location.clone(), format!("field `{}`: {}", e.field, e.problem)))?;
-            warnings.extend(context.take_warnings().into_iter().map(|w| format!("{location}: {w}")));
+                .map_err(|e| (location(), format!("field `{}`: {}", e.field, e.problem)))?;
+            warnings.extend(
+                context
+                    .take_warnings()
+                    .into_iter()
+                    .map(|w| format!("{}: {w}", location())),
+            );
             let motion = match &object.transform_close {
                 None => None,
                 Some(close) => {
                     let start = match &object.transform {
                         None => Placement::IDENTITY,
-                        Some(t) => placement(t).map_err(|m| (location.clone(), m))?,
+                        Some(t) => placement(t).map_err(|m| (location(), m))?,
                     };
-                    let end = placement(close)
-                        .map_err(|m| (location.clone(), m.replace("`transform.", "`transform_close.")))?;
+                    let end =
+                        placement(close).map_err(|m| (location(), m.replace("`transform.", "`transform_close.")))?;
                     // a "motion" to the same placement is a static object, bit for bit
                     if start == end {
                         None
                     } else {
                         Some(Arc::new(
-                            Moving::new(primitive.clone(), start, end).map_err(|m| (location.clone(), m))?,
+                            Moving::new(primitive.clone(), start, end).map_err(|m| (location(), m))?,
                         ))
                     }
                 }
             };
             if let Some(t) = &object.transform {
-                let m = build_transform(t).map_err(|m| (location.clone(), m))?;
+                let m = build_transform(t).map_err(|m| (location(), m))?;
                 primitive = Arc::new(
-                    Transformed::new(primitive, m)
-                        .map_err(|e| (location.clone(), format!("transform: {}", e.problem)))?,
+                    Transformed::new(primitive, m).map_err(|e| (location(), format!("transform: {}", e.problem)))?,
                 );
             }
             let m = object.material;
-            check_finite(&location, "material.color", m.color)?;
+            if !m.color.is_finite() {
+                check_finite(&location(), "material.color", m.color)?;
+            }
             if !(m.specular.is_finite() && m.specular >= 0.0 && m.shininess.is_finite() && m.shininess > 0.0) {
                 return Err((
-                    location,
+                    location(),
                     "field `material`: specular must be ≥ 0 and shininess > 0, both finite".into(),
                 ));
             }
+            let material = match materials.entry(material_key(&m)) {
+                std::collections::hash_map::Entry::Occupied(e) => e.get().clone(),
+                std::collections::hash_map::Entry::Vacant(e) => e.insert(Arc::new(m)).clone(),
+            };
             objects.push(Object {
-                name: object.name,
+                name: object.name.map(String::into_boxed_str),
                 primitive,
                 motion,
-                material: m,
+                material,
             });
         }
         for (index, light) in desc.lights.iter().enumerate() {
@@ -490,6 +570,7 @@ impl Scene {
             return Err(("outputs".into(), "field `aovs`: list at least one AOV".into()));
         }
         desc.sampling.validate().map_err(|m| ("sampling".to_string(), m))?;
+        let start = std::time::Instant::now();
         let mut scene = Self::assemble(
             camera,
             objects,
@@ -498,10 +579,13 @@ impl Scene {
             desc.background,
             desc.outputs,
         );
+        let timing = LoadTiming {
+            hierarchy: start.elapsed().as_secs_f64(),
+        };
         scene.sampling = desc.sampling;
         scene.views = views;
         scene.warnings = warnings;
-        Ok(scene)
+        Ok((scene, timing))
     }
 
     /// Builds the acceleration structure over validated parts.
@@ -573,7 +657,7 @@ impl Scene {
     pub fn intersect_at(&self, ray: &Ray, range: Interval, time: f64) -> Option<(u32, RawHit)> {
         self.closest(
             range,
-            |id, r| self.with_primitive_at(id, time, |p| p.intersect(ray, r)),
+            |id, ray, r| self.with_primitive_at(id, time, |p| p.intersect(ray, r)),
             ray,
         )
     }
@@ -589,15 +673,43 @@ impl Scene {
     pub fn intersect(&self, ray: &Ray, range: Interval) -> Option<(u32, RawHit)> {
         self.closest(
             range,
-            |id, r| self.objects[id as usize].primitive.intersect(ray, r),
+            |id, ray, r| self.objects[id as usize].primitive.intersect(ray, r),
             ray,
         )
     }
 
-    /// The closest hit of `test(object, range)` over the always-tested objects and the BVH,
+    /// The closest hit of `test(object, ray, range)` over the always-tested objects and the BVH,
     /// shrinking `range.max` as hits are found.
+    ///
+    /// A direction whose length is far from 1 (a query's `10⁻³⁰` or `10¹⁵⁵`) is first scaled by a
+    /// power of two `k` near its largest component (exact): the ray `o + t'·(d/k)` is the same
+    /// line with `t' = t·k`, so the range is scaled by `k` and the hit's `t'` mapped back by
+    /// `1/k`. Without it, squares of the direction and the hierarchy's f32 reciprocals overflow or
+    /// underflow and every ray misses.
     #[inline(always)]
     fn closest(
+        &self,
+        range: Interval,
+        test: impl Fn(u32, &Ray, Interval) -> Option<RawHit>,
+        ray: &Ray,
+    ) -> Option<(u32, RawHit)> {
+        let size = ray.dir.abs().max_element();
+        if (DIR_SCALE_MIN..=DIR_SCALE_MAX).contains(&size) || !(size > 0.0 && size.is_finite()) {
+            return self.closest_unscaled(range, |id, r| test(id, ray, r), ray);
+        }
+        let k = zeroset_primitives::math::power_of_two_scale(size);
+        let scaled = Ray::new(ray.origin, ray.dir / k);
+        let (object, hit) = self.closest_unscaled(
+            Interval::new(range.min * k, range.max * k),
+            |id, r| test(id, &scaled, r),
+            &scaled,
+        )?;
+        let t = hit.t / k;
+        range.contains(t).then_some((object, RawHit { t, ..hit }))
+    }
+
+    #[inline(always)]
+    fn closest_unscaled(
         &self,
         mut range: Interval,
         test: impl Fn(u32, Interval) -> Option<RawHit>,

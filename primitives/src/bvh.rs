@@ -14,7 +14,7 @@
 //! Primitives are then tested in f64, so the f32 traversal never changes a hit.
 
 use crate::{Aabb, Interval, Ray};
-use glam::{Vec3A, Vec4};
+use glam::{Vec3, Vec3A, Vec4};
 use std::mem::MaybeUninit;
 
 /// A node: bounds in f32, rounded outward from the f64 bounds so they still contain them.
@@ -48,6 +48,7 @@ fn round_up(x: f64) -> f32 {
 }
 
 impl Node {
+    #[cfg(test)]
     fn new(b: &Aabb) -> Self {
         Self {
             bounds: [
@@ -63,7 +64,9 @@ impl Node {
 /// A BVH over items identified by `u32` ids.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
+    /// The binary tree during the build; emptied (and its memory freed) once collapsed.
     nodes: Vec<Node>,
+    node_count: usize,
     items: Vec<u32>,
     /// The binary tree collapsed into 4-wide nodes, which the traversal walks.
     quads: Vec<Quad>,
@@ -149,6 +152,77 @@ pub(crate) fn traverse_quads(
     }
 }
 
+/// Subtrees with at least this many items are built in parallel.
+pub const PARALLEL_ITEMS: usize = 4096;
+
+/// A binary subtree in depth-first order, its indices (second children, first items) relative
+/// to its own lists.
+struct Subtree {
+    nodes: Vec<Node>,
+    items: Vec<u32>,
+}
+
+impl Subtree {
+    fn build(work: &mut [BuildItem], depth: usize) -> Self {
+        let mut tree = Self {
+            nodes: Vec::with_capacity(work.len()),
+            items: Vec::with_capacity(work.len()),
+        };
+        tree.build_node(work, depth);
+        tree
+    }
+
+    /// Appends the node for `work` and its descendants; returns its index.
+    fn build_node(&mut self, work: &mut [BuildItem], depth: usize) -> usize {
+        let bounds = work.iter().fold(Box32::EMPTY, |b, w| b.union(w.bounds));
+        let node_index = self.nodes.len();
+        self.nodes.push(Node {
+            bounds: [bounds.lo.to_array(), bounds.hi.to_array()],
+            offset: 0,
+            count: 0,
+        });
+        let split = if work.len() <= MAX_LEAF {
+            None
+        } else if depth >= MEDIAN_DEPTH {
+            Some(median_split(work))
+        } else {
+            best_split(work, &bounds)
+        };
+        match split {
+            None => {
+                self.nodes[node_index].offset = self.items.len() as u32;
+                self.nodes[node_index].count = work.len() as u32;
+                self.items.extend(work.iter().map(|w| w.id));
+            }
+            Some(mid) if work.len() >= PARALLEL_ITEMS => {
+                let (left, right) = work.split_at_mut(mid);
+                let (left, right) = rayon::join(|| Self::build(left, depth + 1), || Self::build(right, depth + 1));
+                self.append(left);
+                let second = self.nodes.len();
+                self.append(right);
+                self.nodes[node_index].offset = second as u32;
+            }
+            Some(mid) => {
+                let (left, right) = work.split_at_mut(mid);
+                self.build_node(left, depth + 1);
+                let second = self.build_node(right, depth + 1);
+                self.nodes[node_index].offset = second as u32;
+            }
+        }
+        node_index
+    }
+
+    /// Appends `other` after the current nodes and items, rebasing its indices.
+    fn append(&mut self, other: Self) {
+        let (node_base, item_base) = (self.nodes.len() as u32, self.items.len() as u32);
+        self.nodes.extend(other.nodes.into_iter().map(|mut n| {
+            n.offset += if n.count > 0 { item_base } else { node_base };
+            n
+        }));
+        self.items.extend(other.items);
+    }
+}
+
 const BINS: usize = 16;
 const MAX_LEAF: usize = 2;
 /// Below this depth nodes split at the median, so the tree is at most `MEDIAN_DEPTH + log₂ n`
@@ -156,9 +230,54 @@ const MAX_LEAF: usize = 2;
 const MEDIAN_DEPTH: usize = 28;
 
 struct BuildItem {
-    bounds: Aabb,
-    centroid: glam::DVec3,
+    /// The item's bounds rounded outward to f32 (as its leaf's node will store them).
+    bounds: Box32,
+    centroid: Vec3,
     id: u32,
+}
+
+/// An f32 box, for the build: half the memory traffic of [`Aabb`], and unions of outward-rounded
+/// boxes are exactly the outward rounding of the f64 unions (rounding is monotone).
+#[derive(Clone, Copy, Debug)]
+struct Box32 {
+    lo: Vec3,
+    hi: Vec3,
+}
+
+impl Box32 {
+    const EMPTY: Self = Self {
+        lo: Vec3::splat(f32::INFINITY),
+        hi: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    fn outward(b: &Aabb) -> Self {
+        Self {
+            lo: Vec3::new(round_down(b.min.x), round_down(b.min.y), round_down(b.min.z)),
+            hi: Vec3::new(round_up(b.max.x), round_up(b.max.y), round_up(b.max.z)),
+        }
+    }
+
+    #[inline]
+    fn union(self, other: Self) -> Self {
+        Self {
+            lo: self.lo.min(other.lo),
+            hi: self.hi.max(other.hi),
+        }
+    }
+
+    #[inline]
+    fn including(self, p: Vec3) -> Self {
+        Self {
+            lo: self.lo.min(p),
+            hi: self.hi.max(p),
+        }
+    }
+
+    /// Half the surface area (in f64: an extent of 10³⁸ squared stays finite).
+    fn half_area(&self) -> f64 {
+        let e = (self.hi - self.lo).as_dvec3().max(glam::DVec3::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
 }
 
 /// Per-ray data for the f32 slab tests, conservative with respect to the f64 ray.
@@ -192,6 +311,13 @@ impl SlabRay {
         // one more f32 ulp of the origin keeps the pad itself conservative
         let pad = (error + origin.abs() * f32::EPSILON) * inv.abs();
         Self { origin, inv, pad }
+    }
+
+    /// Whether the f32 slab arithmetic is meaningful for this ray: origin, reciprocals and pads
+    /// finite, and the origin well inside f32 range (so that `box − origin` cannot overflow).
+    #[inline]
+    fn is_representable(&self) -> bool {
+        self.origin.abs().max_element() <= 1e37 && self.inv.is_finite() && self.pad.is_finite()
     }
 
     /// Entry distances into the four boxes of `quad` within `[t0, t1]`: [`SlabRay::entry`]'s
@@ -230,25 +356,35 @@ impl SlabRay {
 
 impl Bvh {
     /// Builds over items `(bounds, id)` (all bounds finite); traversal reports the ids.
+    ///
+    /// Subtrees of at least [`PARALLEL_ITEMS`] items are built in parallel (rayon), each into
+    /// its own node and item lists, which are then appended with their indices rebased: the
+    /// tree is the one the sequential build makes, bit for bit.
     #[must_use]
     pub fn build(items: &[(Aabb, u32)]) -> Self {
         let mut work: Vec<BuildItem> = items
             .iter()
-            .map(|(b, id)| BuildItem {
-                bounds: *b,
-                centroid: b.center(),
-                id: *id,
+            .map(|(b, id)| {
+                let bounds = Box32::outward(b);
+                BuildItem {
+                    bounds,
+                    centroid: 0.5 * bounds.lo + 0.5 * bounds.hi,
+                    id: *id,
+                }
             })
             .collect();
-        let mut bvh = Self {
-            nodes: Vec::with_capacity(2 * items.len()),
-            items: Vec::with_capacity(items.len()),
-            quads: Vec::with_capacity(items.len() / 2 + 1),
-        };
+        let mut bvh = Self::default();
         if !work.is_empty() {
-            bvh.build_node(&mut work, 0);
+            let tree = Subtree::build(&mut work, 0);
+            drop(work);
+            bvh.nodes = tree.nodes;
+            bvh.items = tree.items;
+            bvh.node_count = bvh.nodes.len();
+            bvh.quads.reserve(items.len() / 2 + 1);
             let children = bvh.collapse(0);
             bvh.flatten_quad(&children);
+            bvh.quads.shrink_to_fit();
+            bvh.nodes = Vec::new();
         }
         bvh
     }
@@ -305,43 +441,21 @@ impl Bvh {
         index as u32
     }
 
-    /// Number of nodes (0 for an empty hierarchy).
+    /// Number of nodes of the binary tree it was built as (0 for an empty hierarchy).
     #[must_use]
     pub fn node_count(&self) -> usize {
-        self.nodes.len()
-    }
-
-    fn build_node(&mut self, work: &mut [BuildItem], depth: usize) -> usize {
-        let bounds = work.iter().fold(Aabb::EMPTY, |b, w| b.union(w.bounds));
-        let node_index = self.nodes.len();
-        self.nodes.push(Node::new(&bounds));
-        let split = if work.len() <= MAX_LEAF {
-            None
-        } else if depth >= MEDIAN_DEPTH {
-            Some(median_split(work))
-        } else {
-            best_split(work, &bounds)
-        };
-        match split {
-            None => {
-                self.nodes[node_index].offset = self.items.len() as u32;
-                self.nodes[node_index].count = work.len() as u32;
-                self.items.extend(work.iter().map(|w| w.id));
-            }
-            Some(mid) => {
-                let (left, right) = work.split_at_mut(mid);
-                self.build_node(left, depth + 1);
-                let second = self.build_node(right, depth + 1);
-                self.nodes[node_index].offset = second as u32;
-            }
-        }
-        node_index
+        self.node_count
     }
 
     /// Closest-hit traversal: calls `test(id, range)` for items whose node the ray enters
     /// within `range`; `test` returns the hit parameter if it found one inside the range, which
     /// then becomes the new `range.max`. Returns the id of the item that set the final
     /// `range.max`. Walks the 4-wide nodes, entered children pushed farthest first.
+    ///
+    /// The f32 slab tests need the origin within f32 range and finite reciprocals of the
+    /// direction; a ray beyond that (an origin past `10³⁷`, a direction component below
+    /// `10⁻³⁸` but not zero) tests every item instead (slow, exact). Boxes beyond f32 range are
+    /// stored as infinite and need nothing special.
     #[inline]
     pub fn closest(
         &self,
@@ -350,8 +464,17 @@ impl Bvh {
         mut test: impl FnMut(u32, Interval) -> Option<f64>,
     ) -> Option<u32> {
         let slab = SlabRay::new(ray);
-        let t0 = round_down(range.min);
         let mut best = None;
+        if !slab.is_representable() {
+            for &id in &self.items {
+                if let Some(t) = test(id, range) {
+                    range.max = t;
+                    best = Some(id);
+                }
+            }
+            return best;
+        }
+        let t0 = round_down(range.min);
         traverse_quads(
             &self.quads,
             round_up(range.max),
@@ -374,7 +497,8 @@ impl Bvh {
 
 /// Splits `work` at its median centroid along the centroids' longest axis.
 fn median_split(work: &mut [BuildItem]) -> usize {
-    let extent = work.iter().fold(Aabb::EMPTY, |b, w| b.including(w.centroid)).extent();
+    let centroids = work.iter().fold(Box32::EMPTY, |b, w| b.including(w.centroid));
+    let extent = centroids.hi - centroids.lo;
     let axis = if extent.x >= extent.y && extent.x >= extent.z {
         0
     } else if extent.y >= extent.z {
@@ -388,36 +512,49 @@ fn median_split(work: &mut [BuildItem]) -> usize {
 }
 
 /// Index at which to split `work` (sorted in place), or `None` for a leaf.
-fn best_split(work: &mut [BuildItem], bounds: &Aabb) -> Option<usize> {
-    let centroid_bounds = work.iter().fold(Aabb::EMPTY, |b, w| b.including(w.centroid));
-    let extent = centroid_bounds.extent();
+///
+/// One pass over the items bins them on all three axes at once (each item's bounds and
+/// centroid read once per level), then each axis's 15 split planes are swept.
+fn best_split(work: &mut [BuildItem], bounds: &Box32) -> Option<usize> {
+    let centroid_bounds = work.iter().fold(Box32::EMPTY, |b, w| b.including(w.centroid));
+    let extent = centroid_bounds.hi - centroid_bounds.lo;
     let leaf_cost = work.len() as f64;
-    let parent_area = bounds.surface_area().max(f64::MIN_POSITIVE);
+    let parent_area = bounds.half_area().max(f64::MIN_POSITIVE);
+    let scale: [f32; 3] = std::array::from_fn(|axis| {
+        if extent[axis] > 0.0 {
+            BINS as f32 / extent[axis]
+        } else {
+            0.0
+        }
+    });
+    let lo = centroid_bounds.lo;
+    let bin_of = |axis: usize, c: f32| (((c - lo[axis]) * scale[axis]) as usize).min(BINS - 1);
+    let mut bin_bounds = [[Box32::EMPTY; BINS]; 3];
+    let mut bin_counts = [[0usize; BINS]; 3];
+    for w in work.iter() {
+        for axis in 0..3 {
+            let bin = bin_of(axis, w.centroid[axis]);
+            bin_counts[axis][bin] += 1;
+            bin_bounds[axis][bin] = bin_bounds[axis][bin].union(w.bounds);
+        }
+    }
     let mut best: Option<(f64, usize, usize)> = None; // (cost, axis, bins left of split)
     for axis in 0..3 {
         if !(extent[axis] > 0.0) {
             continue;
         }
-        let mut bin_bounds = [Aabb::EMPTY; BINS];
-        let mut bin_counts = [0usize; BINS];
-        let scale = BINS as f64 / extent[axis];
-        let bin_of = |c: f64| (((c - centroid_bounds.min[axis]) * scale) as usize).min(BINS - 1);
-        for w in work.iter() {
-            let bin = bin_of(w.centroid[axis]);
-            bin_counts[bin] += 1;
-            bin_bounds[bin] = bin_bounds[bin].union(w.bounds);
-        }
+        let (bin_bounds, bin_counts) = (&bin_bounds[axis], &bin_counts[axis]);
         // sweep from the right, then from the left
         let mut right_area = [0.0; BINS];
         let mut right_count = [0usize; BINS];
-        let (mut acc, mut count) = (Aabb::EMPTY, 0);
+        let (mut acc, mut count) = (Box32::EMPTY, 0);
         for i in (1..BINS).rev() {
             acc = acc.union(bin_bounds[i]);
             count += bin_counts[i];
-            right_area[i] = acc.surface_area();
+            right_area[i] = acc.half_area();
             right_count[i] = count;
         }
-        let (mut acc, mut count) = (Aabb::EMPTY, 0);
+        let (mut acc, mut count) = (Box32::EMPTY, 0);
         for split in 1..BINS {
             acc = acc.union(bin_bounds[split - 1]);
             count += bin_counts[split - 1];
@@ -425,7 +562,7 @@ fn best_split(work: &mut [BuildItem], bounds: &Aabb) -> Option<usize> {
                 continue;
             }
             let cost =
-                1.0 + (acc.surface_area() * count as f64 + right_area[split] * right_count[split] as f64) / parent_area;
+                1.0 + (acc.half_area() * count as f64 + right_area[split] * right_count[split] as f64) / parent_area;
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, split));
             }
@@ -435,11 +572,9 @@ fn best_split(work: &mut [BuildItem], bounds: &Aabb) -> Option<usize> {
     if cost >= leaf_cost && work.len() <= 8 {
         return None;
     }
-    let scale = BINS as f64 / extent[axis];
-    let lo = centroid_bounds.min[axis];
     let mut mid = 0;
     for i in 0..work.len() {
-        if ((((work[i].centroid[axis] - lo) * scale) as usize).min(BINS - 1)) < split {
+        if bin_of(axis, work[i].centroid[axis]) < split {
             work.swap(i, mid);
             mid += 1;
         }
@@ -504,8 +639,20 @@ mod tests {
     /// The BVH finds the same closest box as testing every box, on random boxes and rays.
     #[test]
     fn closest_hit_equals_brute_force() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
-        let boxes: Vec<Aabb> = (0..500)
+        closest_hit_equals_brute_force_with(500, 7, -20.0);
+    }
+
+    /// Above `PARALLEL_ITEMS` the subtrees are built in parallel and appended; origins beyond
+    /// f32 range take the linear scan.
+    #[test]
+    fn parallel_build_and_far_origins_equal_brute_force() {
+        closest_hit_equals_brute_force_with(5 * PARALLEL_ITEMS, 8, -20.0);
+        closest_hit_equals_brute_force_with(600, 9, -1e39);
+    }
+
+    fn closest_hit_equals_brute_force_with(count: usize, seed: u64, origin_z: f64) {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let boxes: Vec<Aabb> = (0..count)
             .map(|_| {
                 let c = DVec3::new(
                     rng.random_range(-10.0..10.0),
@@ -524,7 +671,7 @@ mod tests {
         let bvh = Bvh::build(&items);
         let entry = |b: &Aabb, ray: &Ray, range: Interval| b.clip(ray, range).map(|r| r.min);
         for _ in 0..5000 {
-            let o = DVec3::new(rng.random_range(-15.0..15.0), rng.random_range(-15.0..15.0), -20.0);
+            let o = DVec3::new(rng.random_range(-15.0..15.0), rng.random_range(-15.0..15.0), origin_z);
             let d = DVec3::new(rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5), 1.0).normalize();
             let ray = Ray::new(o, d);
             let brute = boxes

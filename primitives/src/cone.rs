@@ -55,9 +55,14 @@
 //!   `1` bottom cap (or apex), `2` top cap (or apex).
 
 use crate::bounds::Aabb;
-use crate::error::{require_direction, require_finite, require_positive, PrimitiveError};
+use crate::error::{
+    require_coordinates_within, require_direction, require_finite, require_length_in_range, require_positive,
+    PrimitiveError, MAX_MAGNITUDE,
+};
 use crate::hit::RawHit;
-use crate::math::{difference_of_products, orthonormal_basis, solve_quadratic, sum_of_products};
+use crate::math::{
+    difference_of_products, is_square_safe, orthonormal_basis, power_of_two_scale, solve_quadratic, sum_of_products,
+};
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
@@ -115,6 +120,10 @@ impl Cone {
             ));
         }
         let height = require_positive("Cone", "height", height)?;
+        require_coordinates_within("Cone", "base", base, MAX_MAGNITUDE)?;
+        require_length_in_range("Cone", "base_radius", base_radius)?;
+        require_length_in_range("Cone", "top_radius", top_radius)?;
+        require_length_in_range("Cone", "height", height)?;
         Ok(Self::from_valid(base, axis, base_radius, top_radius, height, capped))
     }
 
@@ -283,6 +292,15 @@ impl Implicit for Cone {
 
 impl Intersect for Cone {
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        let dir_size = ray.dir.abs().max_element();
+        if !is_square_safe(dir_size) && dir_size > 0.0 && dir_size.is_finite() {
+            // |d|² and its products would overflow or underflow: the same line with d/k (k a
+            // power of two, exact), whose parameters are t·k
+            let k = power_of_two_scale(dir_size);
+            let scaled = Ray::new(ray.origin, ray.dir / k);
+            let hit = self.intersect(&scaled, Interval::new(range.min * k, range.max * k))?;
+            return Some(RawHit { t: hit.t / k, ..hit }).filter(|h| range.contains(h.t));
+        }
         let (o, d) = (self.local(ray.origin), self.local_vector(ray.dir));
         let (o2, d2) = (o.truncate(), d.truncate());
         let mut best: Option<RawHit> = None;

@@ -12,19 +12,28 @@
 //! Each keeps the sign convention (Φ < 0 inside) and a Lipschitz bound `max Lᵢ` when every child
 //! declares one (min, max, negation and the polynomial smooth minimum do not increase it).
 //!
-//! **Intersection.** [`Csg`] does not root-find: it walks the children's own (closed-form)
-//! boundary crossings along the ray in order, tracking which children the ray is inside
-//! (entering where `dir · n < 0`, leaving where `> 0`, tangent contacts ignored), and reports the
-//! first crossing where the Boolean combination changes. Its `t` is therefore exactly a child's
-//! `t`, and its normal that child's normal (negated for subtracted children). [`SmoothUnion`] and
-//! [`Offset`] change the zero set itself, so they use the generic root finder
+//! **Intersection.** [`Csg`] does not root-find: it merges its children's boundary-crossing
+//! streams ([`Intersect::crossings`], each computed once per ray and consumed lazily) in order of
+//! `t`, tracking which children the ray is inside (entering where `dir · n < 0`, leaving where
+//! `> 0`, tangent contacts ignored) with counters, and reports the crossings where the Boolean
+//! combination changes. A nested [`Csg`] child offers its own merged stream, so a tree is walked
+//! once per ray whatever its depth (the old re-query of children from each crossing doubled the
+//! work per level). Children whose bounds the ray misses contribute only their state at the
+//! start. Its `t` is therefore exactly a child's `t`, and its normal that child's normal (negated
+//! for subtracted children), re-found in a window of a few ulps around `t` (for a nesting of
+//! depth `d` that costs `O(d²)` per hit: load-time flattening of same-operation chains keeps `d`
+//! small). [`SmoothUnion`] and [`Offset`] change the zero set itself, so they use the generic root
+//! finder
 //! ([`crate::root`]).
 
 use crate::bounds::Aabb;
+use crate::crossings::{step_past, Crossing, Crossings};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Primitive};
 use glam::{DVec2, DVec3};
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 use std::sync::Arc;
 
 /// Which Boolean combination a [`Csg`] node forms.
@@ -43,6 +52,9 @@ pub enum CsgOp {
 pub struct Csg {
     op: CsgOp,
     children: Vec<Arc<dyn Primitive>>,
+    /// Each child's bounds, computed once (a nested child's bounds fold its whole subtree).
+    child_bounds: Vec<Aabb>,
+    bounds: Aabb,
 }
 
 impl Csg {
@@ -55,7 +67,19 @@ impl Csg {
                 "needs at least one child",
             ));
         }
-        Ok(Self { op, children })
+        let child_bounds: Vec<Aabb> = children.iter().map(|c| c.bounds()).collect();
+        let mut boxes = child_bounds.iter().copied();
+        let bounds = match op {
+            CsgOp::Union => boxes.fold(Aabb::EMPTY, Aabb::union),
+            CsgOp::Intersection => boxes.fold(Aabb::EVERYTHING, |a, b| Aabb::new(a.min.max(b.min), a.max.min(b.max))),
+            CsgOp::Difference => boxes.next().unwrap_or(Aabb::EMPTY),
+        };
+        Ok(Self {
+            op,
+            children,
+            child_bounds,
+            bounds,
+        })
     }
 
     /// The operation.
@@ -64,13 +88,10 @@ impl Csg {
         self.op
     }
 
-    fn combine(&self, inside: impl Fn(usize) -> bool) -> bool {
-        let n = self.children.len();
-        match self.op {
-            CsgOp::Union => (0..n).any(inside),
-            CsgOp::Intersection => (0..n).all(inside),
-            CsgOp::Difference => inside(0) && !(1..n).any(inside),
-        }
+    /// The operands, in order (for a difference, the first is the one subtracted from).
+    #[must_use]
+    pub fn children(&self) -> &[Arc<dyn Primitive>] {
+        &self.children
     }
 
     /// `(child index, sign)` of the branch that determines Φ at `p`.
@@ -116,10 +137,111 @@ impl Csg {
     }
 }
 
-/// The smallest parameter after `t` at which the next crossing is searched: `t` plus a relative
-/// step of 2⁻⁴⁰ (crossings closer than that are merged).
-fn step_past(t: f64) -> f64 {
-    t + (t.abs().max(f64::MIN_POSITIVE.sqrt())) * (2.0f64).powi(-40)
+/// Membership of a [`Csg`] from counts: how many children the ray is inside (for a difference,
+/// how many of the subtracted ones) and whether it is inside the first.
+#[derive(Clone, Copy, Debug)]
+struct Membership {
+    op: CsgOp,
+    children: usize,
+    inside_first: bool,
+    /// Children inside (union, intersection) or subtracted children inside (difference).
+    inside_count: usize,
+}
+
+impl Membership {
+    fn new(op: CsgOp, inside: &[bool]) -> Self {
+        let counted = if op == CsgOp::Difference { &inside[1..] } else { inside };
+        Self {
+            op,
+            children: inside.len(),
+            inside_first: inside[0],
+            inside_count: counted.iter().filter(|&&b| b).count(),
+        }
+    }
+
+    /// Records that the ray moved into (`inside`) or out of child `child`.
+    fn set(&mut self, child: usize, inside: bool) {
+        if child == 0 {
+            self.inside_first = inside;
+        }
+        if child > 0 || self.op != CsgOp::Difference {
+            if inside {
+                self.inside_count += 1;
+            } else {
+                self.inside_count -= 1;
+            }
+        }
+    }
+
+    fn inside(&self) -> bool {
+        match self.op {
+            CsgOp::Union => self.inside_count > 0,
+            CsgOp::Intersection => self.inside_count == self.children,
+            CsgOp::Difference => self.inside_first && self.inside_count == 0,
+        }
+    }
+}
+
+/// `f64` ordered by [`f64::total_cmp`], for the merge heap.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Ordered(f64);
+
+impl Eq for Ordered {}
+
+impl PartialOrd for Ordered {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Ordered {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0)
+    }
+}
+
+/// The merge of a [`Csg`]'s children's crossing streams: yields the crossings where membership
+/// of the combination changes, each child's stream advanced only as far as consumed.
+struct MergedCrossings<'a> {
+    streams: Vec<Crossings<'a>>,
+    /// The next crossing of each child, also queued in `queue` by `(t, child)`.
+    heads: Vec<Option<Crossing>>,
+    queue: BinaryHeap<Reverse<(Ordered, usize)>>,
+    inside: Vec<bool>,
+    membership: Membership,
+}
+
+impl MergedCrossings<'_> {
+    fn advance(&mut self, child: usize) {
+        self.heads[child] = self.streams[child].next();
+        if let Some(c) = self.heads[child] {
+            self.queue.push(Reverse((Ordered(c.hit.t), child)));
+        }
+    }
+}
+
+impl Iterator for MergedCrossings<'_> {
+    type Item = Crossing;
+
+    fn next(&mut self) -> Option<Crossing> {
+        loop {
+            let Reverse((_, child)) = self.queue.pop()?;
+            let crossing = self.heads[child].take()?;
+            self.advance(child);
+            let before = self.membership.inside();
+            if self.inside[child] != crossing.inside_after {
+                self.inside[child] = crossing.inside_after;
+                self.membership.set(child, crossing.inside_after);
+            }
+            let after = self.membership.inside();
+            if after != before {
+                return Some(Crossing {
+                    hit: RawHit::on_feature(crossing.hit.t, child as u32),
+                    inside_after: after,
+                });
+            }
+        }
+    }
 }
 
 impl Implicit for Csg {
@@ -141,12 +263,7 @@ impl Implicit for Csg {
     }
 
     fn bounds(&self) -> Aabb {
-        let mut boxes = self.children.iter().map(|c| c.bounds());
-        match self.op {
-            CsgOp::Union => boxes.fold(Aabb::EMPTY, Aabb::union),
-            CsgOp::Intersection => boxes.fold(Aabb::EVERYTHING, |a, b| Aabb::new(a.min.max(b.min), a.max.min(b.max))),
-            CsgOp::Difference => boxes.next().unwrap_or(Aabb::EMPTY),
-        }
+        self.bounds
     }
 
     fn lipschitz(&self) -> Option<f64> {
@@ -158,48 +275,40 @@ impl Implicit for Csg {
 }
 
 impl Intersect for Csg {
+    /// The first crossing of [`Intersect::crossings`].
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let start = ray.at(range.min);
-        let mut inside: Vec<bool> = self.children.iter().map(|c| c.phi(start) < 0.0).collect();
-        let mut state = self.combine(|i| inside[i]);
-        let mut next: Vec<Option<RawHit>> = self.children.iter().map(|c| c.intersect(ray, range)).collect();
-        // per child, the step taken past its last hit: it doubles while the child keeps
-        // reporting tangential contacts (`dir · n = 0`), so a ray lying in a face plane (a
-        // contact segment, reported at every `t_min`) is left in at most ~2,100 steps instead
-        // of one ulp at a time
-        let mut steps: Vec<f64> = vec![0.0; self.children.len()];
-        loop {
-            let (child, hit) = next
-                .iter()
-                .enumerate()
-                .filter_map(|(i, h)| h.map(|h| (i, h)))
-                .min_by(|a, b| a.1.t.total_cmp(&b.1.t))?;
-            let facing = ray.dir.dot(self.children[child].normal_at(ray, &hit));
-            if facing != 0.0 {
-                inside[child] = facing < 0.0;
-                let new_state = self.combine(|i| inside[i]);
-                if new_state != state {
-                    return Some(RawHit {
-                        t: hit.t,
-                        feature: child as u32,
-                        local: DVec2::ZERO,
-                    });
-                }
-                state = new_state;
-            }
-            let mut after = step_past(hit.t);
-            if facing == 0.0 {
-                steps[child] = (2.0 * steps[child]).max(after - hit.t);
-                after = hit.t + steps[child];
-            } else {
-                steps[child] = 0.0;
-            }
-            next[child] = if after.is_finite() && after > hit.t && after <= range.max {
-                self.children[child].intersect(ray, Interval::new(after, range.max))
-            } else {
-                None
-            };
+        self.crossings(ray, range).next().map(|c| c.hit)
+    }
+
+    /// The children's crossing streams merged in order of `t`. A child whose bounds the ray
+    /// misses in `range` has no crossing there: only its state at the start counts, which is
+    /// "outside" when the start lies outside its finite bounds (children are closed, their inside
+    /// is within their bounds) and else the sign of its Φ.
+    fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> {
+        let streams: Vec<Crossings<'a>> = self
+            .children
+            .iter()
+            .zip(&self.child_bounds)
+            .map(|(child, bounds)| match bounds.clip(ray, range) {
+                Some(_) => child.crossings(ray, range),
+                // a closed child's inside lies within its bounds
+                None if bounds.is_finite() && !bounds.contains(ray.at(range.min)) => Crossings::constant(false),
+                None => Crossings::constant(child.phi(ray.at(range.min)) < 0.0),
+            })
+            .collect();
+        let inside: Vec<bool> = streams.iter().map(|s| s.starts_inside).collect();
+        let membership = Membership::new(self.op, &inside);
+        let mut merged = MergedCrossings {
+            heads: vec![None; streams.len()],
+            queue: BinaryHeap::with_capacity(streams.len()),
+            streams,
+            inside,
+            membership,
+        };
+        for child in 0..merged.streams.len() {
+            merged.advance(child);
         }
+        Crossings::new(membership.inside(), merged)
     }
 
     fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 {

@@ -33,7 +33,10 @@
 
 use crate::bounds::Aabb;
 use crate::cone::Cone;
-use crate::error::{require_direction, require_finite, require_positive, PrimitiveError};
+use crate::error::{
+    require_coordinates_within, require_direction, require_finite, require_length_in_range, require_positive,
+    PrimitiveError, MAX_MAGNITUDE,
+};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
@@ -53,6 +56,9 @@ impl Cylinder {
         let axis = require_direction("Cylinder", "axis", axis)?;
         let radius = require_positive("Cylinder", "radius", radius)?;
         let height = require_positive("Cylinder", "height", height)?;
+        require_coordinates_within("Cylinder", "base", base, MAX_MAGNITUDE)?;
+        require_length_in_range("Cylinder", "radius", radius)?;
+        require_length_in_range("Cylinder", "height", height)?;
         Ok(Self {
             cone: Cone::from_valid(base, axis, radius, radius, height, capped),
         })

@@ -17,7 +17,10 @@
 //!   (`⟨dir, n⟩ = 0`), including one lying in it, misses.
 
 use crate::bounds::Aabb;
-use crate::error::{require_direction, require_finite, require_positive, PrimitiveError};
+use crate::error::{
+    require_coordinates_within, require_direction, require_finite, require_length_in_range, require_positive,
+    PrimitiveError, MAX_MAGNITUDE,
+};
 use crate::hit::RawHit;
 use crate::math::dot_minus;
 use crate::math::orthonormal_basis;
@@ -42,6 +45,8 @@ impl Disk {
         let center = require_finite("Disk", "center", center)?;
         let normal = require_direction("Disk", "normal", normal)?;
         let radius = require_positive("Disk", "radius", radius)?;
+        require_coordinates_within("Disk", "center", center, MAX_MAGNITUDE)?;
+        require_length_in_range("Disk", "radius", radius)?;
         let (e1, e2) = orthonormal_basis(normal);
         Ok(Self {
             center,

@@ -23,7 +23,10 @@
 //!   point `o′ + t·d′` directly, `R(s ⊘ r)`, normalised.
 
 use crate::bounds::Aabb;
-use crate::error::{require_finite, require_positive, PrimitiveError};
+use crate::error::{
+    require_coordinates_within, require_finite, require_length_in_range, require_positive, PrimitiveError,
+    MAX_MAGNITUDE,
+};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::sphere::Sphere;
@@ -54,6 +57,10 @@ impl Ellipsoid {
             require_positive("Ellipsoid", "radii.y", radii.y)?,
             require_positive("Ellipsoid", "radii.z", radii.z)?,
         );
+        require_coordinates_within("Ellipsoid", "center", center, MAX_MAGNITUDE)?;
+        for (field, r) in [("radii.x", radii.x), ("radii.y", radii.y), ("radii.z", radii.z)] {
+            require_length_in_range("Ellipsoid", field, r)?;
+        }
         let norm = orientation.length();
         if !(orientation.is_finite() && (norm - 1.0).abs() <= 1e-6) {
             return Err(PrimitiveError::new(

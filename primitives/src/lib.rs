@@ -41,6 +41,7 @@
 // infrastructure
 pub mod bounds;
 pub mod bvh;
+pub mod crossings;
 pub mod error;
 pub mod expr;
 pub mod hit;
@@ -73,6 +74,7 @@ pub mod testing;
 
 pub use bounds::Aabb;
 pub use bvh::Bvh;
+pub use crossings::{Crossing, Crossings};
 pub use error::PrimitiveError;
 pub use hit::{HitRequest, RawHit, SurfaceHit};
 pub use ray::{Interval, Ray};

@@ -36,6 +36,12 @@ use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
 
+/// The largest coordinate magnitude a polygon accepts: `10⁷⁵` (its area and planarity tests
+/// multiply four coordinates, which overflows beyond about `2²⁵⁵ ≈ 5.8·10⁷⁶`).
+pub const MAX_COORDINATE: f64 = 1e75;
+
+/// The smallest extent (bounding-box diagonal) a polygon accepts: `10⁻⁷⁵`, for the same reason.
+pub const MIN_EXTENT: f64 = 1e-75;
 /// A planar polygon with holes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Polygon {
@@ -113,12 +119,25 @@ impl Polygon {
         if let Some((field, p)) = named().find(|(_, p)| !p.is_finite()) {
             return Err(error(field, format!("must be finite, got {p}")));
         }
+        // the area test below multiplies four coordinates
+        if let Some((field, p)) = named().find(|(_, p)| p.abs().max_element() > MAX_COORDINATE) {
+            return Err(error(
+                field,
+                format!("coordinates must be at most {MAX_COORDINATE:e} in magnitude (products of four would overflow), got {p}"),
+            ));
+        }
         // Newell's method about the first point: twice the vector area of the outer ring
         let first = points[0];
         let area2: DVec3 = (1..points.len() - 1)
             .map(|i| (points[i] - first).cross(points[i + 1] - first))
             .sum();
         let size = Aabb::from_points(named().map(|(_, p)| p)).diagonal_length();
+        if size < MIN_EXTENT {
+            return Err(error(
+                "points",
+                format!("the polygon's extent {size:e} is below {MIN_EXTENT:e} (products of four coordinates would underflow)"),
+            ));
+        }
         let large_enough = area2.length() > 1e-12 * size * size; // false for NaN
         if !large_enough {
             return Err(error(

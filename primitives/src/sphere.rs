@@ -22,7 +22,9 @@
 use crate::bounds::Aabb;
 use crate::error::{require_finite, require_positive, PrimitiveError};
 use crate::hit::RawHit;
-use crate::math::{cross_accurate, sum_of_products, two_sum};
+use crate::math::{
+    cross_accurate, is_square_safe, length_scaled, normalize_scaled, power_of_two_scale, sum_of_products, two_sum,
+};
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric};
 use glam::{DVec2, DVec3};
@@ -71,9 +73,38 @@ impl Sphere {
     }
 
     /// Both roots of the ray's quadratic in increasing order, or `None` if the ray misses.
+    ///
+    /// Magnitudes whose squares or products would overflow or underflow (a radius or distance
+    /// beyond `2^±240` ≈ `10^±72`, a direction length likewise) are scaled first: `o`, `c` and `r`
+    /// by a power of two `s` near `max(|o − c|, r)`, the direction by one `k` near `|d|`, all
+    /// exact, and the roots `t'` of the scaled ray mapped back by `t = t'·s/k`.
     #[inline]
     #[must_use]
     pub fn roots(&self, ray: &Ray) -> Option<(f64, f64)> {
+        let size = (ray.origin - self.center).abs().max_element().max(self.radius);
+        let dir_size = ray.dir.abs().max_element();
+        if is_square_safe(size) && is_square_safe(dir_size) {
+            return self.roots_in_range(ray);
+        }
+        // o − c may itself overflow: then the operands' own size
+        let size = if size.is_finite() {
+            size
+        } else {
+            ray.origin.abs().max_element().max(self.center.abs().max_element())
+        };
+        let (s, k) = (power_of_two_scale(size), power_of_two_scale(dir_size));
+        let scaled = Self {
+            center: self.center / s,
+            radius: self.radius / s,
+        };
+        let (t0, t1) = scaled.roots_in_range(&Ray::new(ray.origin / s, ray.dir / k))?;
+        let back = |t: f64| if s >= k { t * (s / k) } else { t / (k / s) };
+        Some((back(t0), back(t1)))
+    }
+
+    /// [`Sphere::roots`] for magnitudes whose squares are safe.
+    #[inline]
+    fn roots_in_range(&self, ray: &Ray) -> Option<(f64, f64)> {
         // Fast path in plain f64 (with an FMA cross product), taken where its rounding provably
         // cannot matter, else the compensated path below. With the cross product rounded once per
         // component, `disc = a·r² − |f × d|²` is within ~4ε·(a·r² + |f × d|²) of exact, so its
@@ -164,11 +195,11 @@ impl Sphere {
 
 impl Implicit for Sphere {
     fn phi(&self, p: DVec3) -> f64 {
-        (p - self.center).length() - self.radius
+        length_scaled(p - self.center) - self.radius
     }
 
     fn gradient(&self, p: DVec3) -> DVec3 {
-        (p - self.center).normalize_or_zero()
+        normalize_scaled(p - self.center)
     }
 
     fn bounds(&self) -> Aabb {
@@ -205,12 +236,11 @@ impl Intersect for Sphere {
             raw.t.mul_add(d, f) + lo
         };
         let o = ray.origin;
-        DVec3::new(
+        normalize_scaled(DVec3::new(
             local(o.x, self.center.x, ray.dir.x),
             local(o.y, self.center.y, ray.dir.y),
             local(o.z, self.center.z, ray.dir.z),
-        )
-        .normalize_or_zero()
+        ))
     }
 
     fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> {

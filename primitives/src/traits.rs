@@ -9,6 +9,7 @@
 //! sampling / Lipschitz march.
 
 use crate::bounds::Aabb;
+use crate::crossings::{self, Crossings};
 use crate::expr::Jet;
 use crate::hit::RawHit;
 use crate::math::central_difference;
@@ -170,6 +171,15 @@ pub trait Intersect: Implicit {
         let _ = (ray, raw);
         None
     }
+
+    /// Whether the ray starts inside at `range.min`, then every boundary crossing in `range`,
+    /// lazily in increasing `t` (see [`crate::crossings`]). The default,
+    /// [`crossings::repeated_intersection`], asks [`Intersect::intersect`] again a small step past
+    /// each hit; combinators ([`crate::Csg`]) and wrappers ([`crate::Transformed`]) override it so
+    /// nested trees are walked once per ray.
+    fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> {
+        crossings::repeated_intersection(self, ray, range)
+    }
 }
 
 /// What a scene stores: anything that intersects, is printable and can be shared across threads.
@@ -196,6 +206,7 @@ macro_rules! forward_through_pointer {
             fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> { (**self).uv_at(ray, raw) }
             fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 { (**self).hit_error(ray, raw) }
             fn shading_normal_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec3> { (**self).shading_normal_at(ray, raw) }
+            fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> { (**self).crossings(ray, range) }
         }
     };
 }

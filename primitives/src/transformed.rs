@@ -12,6 +12,7 @@
 //! the linear part, an upper bound of the spectral norm).
 
 use crate::bounds::Aabb;
+use crate::crossings::Crossings;
 use crate::error::PrimitiveError;
 use crate::expr::Jet;
 use crate::hit::RawHit;
@@ -164,6 +165,12 @@ impl<P: Intersect> Intersect for Transformed<P> {
     fn shading_normal_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec3> {
         let n = self.inner.shading_normal_at(&self.local_ray(ray), raw)?;
         Some((self.normal_from_local * n).normalize_or_zero())
+    }
+
+    /// The inner crossings along the local ray: the same `t`, and the same side
+    /// (`dir · M⁻ᵀn = M⁻¹dir · n`).
+    fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> {
+        self.inner.crossings(&self.local_ray(ray), range)
     }
 }
 

@@ -4,10 +4,12 @@
 
 pub mod basis;
 pub mod enclosure;
+pub mod magnitude;
 pub mod polygon2d;
 pub mod quadratic;
 
 pub use basis::orthonormal_basis;
+pub use magnitude::{is_square_safe, length_scaled, normalize_scaled, power_of_two_scale};
 pub use quadratic::solve_quadratic;
 
 /// `γₙ = n·ε / (1 − n·ε)` with ε the f64 unit roundoff (2⁻⁵³): the relative error bound of `n`
