@@ -19,10 +19,10 @@ use std::sync::{Arc, Mutex};
 use zeroset::aov::Aov;
 use zeroset::camera::{Camera, Model, NoRay, OpenCv};
 use zeroset::output::exr::{write_exr as write_frame, ExrHeader};
+use zeroset::primitives::offset::PointPrecision;
 use zeroset::primitives::{Mesh, Primitive, Ray, Transformed};
 use zeroset::query::{trace_batch, QueryRay};
 use zeroset::query_rays::{ray_from_fields, scene_magnitude, RangeConvention, RaySetup};
-use zeroset::primitives::offset::PointPrecision;
 use zeroset::registry::BuildContext;
 use zeroset::render::{render_view, Frame, RenderOptions, Window};
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
@@ -55,7 +55,10 @@ struct PyScene {
 impl PyScene {
     fn new(scene: Scene) -> Self {
         Self {
-            state: Mutex::new(State { scene, pending: Vec::new() }),
+            state: Mutex::new(State {
+                scene,
+                pending: Vec::new(),
+            }),
         }
     }
 
@@ -73,7 +76,12 @@ fn vectors(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Vec<DVec3>
     }
     match array.as_slice() {
         Ok(flat) => Ok(flat.par_chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect()),
-        Err(_) => Ok(array.as_array().rows().into_iter().map(|r| DVec3::new(r[0], r[1], r[2])).collect()),
+        Err(_) => Ok(array
+            .as_array()
+            .rows()
+            .into_iter()
+            .map(|r| DVec3::new(r[0], r[1], r[2]))
+            .collect()),
     }
 }
 
@@ -83,14 +91,20 @@ fn affine(m: [[f64; 4]; 4], what: &str) -> PyResult<DAffine3> {
         return Err(error(format!("{what}: every entry must be finite")));
     }
     if m[3] != [0.0, 0.0, 0.0, 1.0] {
-        return Err(error(format!("{what}: the last row must be 0 0 0 1 (an affine map), got {:?}", m[3])));
+        return Err(error(format!(
+            "{what}: the last row must be 0 0 0 1 (an affine map), got {:?}",
+            m[3]
+        )));
     }
     let linear = DMat3::from_cols(
         DVec3::new(m[0][0], m[1][0], m[2][0]),
         DVec3::new(m[0][1], m[1][1], m[2][1]),
         DVec3::new(m[0][2], m[1][2], m[2][2]),
     );
-    Ok(DAffine3::from_mat3_translation(linear, DVec3::new(m[0][3], m[1][3], m[2][3])))
+    Ok(DAffine3::from_mat3_translation(
+        linear,
+        DVec3::new(m[0][3], m[1][3], m[2][3]),
+    ))
 }
 
 impl State {
@@ -123,11 +137,18 @@ impl State {
         &self.scene
     }
 
-    fn push(&mut self, primitive: Arc<dyn Primitive>, matrix: Option<[[f64; 4]; 4]>, name: Option<String>, material: zeroset::scene::Material) -> PyResult<usize> {
+    fn push(
+        &mut self,
+        primitive: Arc<dyn Primitive>,
+        matrix: Option<[[f64; 4]; 4]>,
+        name: Option<Box<str>>,
+        material: Arc<zeroset::scene::Material>,
+    ) -> PyResult<usize> {
         let primitive: Arc<dyn Primitive> = match matrix {
             None => primitive,
             Some(m) => Arc::new(
-                Transformed::new(primitive, affine(m, "transform")?).map_err(|e| error(format!("transform: {}", e.problem)))?,
+                Transformed::new(primitive, affine(m, "transform")?)
+                    .map_err(|e| error(format!("transform: {}", e.problem)))?,
             ),
         };
         self.pending.push(Object {
@@ -165,7 +186,9 @@ impl Default for Setup<'_> {
 fn parse_precision(text: Option<&str>, have_normals: bool) -> PyResult<Option<PointPrecision>> {
     match (text, have_normals) {
         (None, false) => Ok(None),
-        (None, true) => Err(error("normals are only used with origin_precision= f32, f64 or a bound")),
+        (None, true) => Err(error(
+            "normals are only used with origin_precision= f32, f64 or a bound",
+        )),
         (Some(_), false) => Err(error("origin_precision needs the surface normals: pass normals=")),
         (Some(t), true) => t
             .parse::<PointPrecision>()
@@ -186,7 +209,11 @@ fn query_rays(
     let o = vectors(origins, "origins")?;
     let d = vectors(directions, "directions")?;
     if o.len() != d.len() {
-        return Err(error(format!("origins and directions differ in length: {} and {}", o.len(), d.len())));
+        return Err(error(format!(
+            "origins and directions differ in length: {} and {}",
+            o.len(),
+            d.len()
+        )));
     }
     let normals = match setup.normals {
         None => None,
@@ -201,7 +228,11 @@ fn query_rays(
     let (tmin, tmax) = (tmin.to_vec()?, tmax.to_vec()?);
     for (name, s) in [("tmin", &tmin), ("tmax", &tmax)] {
         if s.len() != 1 && s.len() != o.len() {
-            return Err(error(format!("{name}: expected a scalar or {} values, got {}", o.len(), s.len())));
+            return Err(error(format!(
+                "{name}: expected a scalar or {} values, got {}",
+                o.len(),
+                s.len()
+            )));
         }
     }
     let at = |s: &[f64], i: usize| s[if s.len() == 1 { 0 } else { i }];
@@ -268,7 +299,10 @@ fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window
         let frame = render_view(scene, camera, &band);
         if planes.is_empty() {
             aovs.clone_from(&frame.aovs);
-            planes = aovs.iter().map(|a| Vec::with_capacity(w * h * a.channels().len())).collect();
+            planes = aovs
+                .iter()
+                .map(|a| Vec::with_capacity(w * h * a.channels().len()))
+                .collect();
         }
         let stride = frame.channel_count();
         let mut offset = 0;
@@ -285,15 +319,26 @@ fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window
 }
 
 /// AOV planes as `(H, W)` or `(H, W, C)` float32 arrays keyed by AOV name (no copy).
-fn plane_arrays<'py>(py: Python<'py>, (w, h): (usize, usize), aovs: Vec<Aov>, planes: Vec<Vec<f32>>) -> PyResult<Bound<'py, PyDict>> {
+fn plane_arrays<'py>(
+    py: Python<'py>,
+    (w, h): (usize, usize),
+    aovs: Vec<Aov>,
+    planes: Vec<Vec<f32>>,
+) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
     for (aov, data) in aovs.into_iter().zip(planes) {
         let c = aov.channels().len();
         let name = format!("{aov:?}");
         if c == 1 {
-            out.set_item(name, Array2::from_shape_vec((h, w), data).map_err(error)?.into_pyarray(py))?;
+            out.set_item(
+                name,
+                Array2::from_shape_vec((h, w), data).map_err(error)?.into_pyarray(py),
+            )?;
         } else {
-            out.set_item(name, Array3::from_shape_vec((h, w, c), data).map_err(error)?.into_pyarray(py))?;
+            out.set_item(
+                name,
+                Array3::from_shape_vec((h, w, c), data).map_err(error)?.into_pyarray(py),
+            )?;
         }
     }
     Ok(out)
@@ -311,14 +356,22 @@ impl PyScene {
     #[pyo3(signature = (text, path = "<string>".to_string(), base_dir = None))]
     fn from_ron(py: Python<'_>, text: String, path: String, base_dir: Option<PathBuf>) -> PyResult<Self> {
         let context = BuildContext::new(base_dir.unwrap_or_default());
-        let scene = py.detach(|| Scene::from_ron_in(&text, &path, &context)).map_err(error)?;
+        let scene = py
+            .detach(|| Scene::from_ron_in(&text, &path, &context))
+            .map_err(error)?;
         Ok(Self::new(scene))
     }
 
     /// Adds one object written as a scene file's object entry, e.g.
     /// `(shape: Sphere(radius: 1), name: "ball")`; returns its object id.
     #[pyo3(signature = (object_ron, matrix = None, base_dir = None))]
-    fn add_object(&self, py: Python<'_>, object_ron: &str, matrix: Option<[[f64; 4]; 4]>, base_dir: Option<PathBuf>) -> PyResult<usize> {
+    fn add_object(
+        &self,
+        py: Python<'_>,
+        object_ron: &str,
+        matrix: Option<[[f64; 4]; 4]>,
+        base_dir: Option<PathBuf>,
+    ) -> PyResult<usize> {
         const PREFIX: &str = "Scene(camera: (eye: (0, 0, 1)), objects: [";
         let text = format!("{PREFIX}{object_ron}])");
         let mut desc: SceneDesc = ron_options().from_str(&text).map_err(|e| {
@@ -336,7 +389,11 @@ impl PyScene {
                 let location = location.replacen("objects[0]", &format!("objects[{index}]"), 1);
                 error(format!("<object>: {location}: {message}"))
             })?;
-            let object = built.objects.into_iter().next().ok_or_else(|| error("no object given"))?;
+            let object = built
+                .objects
+                .into_iter()
+                .next()
+                .ok_or_else(|| error("no object given"))?;
             state.push(object.primitive, matrix, object.name, object.material)
         })
     }
@@ -358,11 +415,22 @@ impl PyScene {
                 triangles.shape()
             )));
         }
-        let v: Vec<[f32; 3]> = vertices.as_array().rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
-        let t: Vec<[u32; 3]> = triangles.as_array().rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
+        let v: Vec<[f32; 3]> = vertices
+            .as_array()
+            .rows()
+            .into_iter()
+            .map(|r| [r[0], r[1], r[2]])
+            .collect();
+        let t: Vec<[u32; 3]> = triangles
+            .as_array()
+            .rows()
+            .into_iter()
+            .map(|r| [r[0], r[1], r[2]])
+            .collect();
         self.with(py, |state| {
-            let mesh = Mesh::new(v, t, None).map_err(|e| error(format!("add_mesh: field `{}`: {}", e.field, e.problem)))?;
-            state.push(Arc::new(mesh), matrix, name, zeroset::scene::Material::default())
+            let mesh =
+                Mesh::new(v, t, None).map_err(|e| error(format!("add_mesh: field `{}`: {}", e.field, e.problem)))?;
+            state.push(Arc::new(mesh), matrix, name.map(String::into_boxed_str), Arc::default())
         })
     }
 
@@ -373,7 +441,15 @@ impl PyScene {
 
     /// Object names (`None` where unnamed), by object id.
     fn object_names(&self, py: Python<'_>) -> Vec<Option<String>> {
-        self.with(py, |state| state.scene.objects.iter().chain(&state.pending).map(|o| o.name.clone()).collect())
+        self.with(py, |state| {
+            state
+                .scene
+                .objects
+                .iter()
+                .chain(&state.pending)
+                .map(|o| o.name.as_deref().map(str::to_string))
+                .collect()
+        })
     }
 
     /// First hits: the arrays of `zeroset query` (see `zeroset.Scene.cast_rays`).
@@ -412,9 +488,19 @@ impl PyScene {
             let mut uv = vec![0.0; 2 * n];
             let mut feature = vec![-1i64; n];
             let uncertain: Vec<bool> = hits.par_iter().map(|h| h.uncertain).collect();
-            (t.par_iter_mut(), object.par_iter_mut(), feature.par_iter_mut(), hits.par_iter())
+            (
+                t.par_iter_mut(),
+                object.par_iter_mut(),
+                feature.par_iter_mut(),
+                hits.par_iter(),
+            )
                 .into_par_iter()
-                .zip(point.par_chunks_mut(3).zip(normal.par_chunks_mut(3)).zip(uv.par_chunks_mut(2)))
+                .zip(
+                    point
+                        .par_chunks_mut(3)
+                        .zip(normal.par_chunks_mut(3))
+                        .zip(uv.par_chunks_mut(2)),
+                )
                 .for_each(|((t, object, feature, hit), ((point, normal), uv))| {
                     if let Some((id, h)) = &hit.hit {
                         *t = h.t;
@@ -444,9 +530,23 @@ impl PyScene {
 
     /// Seconds the Rust query path (`zeroset::query::trace_batch`) alone takes on these rays,
     /// for the benchmark's Python-overhead column.
-    fn time_first_hits(&self, py: Python<'_>, origins: PyReadonlyArray2<'_, f64>, directions: PyReadonlyArray2<'_, f64>) -> PyResult<f64> {
-        let (tmin, tmax) = (PyArray1::from_vec(py, vec![0.0]), PyArray1::from_vec(py, vec![f64::INFINITY]));
-        let rays = query_rays(&origins, &directions, &tmin.readonly(), &tmax.readonly(), &Setup::default())?;
+    fn time_first_hits(
+        &self,
+        py: Python<'_>,
+        origins: PyReadonlyArray2<'_, f64>,
+        directions: PyReadonlyArray2<'_, f64>,
+    ) -> PyResult<f64> {
+        let (tmin, tmax) = (
+            PyArray1::from_vec(py, vec![0.0]),
+            PyArray1::from_vec(py, vec![f64::INFINITY]),
+        );
+        let rays = query_rays(
+            &origins,
+            &directions,
+            &tmin.readonly(),
+            &tmax.readonly(),
+            &Setup::default(),
+        )?;
         Ok(self.with(py, |state| {
             let scene = state.built();
             let start = std::time::Instant::now();
@@ -468,7 +568,16 @@ impl PyScene {
         tmax: PyReadonlyArray1<'py, f64>,
         closed: bool,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let rays = query_rays(&origins, &directions, &tmin, &tmax, &Setup { closed, ..Setup::default() })?;
+        let rays = query_rays(
+            &origins,
+            &directions,
+            &tmin,
+            &tmax,
+            &Setup {
+                closed,
+                ..Setup::default()
+            },
+        )?;
         let blocked: Vec<bool> = self.with(py, |state| {
             let scene = state.built();
             rays.par_iter().map(|q| scene.occluded(&q.ray, q.range)).collect()
@@ -488,7 +597,16 @@ impl PyScene {
         tmax: PyReadonlyArray1<'py, f64>,
         closed: bool,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
-        let rays = query_rays(&origins, &directions, &tmin, &tmax, &Setup { closed, ..Setup::default() })?;
+        let rays = query_rays(
+            &origins,
+            &directions,
+            &tmin,
+            &tmax,
+            &Setup {
+                closed,
+                ..Setup::default()
+            },
+        )?;
         let counts: Vec<i64> = self.with(py, |state| {
             let scene = state.built();
             rays.par_iter()
@@ -545,7 +663,10 @@ impl PyScene {
                 }
             };
             let camera = base
-                .with_resolution(width.unwrap_or(scene.camera.width), height.unwrap_or(scene.camera.height))
+                .with_resolution(
+                    width.unwrap_or(scene.camera.width),
+                    height.unwrap_or(scene.camera.height),
+                )
                 .map_err(|e| error(format!("width/height: {e}")))?;
             let window = match crop {
                 None => Window {
@@ -620,7 +741,12 @@ fn rows3(m: &DMat3) -> [[f64; 3]; 3] {
 /// A 4×4 matrix as row-major nested arrays.
 fn rows(m: &DMat4) -> [[f64; 4]; 4] {
     let t = m.transpose();
-    [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array(), t.w_axis.to_array()]
+    [
+        t.x_axis.to_array(),
+        t.y_axis.to_array(),
+        t.z_axis.to_array(),
+        t.w_axis.to_array(),
+    ]
 }
 
 /// Pixel-centre rays of a calibrated OpenCV camera (see `zeroset.rays_pinhole`): the rays of
@@ -643,9 +769,14 @@ fn rays_pinhole<'py>(
     }
     let camera_from_world = affine(extrinsics, "extrinsics")?;
     let rotation = camera_from_world.matrix3;
-    let orthonormal = (rotation * rotation.transpose() - DMat3::IDENTITY).to_cols_array().iter().all(|x| x.abs() < 1e-9);
+    let orthonormal = (rotation * rotation.transpose() - DMat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .all(|x| x.abs() < 1e-9);
     if !orthonormal || rotation.determinant() < 0.0 {
-        return Err(error("extrinsics: the 3×3 part must be a rotation (orthonormal, determinant +1)"));
+        return Err(error(
+            "extrinsics: the 3×3 part must be a rotation (orthonormal, determinant +1)",
+        ));
     }
     // OpenCV rows of R: right, down, forward; the camera sits at −Rᵀt
     let eye = -(rotation.transpose() * camera_from_world.translation);
@@ -771,7 +902,10 @@ fn read_exr<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyDict>
     }
     let header = PyDict::new(py);
     let display = image.attributes.display_window;
-    header.set_item("display_window", (display.position.0, display.position.1, display.size.0, display.size.1))?;
+    header.set_item(
+        "display_window",
+        (display.position.0, display.position.1, display.size.0, display.size.1),
+    )?;
     let position = layer.attributes.layer_position;
     header.set_item("data_window", (position.0, position.1, w, h))?;
     if let Some(m) = layer.attributes.world_to_camera {
