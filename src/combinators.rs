@@ -203,8 +203,8 @@ impl SceneShape for TransformedDesc {
 /// `sqrt exp ln log10 log2 sin cos tan asin acos atan sinh cosh tanh cbrt abs sq min max pow`, constants `pi`, `e`, `tau`; see
 /// `zeroset_primitives::expr`), the surface searched inside the box `[min, max]`. The first root
 /// along a ray is isolated by interval arithmetic (`zeroset_primitives::isolation`): no
-/// Lipschitz bound is needed (an optional `lipschitz` only serves `SmoothUnion` and `Offset`
-/// around the function, whose generic finder marches with it), thin
+/// Lipschitz bound is needed (an optional `lipschitz` only serves a `SmoothUnion` or `Offset`
+/// whose other operand has no interval evaluation, which marches the generic finder with it), thin
 /// features are not stepped over, and rays that cannot be decided within `tolerance` (units of
 /// `t`) or `budget` (enclosure and point evaluations per ray) are counted and reported after
 /// the render or query. Where the expression is undefined Φ is `+∞` (outside); a point of the box
@@ -219,8 +219,8 @@ pub struct FunctionDesc {
     /// Upper corner of the search box.
     pub max: DVec3,
     /// Optional bound on |∇Φ| in the box: not needed by the function itself (interval isolation
-    /// uses none), only read by `SmoothUnion` / `Offset` around it, which march the generic
-    /// finder.
+    /// uses none), only read by a `SmoothUnion` / `Offset` around it whose other operand has no
+    /// interval evaluation (those march the generic finder).
     #[serde(default)]
     pub lipschitz: Option<f64>,
     /// Width of the final bracket around a root, in units of `t`; default `1e-7`.
@@ -238,7 +238,7 @@ impl SceneShape for FunctionDesc {
         if let Some(l) = self.lipschitz {
             zeroset_primitives::error::require_positive("Function", "lipschitz", l)?;
             context
-                .warn("`lipschitz` is not needed any more (roots are isolated by interval arithmetic) and is ignored");
+                .warn("`lipschitz` is not needed (roots are isolated by interval arithmetic); it is only used by a SmoothUnion or Offset around this function that mixes it with a closed-form primitive");
         }
         let defaults = RootOptions::default();
         let options = RootOptions {

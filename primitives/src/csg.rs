@@ -28,7 +28,9 @@
 
 use crate::bounds::Aabb;
 use crate::crossings::{step_past, Crossing, Crossings};
+use crate::expr::{Jet, Scalar};
 use crate::hit::RawHit;
+use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Primitive};
 use glam::{DVec2, DVec3};
@@ -376,6 +378,25 @@ impl Implicit for SmoothUnion {
     fn lipschitz(&self) -> Option<f64> {
         Some(self.a.lipschitz()?.max(self.b.lipschitz()?))
     }
+
+    /// The blend evaluated on both children's enclosures (when both have them), so a smooth
+    /// union of `Function`s gets the interval root isolation, with no Lipschitz bound.
+    fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> {
+        let (a, b) = (self.a.enclose_along(ray, segment)?, self.b.enclose_along(ray, segment)?);
+        let k = Jet::constant(self.radius);
+        let h = (k - (a - b).abs()).max(Jet::constant(0.0)) / k;
+        Some(a.min(b) - Jet::constant(0.25) * k * h * h)
+    }
+
+    fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> {
+        let (a, b) = (
+            self.a.enclose_value_along(ray, segment)?,
+            self.b.enclose_value_along(ray, segment)?,
+        );
+        let k = Enclosure::constant(self.radius);
+        let h = (k - (a - b).abs()).max(Enclosure::constant(0.0)) / k;
+        Some(a.min(b) - Enclosure::constant(0.25) * k * h * h)
+    }
 }
 
 impl Intersect for SmoothUnion {}
@@ -418,6 +439,16 @@ impl Implicit for Offset {
 
     fn lipschitz(&self) -> Option<f64> {
         self.inner.lipschitz()
+    }
+
+    /// The inner enclosure shifted by the distance (an offset `Function` keeps the interval root
+    /// isolation).
+    fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> {
+        Some(self.inner.enclose_along(ray, segment)? - Jet::constant(self.distance))
+    }
+
+    fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> {
+        Some(self.inner.enclose_value_along(ray, segment)? - Enclosure::constant(self.distance))
     }
 }
 

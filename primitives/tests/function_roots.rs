@@ -18,6 +18,7 @@
 use glam::DVec3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
+use std::sync::Arc;
 use zeroset_primitives::testing::random_unit;
 use zeroset_primitives::*;
 
@@ -512,4 +513,63 @@ fn secondary_rays_from_function_hits_do_not_self_hit() {
     println!("[roots] secondary rays from Function hits: {spawned} spawned, {self_hits} self-hits");
     assert!(spawned > 1000);
     assert_eq!(self_hits, 0);
+}
+
+/// `Offset` and `SmoothUnion` over `Function`s take the interval isolation too (their Φ is
+/// enclosed from the children's enclosures), with no Lipschitz bound anywhere: a grown thin
+/// shell is hit where the closed-form sphere of its outer radius is, and a smooth union of two spheres
+/// far apart (beyond the blend radius) where the nearer closed-form sphere is.
+#[test]
+fn offset_and_smooth_union_of_functions_are_isolated_without_a_bound() {
+    let mut rng = StdRng::seed_from_u64(41);
+    // a shell 2e-4 thick grown by 1e-5: far thinner than the generic finder's sampling step
+    // without a bound, so only the isolation finds its outer sphere of radius 0.5 + 1.1e-4
+    let shell = function("abs(sqrt(x^2 + y^2 + z^2) - 0.5) - 1e-4", 2.0);
+    let grown = Offset::new(Arc::new(shell), 1e-5).unwrap();
+    assert!(grown.lipschitz().is_none(), "no bound is declared");
+    let reference = Sphere::new(DVec3::ZERO, 0.5 + 1e-4 + 1e-5).unwrap();
+    let (mut hits, mut worst) = (0, 0.0f64);
+    for _ in 0..2000 {
+        let origin = random_unit(&mut rng) * 3.0;
+        let target = random_unit(&mut rng) * rng.random_range(0.0..0.9);
+        let ray = Ray::new(origin, (target - origin).normalize());
+        let got = grown.intersect(&ray, Interval::POSITIVE).map(|h| h.t);
+        let want = reference.intersect(&ray, Interval::POSITIVE).map(|h| h.t);
+        assert_eq!(got.is_some(), want.is_some(), "{ray:?}");
+        if let (Some(a), Some(b)) = (got, want) {
+            hits += 1;
+            worst = worst.max((a - b).abs());
+        }
+    }
+    assert!(hits > 100 && worst < 1e-6, "{hits} hits, worst |Δt| {worst}");
+
+    let left = Arc::new(function("sqrt((x + 1.5)^2 + y^2 + z^2) - 0.5", 2.5));
+    let right = Arc::new(function("sqrt((x - 1.5)^2 + y^2 + z^2) - 0.5", 2.5));
+    let blend = SmoothUnion::new(left, right, 0.2).unwrap();
+    let spheres = [
+        Sphere::new(DVec3::new(-1.5, 0.0, 0.0), 0.5).unwrap(),
+        Sphere::new(DVec3::new(1.5, 0.0, 0.0), 0.5).unwrap(),
+    ];
+    let (mut hits, mut worst) = (0, 0.0f64);
+    for _ in 0..2000 {
+        let target = DVec3::new(rng.random_range(-2.2..2.2), rng.random_range(-0.7..0.7), 0.0);
+        let origin = target + random_unit(&mut rng) * 4.0;
+        let ray = Ray::new(origin, (target - origin).normalize());
+        let got = blend.intersect(&ray, Interval::POSITIVE).map(|h| h.t);
+        let want = spheres
+            .iter()
+            .filter_map(|s| s.intersect(&ray, Interval::POSITIVE).map(|h| h.t))
+            .reduce(f64::min);
+        // the blend only deepens Φ where both spheres are within 0.2: between them, far from both
+        let p = want.map(|t| ray.at(t));
+        if p.is_some_and(|p| p.x.abs() < 1.2) {
+            continue;
+        }
+        assert_eq!(got.is_some(), want.is_some(), "{ray:?}");
+        if let (Some(a), Some(b)) = (got, want) {
+            hits += 1;
+            worst = worst.max((a - b).abs());
+        }
+    }
+    assert!(hits > 100 && worst < 1e-6, "{hits} hits, worst |Δt| {worst}");
 }
