@@ -81,6 +81,29 @@ impl Aov {
         Aov::Uncertain,
     ];
 
+    /// The AOVs a list of names asks for: names of [`Aov`] (any case, spaces around them
+    /// allowed) or `all`; the error names the first unknown one and the choices.
+    ///
+    /// # Errors
+    /// A name that is neither an AOV nor `all`.
+    pub fn parse_list(names: &[String]) -> Result<Vec<Aov>, String> {
+        let mut aovs = Vec::new();
+        for name in names {
+            if name.trim().eq_ignore_ascii_case("all") {
+                aovs.extend(Aov::ALL);
+                continue;
+            }
+            match <Aov as clap::ValueEnum>::from_str(name.trim(), true) {
+                Ok(aov) => aovs.push(aov),
+                Err(_) => {
+                    let known: Vec<String> = Aov::ALL.iter().map(|a| format!("{a:?}")).collect();
+                    return Err(format!("{name}: unknown AOV; use {} or all", known.join(", ")));
+                }
+            }
+        }
+        Ok(aovs)
+    }
+
     /// EXR channel names, in order.
     #[must_use]
     pub fn channels(self) -> &'static [&'static str] {

@@ -16,7 +16,7 @@ use crate::resources::{capped_threads, check_memory, process_cpu_seconds, render
 use crate::scene::Scene;
 use crate::views::{render_views, view_files};
 use anyhow::{bail, Context, Result};
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -244,25 +244,6 @@ fn with_threads(threads: Option<usize>, f: impl FnOnce() -> Result<()> + Send) -
     }
 }
 
-/// The AOVs `--aov` names: names of [`Aov`] (any case) or `all`.
-fn parse_aovs(names: &[String]) -> Result<Vec<Aov>> {
-    let mut aovs = Vec::new();
-    for name in names {
-        if name.trim().eq_ignore_ascii_case("all") {
-            aovs.extend(Aov::ALL);
-            continue;
-        }
-        match Aov::from_str(name.trim(), true) {
-            Ok(aov) => aovs.push(aov),
-            Err(_) => {
-                let known: Vec<String> = Aov::ALL.iter().map(|a| format!("{a:?}")).collect();
-                bail!("--aov {name}: unknown AOV; use {} or all", known.join(", "));
-            }
-        }
-    }
-    Ok(aovs)
-}
-
 fn render_command(args: &RenderArgs) -> Result<()> {
     let wall = Instant::now();
     let mut scene = Scene::load(&args.scene)?;
@@ -317,7 +298,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         bail!("--depth-miss must be a number or ±inf, not NaN");
     }
     let aovs = match &args.aov {
-        Some(names) => parse_aovs(names)?,
+        Some(names) => Aov::parse_list(names).map_err(|m| anyhow::anyhow!("--aov {m}"))?,
         None => scene.outputs.aovs.clone(),
     };
     let (dir, stem) = output_location(&args.output, &args.scene)?;

@@ -171,6 +171,16 @@ struct Setup<'a> {
     normals: Option<&'a PyReadonlyArray2<'a, f64>>,
 }
 
+impl Setup<'_> {
+    /// Rays as given, with the range convention alone.
+    fn range_only(closed: bool) -> Self {
+        Self {
+            closed,
+            ..Self::default()
+        }
+    }
+}
+
 impl Default for Setup<'_> {
     fn default() -> Self {
         Self {
@@ -262,21 +272,9 @@ fn query_rays(
 }
 
 fn parse_aovs(names: Option<Vec<String>>, scene: &Scene) -> PyResult<Vec<Aov>> {
-    use clap::ValueEnum;
     match names {
         None => Ok(scene.outputs.aovs.clone()),
-        Some(names) => names
-            .iter()
-            .map(|n| {
-                Aov::from_str(n, true).map_err(|_| {
-                    let known: Vec<String> = Aov::value_variants()
-                        .iter()
-                        .filter_map(|a| a.to_possible_value().map(|v| v.get_name().to_string()))
-                        .collect();
-                    error(format!("unknown AOV `{n}`; known: {}", known.join(", ")))
-                })
-            })
-            .collect(),
+        Some(names) => Aov::parse_list(&names).map_err(|m| error(format!("aovs: {m}"))),
     }
 }
 
@@ -568,16 +566,7 @@ impl PyScene {
         tmax: PyReadonlyArray1<'py, f64>,
         closed: bool,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let rays = query_rays(
-            &origins,
-            &directions,
-            &tmin,
-            &tmax,
-            &Setup {
-                closed,
-                ..Setup::default()
-            },
-        )?;
+        let rays = query_rays(&origins, &directions, &tmin, &tmax, &Setup::range_only(closed))?;
         let blocked: Vec<bool> = self.with(py, |state| {
             let scene = state.built();
             rays.par_iter().map(|q| scene.occluded(&q.ray, q.range)).collect()
@@ -597,16 +586,7 @@ impl PyScene {
         tmax: PyReadonlyArray1<'py, f64>,
         closed: bool,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
-        let rays = query_rays(
-            &origins,
-            &directions,
-            &tmin,
-            &tmax,
-            &Setup {
-                closed,
-                ..Setup::default()
-            },
-        )?;
+        let rays = query_rays(&origins, &directions, &tmin, &tmax, &Setup::range_only(closed))?;
         let counts: Vec<i64> = self.with(py, |state| {
             let scene = state.built();
             rays.par_iter()

@@ -230,7 +230,7 @@ def test_pickle_rebuilds_identically():
          "invalid t range"),
         (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).cast_rays(np.zeros((3, 3)), [[0, 0, 1]] * 3,
                                                                 tmax=[1.0, 2.0]), "tmax"),
-        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(aovs=["Depht"]), "unknown AOV `Depht`"),
+        (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(aovs=["Depht"]), "Depht: unknown AOV"),
         (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(crop=(0, 0, 100, 10)), "crop"),
         (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(spp=0), "spp"),
         (lambda: zeroset.Scene.from_ron(SPHERE_SCENE).render(width=0), "width"),
