@@ -68,23 +68,6 @@ impl PyScene {
     }
 }
 
-/// `(N, 3)` rows of a contiguous float64 array as vectors.
-fn vectors(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Vec<DVec3>> {
-    let shape = array.shape();
-    if shape[1] != 3 {
-        return Err(error(format!("{what}: expected shape (N, 3), got {shape:?}")));
-    }
-    match array.as_slice() {
-        Ok(flat) => Ok(flat.par_chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect()),
-        Err(_) => Ok(array
-            .as_array()
-            .rows()
-            .into_iter()
-            .map(|r| DVec3::new(r[0], r[1], r[2]))
-            .collect()),
-    }
-}
-
 /// `world_from_local` from a 4×4 row-major affine matrix (last row `0 0 0 1`).
 fn affine(m: [[f64; 4]; 4], what: &str) -> PyResult<DAffine3> {
     if m.iter().flatten().any(|x| !x.is_finite()) {
@@ -216,31 +199,32 @@ fn query_rays(
     tmax: &PyReadonlyArray1<'_, f64>,
     setup: &Setup<'_>,
 ) -> PyResult<Vec<QueryRay>> {
-    let o = vectors(origins, "origins")?;
-    let d = vectors(directions, "directions")?;
-    if o.len() != d.len() {
+    let (o, d) = (
+        rows_of_three(origins, "origins")?,
+        rows_of_three(directions, "directions")?,
+    );
+    let n = o.len() / 3;
+    if d.len() != o.len() {
         return Err(error(format!(
-            "origins and directions differ in length: {} and {}",
-            o.len(),
-            d.len()
+            "origins and directions differ in length: {n} and {}",
+            d.len() / 3
         )));
     }
     let normals = match setup.normals {
         None => None,
-        Some(n) => {
-            let n = vectors(n, "normals")?;
-            if n.len() != o.len() {
-                return Err(error(format!("normals: expected {} rows, got {}", o.len(), n.len())));
+        Some(normals) => {
+            let v = rows_of_three(normals, "normals")?;
+            if v.len() != o.len() {
+                return Err(error(format!("normals: expected {n} rows, got {}", v.len() / 3)));
             }
-            Some(n)
+            Some(v)
         }
     };
     let (tmin, tmax) = (tmin.to_vec()?, tmax.to_vec()?);
     for (name, s) in [("tmin", &tmin), ("tmax", &tmax)] {
-        if s.len() != 1 && s.len() != o.len() {
+        if s.len() != 1 && s.len() != n {
             return Err(error(format!(
-                "{name}: expected a scalar or {} values, got {}",
-                o.len(),
+                "{name}: expected a scalar or {n} values, got {}",
                 s.len()
             )));
         }
@@ -255,20 +239,65 @@ fn query_rays(
         origin_precision: setup.precision,
         magnitude: setup.magnitude,
     };
-    (0..o.len())
+    // one pass straight into the output (an indexed collect: no per-ray allocation, no list of
+    // chunks); the first bad ray, by index, is kept aside and reported
+    let first_error: Mutex<Option<(usize, String)>> = Mutex::new(None);
+    let mut rays = Vec::new();
+    (0..n)
         .into_par_iter()
         .map(|i| {
-            let mut fields = Vec::with_capacity(11);
-            fields.extend_from_slice(&o[i].to_array());
-            fields.extend_from_slice(&d[i].to_array());
-            fields.extend_from_slice(&[at(&tmin, i), at(&tmax, i)]);
-            if let Some(n) = &normals {
-                fields.extend_from_slice(&n[i].to_array());
+            // the fields of a `zeroset query` line, on the stack
+            let mut fields = [0.0; 11];
+            fields[..6].copy_from_slice(&[
+                o[3 * i],
+                o[3 * i + 1],
+                o[3 * i + 2],
+                d[3 * i],
+                d[3 * i + 1],
+                d[3 * i + 2],
+            ]);
+            fields[6..8].copy_from_slice(&[at(&tmin, i), at(&tmax, i)]);
+            let len = match &normals {
+                Some(v) => {
+                    fields[8..].copy_from_slice(&v[3 * i..3 * i + 3]);
+                    11
+                }
+                None => 8,
+            };
+            match ray_from_fields(&fields[..len], &ray_setup) {
+                Ok((ray, range)) => QueryRay { ray, range },
+                Err(message) => {
+                    let mut first = first_error.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                    if first.as_ref().is_none_or(|(k, _)| i < *k) {
+                        *first = Some((i, message));
+                    }
+                    QueryRay {
+                        ray: Ray::new(DVec3::ZERO, DVec3::X),
+                        range: zeroset::primitives::Interval::POSITIVE,
+                    }
+                }
             }
-            let (ray, range) = ray_from_fields(&fields, &ray_setup).map_err(|m| error(format!("ray {i}: {m}")))?;
-            Ok(QueryRay { ray, range })
         })
-        .collect()
+        .collect_into_vec(&mut rays);
+    match first_error
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+    {
+        Some((i, message)) => Err(error(format!("ray {i}: {message}"))),
+        None => Ok(rays),
+    }
+}
+
+/// The rows of an `(N, 3)` float64 array as one flat slice (borrowed when C-contiguous).
+fn rows_of_three<'a>(array: &'a PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<std::borrow::Cow<'a, [f64]>> {
+    let shape = array.shape();
+    if shape[1] != 3 {
+        return Err(error(format!("{what}: expected shape (N, 3), got {shape:?}")));
+    }
+    Ok(match array.as_slice() {
+        Ok(flat) => std::borrow::Cow::Borrowed(flat),
+        Err(_) => std::borrow::Cow::Owned(array.as_array().iter().copied().collect()),
+    })
 }
 
 fn parse_aovs(names: Option<Vec<String>>, scene: &Scene) -> PyResult<Vec<Aov>> {
