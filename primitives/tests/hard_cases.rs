@@ -1039,86 +1039,18 @@ fn recast_from_hit_points_never_self_hits_and_never_misses_entering() {
         }
     };
     let quat = DQuat::from_axis_angle(DVec3::new(0.3, -1.0, 0.5).normalize(), 0.7);
-    let shapes: Vec<(&str, Arc<dyn Primitive>, f64)> = vec![
-        (
-            "Sphere",
-            Arc::new(Sphere::new(DVec3::new(1.0, 2.0, 3.0), 1.5).unwrap()),
-            0.9,
-        ),
+    let mut shapes = support::one_of_each_builtin();
+    // meshes re-cast from hit points are covered by spawn.rs (untransformed); under this test's
+    // transforms at 1e5 their f32 vertices self-hit (noted on the Accuracy issue)
+    shapes.retain(|(name, _, _)| *name != "Mesh");
+    shapes.insert(
+        1,
         (
             "Sphere r=1e-3 at 1e4",
             Arc::new(Sphere::new(DVec3::new(1e4, 0.0, 0.0), 1e-3).unwrap()),
             0.9,
         ),
-        (
-            "Plane",
-            Arc::new(Plane::new(DVec3::new(0.2, 1.0, -0.3), 0.7).unwrap()),
-            0.9,
-        ),
-        (
-            "Triangle",
-            Arc::new(
-                Triangle::new(
-                    DVec3::new(0.1, 0.2, 0.3),
-                    DVec3::new(2.1, -0.4, 0.9),
-                    DVec3::new(0.5, 1.9, -0.6),
-                )
-                .unwrap(),
-            ),
-            0.3,
-        ),
-        (
-            "Disk",
-            Arc::new(Disk::new(DVec3::new(0.3, 0.1, 0.2), DVec3::new(1.0, 2.0, 0.5), 1.3).unwrap()),
-            0.5,
-        ),
-        (
-            "Polygon",
-            Arc::new(
-                Polygon::new(
-                    vec![
-                        DVec3::new(0.0, 0.0, 1.0),
-                        DVec3::new(2.0, 0.1, 1.0),
-                        DVec3::new(2.2, 1.9, 1.0),
-                        DVec3::new(-0.1, 2.0, 1.0),
-                    ],
-                    vec![],
-                )
-                .unwrap(),
-            ),
-            0.8,
-        ),
-        (
-            "Cuboid",
-            Arc::new(Cuboid::new(DVec3::new(-1.0, -0.5, 0.2), DVec3::new(0.7, 1.3, 2.1)).unwrap()),
-            1.2,
-        ),
-        (
-            "Cylinder",
-            Arc::new(Cylinder::new(DVec3::new(0.2, 0.1, 0.0), DVec3::new(0.3, 1.0, 0.2), 0.8, 2.0, true).unwrap()),
-            1.0,
-        ),
-        (
-            "Cone",
-            Arc::new(
-                Cone::new(
-                    DVec3::new(0.2, 0.1, 0.0),
-                    DVec3::new(0.3, 1.0, 0.2),
-                    0.9,
-                    0.0,
-                    2.0,
-                    true,
-                )
-                .unwrap(),
-            ),
-            1.0,
-        ),
-        (
-            "Ellipsoid",
-            Arc::new(Ellipsoid::new(DVec3::new(0.5, 0.0, -1.0), DVec3::new(3.0, 0.5, 1.2), quat).unwrap()),
-            1.0,
-        ),
-    ];
+    );
     let mut all = shapes.clone();
     for (name, prim, shrink) in &shapes {
         for s in [1e-3, 1.0, 1e3] {

@@ -15,6 +15,7 @@
 //! The reference is Φ itself (the implicit definition, evaluated independently of the
 //! intersectors), as in the `recast_*` test of `hard_cases.rs`.
 
+mod support;
 use glam::{DAffine3, DQuat, DVec3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -144,100 +145,12 @@ fn spawn_rays(prim: &dyn Primitive, rng: &mut StdRng, rays: usize, shrink: f64) 
     c
 }
 
-fn shapes() -> Vec<(&'static str, Arc<dyn Primitive>, f64)> {
-    let quat = DQuat::from_axis_angle(DVec3::new(0.3, -1.0, 0.5).normalize(), 0.7);
-    let square: Vec<[f32; 3]> = vec![
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.1],
-        [1.0, 1.0, 0.3],
-        [0.0, 1.0, -0.2],
-        [0.5, 0.5, 0.9],
-    ];
-    let pyramid = vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4], [0, 2, 1], [0, 3, 2]];
-    vec![
-        (
-            "Sphere",
-            Arc::new(Sphere::new(DVec3::new(1.0, 2.0, 3.0), 1.5).unwrap()),
-            0.9,
-        ),
-        (
-            "Plane",
-            Arc::new(Plane::new(DVec3::new(0.2, 1.0, -0.3), 0.7).unwrap()),
-            0.9,
-        ),
-        (
-            "Triangle",
-            Arc::new(
-                Triangle::new(
-                    DVec3::new(0.1, 0.2, 0.3),
-                    DVec3::new(2.1, -0.4, 0.9),
-                    DVec3::new(0.5, 1.9, -0.6),
-                )
-                .unwrap(),
-            ),
-            0.3,
-        ),
-        (
-            "Disk",
-            Arc::new(Disk::new(DVec3::new(0.3, 0.1, 0.2), DVec3::new(1.0, 2.0, 0.5), 1.3).unwrap()),
-            0.5,
-        ),
-        (
-            "Polygon",
-            Arc::new(
-                Polygon::new(
-                    vec![
-                        DVec3::new(0.0, 0.0, 1.0),
-                        DVec3::new(2.0, 0.1, 1.0),
-                        DVec3::new(2.2, 1.9, 1.0),
-                        DVec3::new(-0.1, 2.0, 1.0),
-                    ],
-                    vec![],
-                )
-                .unwrap(),
-            ),
-            0.8,
-        ),
-        (
-            "Cuboid",
-            Arc::new(Cuboid::new(DVec3::new(-1.0, -0.5, 0.2), DVec3::new(0.7, 1.3, 2.1)).unwrap()),
-            1.2,
-        ),
-        (
-            "Cylinder",
-            Arc::new(Cylinder::new(DVec3::new(0.2, 0.1, 0.0), DVec3::new(0.3, 1.0, 0.2), 0.8, 2.0, true).unwrap()),
-            1.0,
-        ),
-        (
-            "Cone",
-            Arc::new(
-                Cone::new(
-                    DVec3::new(0.2, 0.1, 0.0),
-                    DVec3::new(0.3, 1.0, 0.2),
-                    0.9,
-                    0.0,
-                    2.0,
-                    true,
-                )
-                .unwrap(),
-            ),
-            1.0,
-        ),
-        (
-            "Ellipsoid",
-            Arc::new(Ellipsoid::new(DVec3::new(0.5, 0.0, -1.0), DVec3::new(3.0, 0.5, 1.2), quat).unwrap()),
-            1.0,
-        ),
-        ("Mesh", Arc::new(Mesh::new(square, pyramid, None).unwrap()), 1.0),
-    ]
-}
-
 #[test]
 fn spawned_from_f32_points_never_self_hit_and_never_miss_beyond_the_offset() {
     let mut rng = StdRng::seed_from_u64(131);
     let quat = DQuat::from_axis_angle(DVec3::new(-0.4, 0.2, 1.0).normalize(), 1.1);
     let mut total = Counts::default();
-    for (name, prim, shrink) in shapes() {
+    for (name, prim, shrink) in support::one_of_each_builtin() {
         for scale in [1e-3, 1.0, 1e3, 1e5] {
             // placed at a distance proportional to its size (f32 resolves a shape only relative
             // to its own coordinates)
