@@ -274,18 +274,10 @@ fn render_command(args: &RenderArgs) -> Result<()> {
                 x1: c[2],
                 y1: c[3],
             };
-            if w.x0 >= w.x1 || w.y0 >= w.y1 || w.x1 > scene.camera.width || w.y1 > scene.camera.height {
-                bail!(
-                    "--crop {},{},{},{}: need x0 < x1 ≤ {} and y0 < y1 ≤ {}",
-                    c[0],
-                    c[1],
-                    c[2],
-                    c[3],
-                    scene.camera.width,
-                    scene.camera.height
-                );
-            }
-            Some(w)
+            Some(
+                w.within(scene.camera.width, scene.camera.height)
+                    .map_err(|m| anyhow::anyhow!("--crop {},{},{},{}: {m}", c[0], c[1], c[2], c[3]))?,
+            )
         }
     };
     if let Some(spp) = args.spp {
@@ -537,11 +529,7 @@ fn query_command(args: &QueryArgs) -> Result<()> {
     let scene = Scene::load(&args.scene)?;
     crate::diagnostics::print_load_warnings(&scene);
     let setup = RaySetup {
-        range: if args.closed_range {
-            RangeConvention::Closed
-        } else {
-            RangeConvention::OpenStart
-        },
+        range: RangeConvention::closed_if(args.closed_range),
         origin_precision: args.origin_precision,
         magnitude: scene_magnitude(&scene),
     };

@@ -31,6 +31,18 @@ pub enum RangeConvention {
     Closed,
 }
 
+impl RangeConvention {
+    /// `Closed` when `closed`, else the default `OpenStart` (the `--closed-range` flag).
+    #[must_use]
+    pub fn closed_if(closed: bool) -> Self {
+        if closed {
+            Self::Closed
+        } else {
+            Self::OpenStart
+        }
+    }
+}
+
 /// How input lines become rays.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RaySetup {

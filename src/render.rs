@@ -61,6 +61,17 @@ impl Window {
     pub fn height(&self) -> u32 {
         self.y1 - self.y0
     }
+
+    /// The window itself if it is a non-empty part of a `width × height` image.
+    ///
+    /// # Errors
+    /// An empty window or one reaching outside the image: what is needed, in words.
+    pub fn within(self, width: u32, height: u32) -> Result<Self, String> {
+        if self.x0 >= self.x1 || self.y0 >= self.y1 || self.x1 > width || self.y1 > height {
+            return Err(format!("need x0 < x1 ≤ {width} and y0 < y1 ≤ {height}"));
+        }
+        Ok(self)
+    }
 }
 
 /// How to render.

@@ -231,11 +231,7 @@ fn query_rays(
     }
     let at = |s: &[f64], i: usize| s[if s.len() == 1 { 0 } else { i }];
     let ray_setup = RaySetup {
-        range: if setup.closed {
-            RangeConvention::Closed
-        } else {
-            RangeConvention::OpenStart
-        },
+        range: RangeConvention::closed_if(setup.closed),
         origin_precision: setup.precision,
         magnitude: setup.magnitude,
     };
@@ -684,15 +680,9 @@ impl PyScene {
                     x1: camera.width,
                     y1: camera.height,
                 },
-                Some((x0, y0, x1, y1)) => {
-                    if x0 >= x1 || y0 >= y1 || x1 > camera.width || y1 > camera.height {
-                        return Err(error(format!(
-                            "crop ({x0}, {y0}, {x1}, {y1}): need x0 < x1 ≤ {} and y0 < y1 ≤ {}",
-                            camera.width, camera.height
-                        )));
-                    }
-                    Window { x0, y0, x1, y1 }
-                }
+                Some((x0, y0, x1, y1)) => Window { x0, y0, x1, y1 }
+                    .within(camera.width, camera.height)
+                    .map_err(|m| error(format!("crop ({x0}, {y0}, {x1}, {y1}): {m}")))?,
             };
             // the scene's own spp comes back after this render (the lock is held)
             let saved_spp = scene.sampling.spp;
