@@ -262,35 +262,7 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
         if sampled {
             render_row_sampled(scene, &context, window.x0, y, out);
         } else {
-            for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
-                let x = window.x0 + column as u32;
-                let exhausted_before = thread_uncertain_events();
-                let ray = match camera.pixel_ray(x, y) {
-                    Ok(ray) => ray,
-                    Err(reason) => {
-                        context.no_ray.add(reason);
-                        write_miss(pixel, scene, &context);
-                        flag_uncertain(pixel, &context, exhausted_before);
-                        continue;
-                    }
-                };
-                let hit = scene.intersect(&ray, Interval::POSITIVE).map(|(object, raw)| {
-                    let primitive = &*scene.objects[object as usize].primitive;
-                    let hit = SurfaceHit::complete(primitive, &ray, &raw, request);
-                    let shading_normal = if shading {
-                        primitive.shading_normal_at(&ray, &raw).or(hit.normal)
-                    } else {
-                        None
-                    };
-                    (object, hit, shading_normal)
-                });
-                let mut rest = &mut pixel[..];
-                for aov in &aovs {
-                    let n = write_aov(rest, scene, *aov, &ray, hit.as_ref(), &context);
-                    rest = &mut rest[n..];
-                }
-                flag_uncertain(pixel, &context, exhausted_before);
-            }
+            render_row(scene, &context, window.x0, y, out);
         }
         if options.progress {
             bar.inc(1);
@@ -317,6 +289,41 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
         spp: scene.sampling.spp.max(1),
         outside_field,
         not_converged,
+    }
+}
+
+/// Renders row `y` of pixel centres from column `x0` on (one ray per pixel) into `out`, the
+/// row's interleaved AOV samples.
+fn render_row(scene: &Scene, context: &RowContext, x0: u32, y: u32, out: &mut [f32]) {
+    let (camera, request, shading, channels) = (context.camera, context.request, context.shading, context.channels);
+    for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
+        let x = x0 + column as u32;
+        let exhausted_before = thread_uncertain_events();
+        let ray = match camera.pixel_ray(x, y) {
+            Ok(ray) => ray,
+            Err(reason) => {
+                context.no_ray.add(reason);
+                write_miss(pixel, scene, &context);
+                flag_uncertain(pixel, &context, exhausted_before);
+                continue;
+            }
+        };
+        let hit = scene.intersect(&ray, Interval::POSITIVE).map(|(object, raw)| {
+            let primitive = &*scene.objects[object as usize].primitive;
+            let hit = SurfaceHit::complete(primitive, &ray, &raw, request);
+            let shading_normal = if shading {
+                primitive.shading_normal_at(&ray, &raw).or(hit.normal)
+            } else {
+                None
+            };
+            (object, hit, shading_normal)
+        });
+        let mut rest = &mut pixel[..];
+        for aov in context.aovs {
+            let n = write_aov(rest, scene, *aov, &ray, hit.as_ref(), &context);
+            rest = &mut rest[n..];
+        }
+        flag_uncertain(pixel, &context, exhausted_before);
     }
 }
 

@@ -17,7 +17,9 @@ use ron::extensions::Extensions;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use zeroset_primitives::{Bvh, Interval, Primitive, RawHit, Ray, Transformed};
+use zeroset_primitives::{Primitive, Transformed};
+
+use crate::tracing::Hierarchy;
 
 /// Why a scene could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -366,9 +368,8 @@ pub struct Scene {
     /// triangles left out, a `Function` that may be undefined in parts of its box, …); the CLI
     /// prints them.
     pub warnings: Vec<String>,
-    /// Objects tested on every ray: those with infinite bounds, and a lone bounded object.
-    unbounded: Vec<u32>,
-    bvh: Bvh,
+    /// What the traversal walks over the objects ([`crate::tracing`]).
+    pub(crate) hierarchy: Hierarchy,
 }
 
 /// How deeply RON values may nest in a scene file (RON's default is 128). A combinator level
@@ -381,11 +382,6 @@ pub const RON_NESTING_LIMIT: usize = 4_000;
 /// levels but not 300), so 1 GiB leaves a margin of four. Only the pages a parse touches are
 /// ever committed.
 pub(crate) const PARSE_STACK_BYTES: usize = 1 << 30;
-
-/// Direction magnitudes (largest component) traced as given; beyond, [`Scene::intersect`] scales
-/// the direction by a power of two first.
-const DIR_SCALE_MIN: f64 = 1.0 / (1u64 << 60) as f64;
-const DIR_SCALE_MAX: f64 = (1u64 << 60) as f64;
 
 /// RON options used for scene files: `Some(…)` may be omitted, a primitive's fields may be
 /// written directly inside its name's parentheses, and values may nest [`RON_NESTING_LIMIT`] deep.
@@ -598,25 +594,7 @@ impl Scene {
         background: DVec3,
         outputs: Outputs,
     ) -> Self {
-        let mut unbounded = Vec::new();
-        let mut boxes = Vec::new();
-        for (i, o) in objects.iter().enumerate() {
-            let b = match &o.motion {
-                None => o.primitive.bounds(),
-                Some(m) => m.bounds(),
-            };
-            if b.is_finite() {
-                boxes.push((b, i as u32));
-            } else {
-                unbounded.push(i as u32);
-            }
-        }
-        // a lone bounded object is tested directly: a scene of one primitive pays nothing for the BVH
-        if boxes.len() == 1 {
-            unbounded.push(boxes[0].1);
-            boxes.clear();
-        }
-        let bvh = Bvh::build(&boxes);
+        let hierarchy = Hierarchy::build(&objects);
         Self {
             source: None,
             camera,
@@ -628,8 +606,7 @@ impl Scene {
             sampling: Sampling::default(),
             views: Vec::new(),
             warnings: Vec::new(),
-            unbounded,
-            bvh,
+            hierarchy,
         }
     }
 
@@ -648,97 +625,6 @@ impl Scene {
             None => f(&*o.primitive),
             Some(m) => m.with_primitive_at(time, f),
         }
-    }
-
-    /// The closest hit along `ray` at frame time `time` with `t` in `range`: like
-    /// [`Scene::intersect`], with moving objects placed at `time`. A scene without moving objects
-    /// gives exactly [`Scene::intersect`]'s answer.
-    #[inline]
-    pub fn intersect_at(&self, ray: &Ray, range: Interval, time: f64) -> Option<(u32, RawHit)> {
-        self.closest(
-            range,
-            |id, ray, r| self.with_primitive_at(id, time, |p| p.intersect(ray, r)),
-            ray,
-        )
-    }
-
-    /// Whether anything blocks `ray` within `range` at frame time `time`.
-    #[must_use]
-    pub fn occluded_at(&self, ray: &Ray, range: Interval, time: f64) -> bool {
-        self.intersect_at(ray, range, time).is_some()
-    }
-
-    /// The closest hit along `ray` with `t` in `range`: the object index and its raw hit.
-    #[inline]
-    pub fn intersect(&self, ray: &Ray, range: Interval) -> Option<(u32, RawHit)> {
-        self.closest(
-            range,
-            |id, ray, r| self.objects[id as usize].primitive.intersect(ray, r),
-            ray,
-        )
-    }
-
-    /// The closest hit of `test(object, ray, range)` over the always-tested objects and the BVH,
-    /// shrinking `range.max` as hits are found.
-    ///
-    /// A direction whose length is far from 1 (a query's `10⁻³⁰` or `10¹⁵⁵`) is first scaled by a
-    /// power of two `k` near its largest component (exact): the ray `o + t'·(d/k)` is the same
-    /// line with `t' = t·k`, so the range is scaled by `k` and the hit's `t'` mapped back by
-    /// `1/k`. Without it, squares of the direction and the hierarchy's f32 reciprocals overflow or
-    /// underflow and every ray misses.
-    #[inline(always)]
-    fn closest(
-        &self,
-        range: Interval,
-        test: impl Fn(u32, &Ray, Interval) -> Option<RawHit>,
-        ray: &Ray,
-    ) -> Option<(u32, RawHit)> {
-        let size = ray.dir.abs().max_element();
-        if (DIR_SCALE_MIN..=DIR_SCALE_MAX).contains(&size) || !(size > 0.0 && size.is_finite()) {
-            return self.closest_unscaled(range, |id, r| test(id, ray, r), ray);
-        }
-        let k = zeroset_primitives::math::power_of_two_scale(size);
-        let scaled = Ray::new(ray.origin, ray.dir / k);
-        let (object, hit) = self.closest_unscaled(
-            Interval::new(range.min * k, range.max * k),
-            |id, r| test(id, &scaled, r),
-            &scaled,
-        )?;
-        let t = hit.t / k;
-        range.contains(t).then_some((object, RawHit { t, ..hit }))
-    }
-
-    #[inline(always)]
-    fn closest_unscaled(
-        &self,
-        mut range: Interval,
-        test: impl Fn(u32, Interval) -> Option<RawHit>,
-        ray: &Ray,
-    ) -> Option<(u32, RawHit)> {
-        let mut best = None;
-        for &i in &self.unbounded {
-            if let Some(hit) = test(i, range) {
-                range.max = hit.t;
-                best = Some((i, hit));
-            }
-        }
-        let mut raw = None;
-        let object = self.bvh.closest(ray, range, |id, r| {
-            let hit = test(id, r)?;
-            raw = Some(hit);
-            Some(hit.t)
-        });
-        // `raw` holds the last hit reported, which is the closest one
-        match (object, raw) {
-            (Some(object), Some(raw)) => Some((object, raw)),
-            _ => best,
-        }
-    }
-
-    /// Whether anything blocks `ray` within `range` (shadow rays).
-    #[must_use]
-    pub fn occluded(&self, ray: &Ray, range: Interval) -> bool {
-        self.intersect(ray, range).is_some()
     }
 }
 

@@ -1,0 +1,138 @@
+//! Tracing rays through a loaded [`Scene`]: the hierarchy over its objects and the closest-hit
+//! and occlusion queries that walk it. The render loop, `query` and Python all come here.
+
+use zeroset_primitives::{Bvh, Interval, RawHit, Ray};
+
+use crate::scene::{Object, Scene};
+
+/// Direction magnitudes (largest component) traced as given; beyond, [`Scene::intersect`] scales
+/// the direction by a power of two first.
+const DIR_SCALE_MIN: f64 = 1.0 / (1u64 << 60) as f64;
+const DIR_SCALE_MAX: f64 = (1u64 << 60) as f64;
+
+/// The objects' acceleration structure: a BVH over the bounded ones, plus the objects tested on
+/// every ray (those with infinite bounds, and a lone bounded object).
+#[derive(Debug, Default)]
+pub(crate) struct Hierarchy {
+    unbounded: Vec<u32>,
+    bvh: Bvh,
+}
+
+impl Hierarchy {
+    /// Builds the hierarchy over `objects`' world bounds (a moving object's over its motion).
+    pub(crate) fn build(objects: &[Object]) -> Self {
+        let mut unbounded = Vec::new();
+        let mut boxes = Vec::new();
+        for (i, o) in objects.iter().enumerate() {
+            let b = match &o.motion {
+                None => o.primitive.bounds(),
+                Some(m) => m.bounds(),
+            };
+            if b.is_finite() {
+                boxes.push((b, i as u32));
+            } else {
+                unbounded.push(i as u32);
+            }
+        }
+        // a lone bounded object is tested directly: a scene of one primitive pays nothing for the BVH
+        if boxes.len() == 1 {
+            unbounded.push(boxes[0].1);
+            boxes.clear();
+        }
+        let bvh = Bvh::build(&boxes);
+        Self { unbounded, bvh }
+    }
+}
+
+impl Scene {
+    /// The closest hit along `ray` at frame time `time` with `t` in `range`: like
+    /// [`Scene::intersect`], with moving objects placed at `time`. A scene without moving objects
+    /// gives exactly [`Scene::intersect`]'s answer.
+    #[inline]
+    pub fn intersect_at(&self, ray: &Ray, range: Interval, time: f64) -> Option<(u32, RawHit)> {
+        self.closest(
+            range,
+            |id, ray, r| self.with_primitive_at(id, time, |p| p.intersect(ray, r)),
+            ray,
+        )
+    }
+
+    /// Whether anything blocks `ray` within `range` at frame time `time`.
+    #[must_use]
+    pub fn occluded_at(&self, ray: &Ray, range: Interval, time: f64) -> bool {
+        self.intersect_at(ray, range, time).is_some()
+    }
+
+    /// The closest hit along `ray` with `t` in `range`: the object index and its raw hit.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, range: Interval) -> Option<(u32, RawHit)> {
+        self.closest(
+            range,
+            |id, ray, r| self.objects[id as usize].primitive.intersect(ray, r),
+            ray,
+        )
+    }
+
+    /// The closest hit of `test(object, ray, range)` over the always-tested objects and the BVH,
+    /// shrinking `range.max` as hits are found.
+    ///
+    /// A direction whose length is far from 1 (a query's `10⁻³⁰` or `10¹⁵⁵`) is first scaled by a
+    /// power of two `k` near its largest component (exact): the ray `o + t'·(d/k)` is the same
+    /// line with `t' = t·k`, so the range is scaled by `k` and the hit's `t'` mapped back by
+    /// `1/k`. Without it, squares of the direction and the hierarchy's f32 reciprocals overflow or
+    /// underflow and every ray misses.
+    #[inline(always)]
+    fn closest(
+        &self,
+        range: Interval,
+        test: impl Fn(u32, &Ray, Interval) -> Option<RawHit>,
+        ray: &Ray,
+    ) -> Option<(u32, RawHit)> {
+        let size = ray.dir.abs().max_element();
+        if (DIR_SCALE_MIN..=DIR_SCALE_MAX).contains(&size) || !(size > 0.0 && size.is_finite()) {
+            return self.closest_unscaled(range, |id, r| test(id, ray, r), ray);
+        }
+        let k = zeroset_primitives::math::power_of_two_scale(size);
+        let scaled = Ray::new(ray.origin, ray.dir / k);
+        let (object, hit) = self.closest_unscaled(
+            Interval::new(range.min * k, range.max * k),
+            |id, r| test(id, &scaled, r),
+            &scaled,
+        )?;
+        let t = hit.t / k;
+        range.contains(t).then_some((object, RawHit { t, ..hit }))
+    }
+
+    #[inline(always)]
+    fn closest_unscaled(
+        &self,
+        mut range: Interval,
+        test: impl Fn(u32, Interval) -> Option<RawHit>,
+        ray: &Ray,
+    ) -> Option<(u32, RawHit)> {
+        let mut best = None;
+        for &i in &self.hierarchy.unbounded {
+            if let Some(hit) = test(i, range) {
+                range.max = hit.t;
+                best = Some((i, hit));
+            }
+        }
+        let mut raw = None;
+        let object = self.hierarchy.bvh.closest(ray, range, |id, r| {
+            let hit = test(id, r)?;
+            raw = Some(hit);
+            Some(hit.t)
+        });
+        // `raw` holds the last hit reported, which is the closest one
+        match (object, raw) {
+            (Some(object), Some(raw)) => Some((object, raw)),
+            _ => best,
+        }
+    }
+
+    /// Whether anything blocks `ray` within `range` (shadow rays).
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray, range: Interval) -> bool {
+        self.intersect(ray, range).is_some()
+    }
+}
