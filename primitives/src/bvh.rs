@@ -91,15 +91,16 @@ pub(crate) struct Quad {
 const QUAD_STACK: usize = 3 * 128 + 4;
 
 /// Ordered closest-hit walk over 4-wide nodes, starting at `quads[0]`: `entry4(quad, t_max)`
-/// gives the entry distance of each child the ray enters before `t_max`; entered children are
-/// pushed farthest first, and one popped after the closest hit moved nearer than its entry is
-/// skipped. `leaf(first, count, t_max)` tests a leaf and returns the new, smaller `t_max` if it
-/// found a hit.
+/// gives a bit per child slot the ray enters before `t_max` and the entry distances. The nearest
+/// entered child is visited next and the others pushed farthest first (among equal entries the
+/// later slot is visited first); one popped after the closest hit moved nearer than its entry
+/// is skipped. `leaf(first, count, t_max)` tests a leaf and returns the new, smaller `t_max` if
+/// it found a hit.
 #[inline(always)]
 pub(crate) fn traverse_quads(
     quads: &[Quad],
     mut t_max: f32,
-    entry4: impl Fn(&Quad, f32) -> [Option<f32>; 4],
+    entry4: impl Fn(&Quad, f32) -> (u32, [f32; 4]),
     mut leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
 ) {
     if quads.is_empty() {
@@ -109,41 +110,58 @@ pub(crate) fn traverse_quads(
     let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; QUAD_STACK];
     let mut top = 0usize;
     let mut quad = 0usize;
-    loop {
+    'nodes: loop {
         let q = &quads[quad];
-        let entries = entry4(q, t_max);
-        // sort the entered children farthest first (insertion into at most four)
-        let mut order = [(0f32, 0usize); 4];
-        let mut n = 0;
-        for (slot, entry) in entries.iter().enumerate().take(q.len as usize) {
-            if let Some(t) = *entry {
-                let mut k = n;
-                while k > 0 && order[k - 1].0 < t {
-                    order[k] = order[k - 1];
-                    k -= 1;
+        let (hits, near) = entry4(q, t_max);
+        let mut hits = hits & ((1u32 << q.len) - 1);
+        let mut next = None;
+        if hits != 0 {
+            if hits & (hits - 1) == 0 {
+                let slot = hits.trailing_zeros() as usize;
+                next = Some((q.child[slot], q.count[slot], near[slot]));
+            } else {
+                // the entered children sorted farthest first (insertion into at most four)
+                let mut order = [(0f32, 0usize); 4];
+                let mut n = 0;
+                while hits != 0 {
+                    let slot = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    let t = near[slot];
+                    let mut k = n;
+                    while k > 0 && order[k - 1].0 < t {
+                        order[k] = order[k - 1];
+                        k -= 1;
+                    }
+                    order[k] = (t, slot);
+                    n += 1;
                 }
-                order[k] = (t, slot);
-                n += 1;
+                for &(t, slot) in &order[..n - 1] {
+                    stack[top].write((q.child[slot], q.count[slot], t));
+                    top += 1;
+                }
+                let (t, slot) = order[n - 1];
+                next = Some((q.child[slot], q.count[slot], t));
             }
         }
-        for &(t, slot) in &order[..n] {
-            stack[top].write((q.child[slot], q.count[slot], t));
-            top += 1;
-        }
-        // pop until an inner node to open
+        // visit `next`, else pop, until an inner node to open
         loop {
-            if top == 0 {
-                return;
-            }
-            top -= 1;
-            // SAFETY: `stack[top]` was written by the push that raised `top` above it
-            let (child, count, entry) = unsafe { stack[top].assume_init() };
+            let (child, count, entry) = match next.take() {
+                Some(entry) => entry,
+                None => {
+                    if top == 0 {
+                        return;
+                    }
+                    top -= 1;
+                    // SAFETY: `stack[top]` was written by the push that raised `top` above it
+                    unsafe { stack[top].assume_init() }
+                }
+            };
             if entry > t_max {
                 continue;
             }
             if count == 0 {
                 quad = child as usize;
-                break;
+                continue 'nodes;
             }
             if let Some(t) = leaf(child, count, t_max) {
                 t_max = t;
@@ -323,7 +341,7 @@ impl SlabRay {
     /// Entry distances into the four boxes of `quad` within `[t0, t1]`: [`SlabRay::entry`]'s
     /// arithmetic, four boxes per SSE operation.
     #[inline(always)]
-    fn entry4(&self, quad: &Quad, t0: f32, t1: f32) -> [Option<f32>; 4] {
+    fn entry4(&self, quad: &Quad, t0: f32, t1: f32) -> (u32, [f32; 4]) {
         let mut near = Vec4::splat(t0);
         let mut far = Vec4::splat(t1);
         for axis in 0..3 {
@@ -335,9 +353,7 @@ impl SlabRay {
             near = near.max(a.min(b) - pad);
             far = far.min(a.max(b) * EXIT_PAD + pad);
         }
-        let hit = near.cmple(far).bitmask();
-        let near = near.to_array();
-        [0, 1, 2, 3].map(|i| (hit & (1 << i) != 0).then_some(near[i]))
+        (near.cmple(far).bitmask(), near.to_array())
     }
 
     /// Entry distance into the node within `[t0, t1]`, or `None`.
@@ -632,7 +648,9 @@ mod tests {
             let slab = SlabRay::new(&Ray::new(o, d));
             let (t0, t1) = (rng.random_range(0.0..1.0), rng.random_range(1.0..2e3));
             let single: Vec<_> = nodes.iter().map(|n| slab.entry(n, t0, t1)).collect();
-            assert_eq!(slab.entry4(&quad, t0, t1).to_vec(), single);
+            let (hits, near) = slab.entry4(&quad, t0, t1);
+            let four: Vec<_> = (0..4).map(|i| (hits & (1 << i) != 0).then_some(near[i])).collect();
+            assert_eq!(four, single);
         }
     }
 

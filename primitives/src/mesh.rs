@@ -40,6 +40,7 @@
 //! [`crate::Transformed`] per instance; the scene BVH holds the instances, each instance's mesh
 //! its own BVH (two levels).
 
+mod block;
 mod bvh;
 
 use crate::bounds::Aabb;
@@ -47,6 +48,7 @@ use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect};
+use block::{test_block, TriBlock};
 use bvh::{Bb, BuildTri, MeshBvh, Node, SlabRay};
 use glam::{DVec2, DVec3, Vec3A};
 use rayon::prelude::*;
@@ -63,6 +65,8 @@ pub struct Mesh {
     file_to_leaf: Vec<u32>,
     in_bvh: usize,
     bvh: MeshBvh,
+    /// One block per BVH leaf, in node order: the leaf's triangles' vertices for the SIMD test.
+    blocks: Vec<TriBlock>,
     bounds: Aabb,
     center: DVec3,
     radius: f64,
@@ -302,7 +306,7 @@ impl Mesh {
                 "every triangle is degenerate (zero area)",
             ));
         }
-        let bvh = MeshBvh::build(&mut build);
+        let mut bvh = MeshBvh::build(&mut build);
         let in_bvh = build.len();
         let mut leaf_to_file: Vec<u32> = build.iter().map(|b| b.id).collect();
         drop(build);
@@ -318,6 +322,16 @@ impl Mesh {
         }
         let tris: Vec<[u32; 3]> = leaf_to_file.iter().map(|&f| indices[f as usize]).collect();
         drop(indices);
+        let mut blocks = Vec::with_capacity(in_bvh / 2 + 1);
+        bvh.relink_leaves(|first, count| {
+            let corners: Vec<[[f32; 3]; 3]> = tris[first as usize..(first + count) as usize]
+                .iter()
+                .map(|t| t.map(|i| vertices[i as usize]))
+                .collect();
+            blocks.push(TriBlock::new(first, &corners));
+            (blocks.len() - 1) as u32
+        });
+        blocks.shrink_to_fit();
         let bounds = Aabb::new(v64(bvh.root.lo), v64(bvh.root.hi));
         Ok(Self {
             center: bounds.center(),
@@ -329,6 +343,7 @@ impl Mesh {
             file_to_leaf,
             in_bvh,
             bvh,
+            blocks,
             bounds,
         })
     }
@@ -389,6 +404,7 @@ impl Mesh {
             + self.tris.capacity() * 12
             + (self.leaf_to_file.capacity() + self.file_to_leaf.capacity()) * 4
             + self.bvh.memory_bytes()
+            + self.blocks.capacity() * std::mem::size_of::<TriBlock>()
     }
 
     /// Number of BVH nodes (interior and leaves, root included).
@@ -522,18 +538,34 @@ impl Intersect for Mesh {
         let t_max = up(range.max * len);
         let band = t_min + (1e-5 * (self.radius + (ray.origin - self.center).length())) as f32;
         let mut best: Option<(usize, f32, f32, f32)> = None;
-        self.bvh.traverse(&r.slab, t_min, t_max, |first, count, mut t_far| {
+        self.bvh.traverse(&r.slab, t_min, t_max, |block, _count, mut t_far| {
+            let block = &self.blocks[block as usize];
+            let lanes = test_block(r.origin, r.k, r.shear, block, t_min, t_far);
             let mut found = None;
-            for k in first as usize..(first + count) as usize {
-                let [a, b, c] = self.tris[k].map(|i| self.vertices[i as usize]);
-                if let Some((t, u, v)) = r.triangle(a, b, c, t_min, t_far) {
-                    if t <= band && !self.plane_t(ray, k).is_some_and(|t| range.contains(t)) {
-                        continue;
+            for lane in 0..block.count as usize {
+                let bit = 1 << lane;
+                let (t, u, v) = if lanes.hit & bit != 0 {
+                    (lanes.t[lane], lanes.u[lane], lanes.v[lane])
+                } else if lanes.rescan & bit != 0 {
+                    let [a, b, c] = [0, 1, 2].map(|corner| block.corner(corner, lane));
+                    match r.triangle(a, b, c, t_min, t_far) {
+                        Some(hit) => hit,
+                        None => continue,
                     }
-                    t_far = t;
-                    found = Some(t);
-                    best = Some((k, t, u, v));
+                } else {
+                    continue;
+                };
+                // lanes were tested against the range on entry; keep the scalar loop's order
+                if t > t_far {
+                    continue;
                 }
+                let k = block.first as usize + lane;
+                if t <= band && !self.plane_t(ray, k).is_some_and(|t| range.contains(t)) {
+                    continue;
+                }
+                t_far = t;
+                found = Some(t);
+                best = Some((k, t, u, v));
             }
             found
         });

@@ -26,7 +26,7 @@ use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
 /// Largest leaf the SAH may choose.
-pub(crate) const MAX_LEAF: usize = 6;
+pub(crate) const MAX_LEAF: usize = super::block::LANES;
 /// SAH cost of a traversal step (testing a pair of child boxes) relative to one triangle test.
 const TRAVERSAL_COST: f32 = 1.0;
 /// Centroid bins per axis.
@@ -223,6 +223,18 @@ impl MeshBvh {
         index as u32
     }
 
+    /// Replaces the `first` of every leaf slot of the 4-wide nodes by `relink(first, count)` (the
+    /// mesh points them at its leaf blocks), visiting the leaves in node order.
+    pub fn relink_leaves(&mut self, mut relink: impl FnMut(u32, u32) -> u32) {
+        for quad in &mut self.quads {
+            for slot in 0..quad.len as usize {
+                if quad.count[slot] > 0 {
+                    quad.child[slot] = relink(quad.child[slot], quad.count[slot]);
+                }
+            }
+        }
+    }
+
     /// Bytes held by the nodes.
     pub fn memory_bytes(&self) -> usize {
         self.pairs.capacity() * std::mem::size_of::<Pair>()
@@ -296,7 +308,7 @@ impl SlabRay {
     /// Entry distances into the four boxes of `quad` within `[t0, t1]` (per axis `(lo − o)·inv` and
     /// `(hi − o)·inv`, nearest exit enlarged by `1 + 2γ₃`; four boxes per SSE operation).
     #[inline(always)]
-    fn entry4(&self, quad: &Quad, t0: f32, t1: f32) -> [Option<f32>; 4] {
+    fn entry4(&self, quad: &Quad, t0: f32, t1: f32) -> (u32, [f32; 4]) {
         let mut near = Vec4::splat(t0);
         let mut far = Vec4::splat(f32::INFINITY);
         for axis in 0..3 {
@@ -308,9 +320,7 @@ impl SlabRay {
             far = far.min(a.max(b));
         }
         let far = (far * EXIT_PAD).min(Vec4::splat(t1));
-        let hit = near.cmple(far).bitmask();
-        let near = near.to_array();
-        [0, 1, 2, 3].map(|i| (hit & (1 << i) != 0).then_some(near[i]))
+        (near.cmple(far).bitmask(), near.to_array())
     }
 }
 
