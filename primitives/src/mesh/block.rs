@@ -29,11 +29,10 @@ impl TriBlock {
     pub fn new(first: u32, corners: &[[[f32; 3]; 3]]) -> Self {
         debug_assert!((1..=LANES).contains(&corners.len()));
         let mut vertex = [[[0f32; LANES]; 3]; 3];
-        for lane in 0..LANES {
-            let tri = corners.get(lane).unwrap_or(&corners[0]);
-            for (corner, v) in tri.iter().enumerate() {
-                for axis in 0..3 {
-                    vertex[corner][axis][lane] = v[axis];
+        for (corner, axes) in vertex.iter_mut().enumerate() {
+            for (axis, lanes) in axes.iter_mut().enumerate() {
+                for (lane, value) in lanes.iter_mut().enumerate() {
+                    *value = corners.get(lane).unwrap_or(&corners[0])[corner][axis];
                 }
             }
         }
@@ -121,7 +120,7 @@ mod tests {
     #[test]
     fn lanes_equal_the_scalar_test() {
         let mut rng = StdRng::seed_from_u64(11);
-        let mut point = |rng: &mut StdRng| -> [f32; 3] {
+        let point = |rng: &mut StdRng| -> [f32; 3] {
             // coarse grid values make exactly-zero edge functions common
             std::array::from_fn(|_| (rng.random_range(-8i32..=8) as f32) * 0.25)
         };
