@@ -9,7 +9,9 @@ use crate::output::cameras_json::{cameras_json, exr_camera_attributes, transform
 use crate::output::exr::{size_estimate, write_exr_with, ExrCompression, ExrHeader};
 use crate::output::merge::merge_crops;
 use crate::output::png::write_previews;
-use crate::query::{run_batch, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS};
+use crate::query::{
+    run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS,
+};
 use crate::query_rays::{scene_magnitude, RangeConvention, RaySetup};
 use crate::render::{render_view, Frame, RenderOptions, Window};
 use crate::resources::{capped_threads, check_memory, process_cpu_seconds, render_memory_estimate};
@@ -159,6 +161,11 @@ pub struct QueryArgs {
     /// `docs/numerics.md`, "Spawning rays").
     #[arg(long, value_name = "f32|f64|E")]
     pub origin_precision: Option<zeroset_primitives::offset::PointPrecision>,
+    /// Order in which each chunk's rays are traced (the answers and the output order are the
+    /// same): `input` as given, `sorted` grouped for coherence (direction octant, origin cell,
+    /// direction), which pays for shuffled coherent rays (many cameras' pixels), not random ones.
+    #[arg(long, value_enum, default_value = "input", ignore_case = true)]
+    pub ray_order: crate::query::RayOrder,
     /// Output (`-` for stdout): CSV, or `.npy` (f8, shape (N, 11)).
     #[arg(short, long, default_value = "-")]
     pub output: PathBuf,
@@ -568,7 +575,7 @@ fn query_command(args: &QueryArgs) -> Result<()> {
                 Box::new(NpyStream(NpyHits::with_rows(stdout, rows, args.uncertain)))
             }
         };
-        run_batch(&scene, source.as_mut(), sink.as_mut())?
+        run_batch_in(&scene, source.as_mut(), sink.as_mut(), args.ray_order)?
     } else {
         check_destination(&crate::output::atomic::parent_dir(&args.output), 0)?;
         let mut file = AtomicFile::create(&args.output)?;
@@ -578,7 +585,7 @@ fn query_command(args: &QueryArgs) -> Result<()> {
                 BatchFormat::Csv => Box::new(CsvHits::new(writer, args.uncertain)),
                 BatchFormat::Npy => Box::new(NpyHits::seekable(writer, args.uncertain)),
             };
-            run_batch(&scene, source.as_mut(), sink.as_mut())
+            run_batch_in(&scene, source.as_mut(), sink.as_mut(), args.ray_order)
                 .with_context(|| format!("writing {}", args.output.display()))?
         };
         file.commit()?;

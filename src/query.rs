@@ -39,6 +39,7 @@
 
 use crate::query_rays::RaySetup;
 use crate::scene::Scene;
+use glam::DVec3;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::io::{BufRead, Read, Seek, SeekFrom, Write};
@@ -93,27 +94,102 @@ pub struct QueryError {
 /// First hits of `rays` in `scene` (in input order, traced in parallel), with normal and uv.
 #[must_use]
 pub fn trace_batch(scene: &Scene, rays: &[QueryRay]) -> Vec<QueryHit> {
-    rays.par_iter()
+    trace_batch_in(scene, rays, RayOrder::Input)
+}
+
+/// The order in which a batch's rays are traced. The answers are the same whatever the order
+/// (every ray is traced alone); only the speed differs. On 10⁶ uniformly random rays sorting
+/// did not pay (README, "Throughput"), so the default is the input order; `Sorted` is for
+/// batches with coherence to recover (rays from many cameras, shuffled).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RayOrder {
+    /// As given.
+    Input,
+    /// Sorted for coherence ([`coherent_order`]): neighbouring rays in the trace start near each
+    /// other and point alike, so they walk the same nodes while those are in cache.
+    Sorted,
+}
+
+/// First hits of `rays` in `scene`, traced in `order`, returned in input order.
+#[must_use]
+pub fn trace_batch_in(scene: &Scene, rays: &[QueryRay], order: RayOrder) -> Vec<QueryHit> {
+    let sort = match order {
+        RayOrder::Input => false,
+        RayOrder::Sorted => rays.len() > 1,
+    };
+    if !sort {
+        return rays.par_iter().with_min_len(256).map(|q| trace_one(scene, q)).collect();
+    }
+    let permutation = coherent_order(rays);
+    let traced: Vec<QueryHit> = permutation
+        .par_iter()
         .with_min_len(256)
-        .map(|q| {
-            let exhausted_before = thread_uncertain_events();
-            let hit = scene.intersect(&q.ray, q.range).map(|(object, raw)| {
-                (
-                    object,
-                    SurfaceHit::complete(
-                        &*scene.objects[object as usize].primitive,
-                        &q.ray,
-                        &raw,
-                        HitRequest::ALL,
-                    ),
-                )
-            });
-            QueryHit {
-                hit,
-                uncertain: thread_uncertain_events() != exhausted_before,
-            }
+        .map(|&i| trace_one(scene, &rays[i as usize]))
+        .collect();
+    // position in the traced order of each input ray
+    let mut rank = vec![0u32; rays.len()];
+    for (k, &i) in permutation.iter().enumerate() {
+        rank[i as usize] = k as u32;
+    }
+    rank.par_iter().map(|&k| traced[k as usize]).collect()
+}
+
+/// One ray's first hit, with normal and uv, and whether its answer is uncertain.
+#[inline]
+fn trace_one(scene: &Scene, q: &QueryRay) -> QueryHit {
+    let exhausted_before = thread_uncertain_events();
+    let hit = scene.intersect(&q.ray, q.range).map(|(object, raw)| {
+        (
+            object,
+            SurfaceHit::complete(
+                &*scene.objects[object as usize].primitive,
+                &q.ray,
+                &raw,
+                HitRequest::ALL,
+            ),
+        )
+    });
+    QueryHit {
+        hit,
+        uncertain: thread_uncertain_events() != exhausted_before,
+    }
+}
+
+/// A permutation of `rays` that puts coherent rays together: sorted by direction octant, then
+/// by the Morton code of the origin (10 bits per axis over the batch's origin bounds), then by
+/// the direction quantised to 5 bits per component. Ties keep the input order.
+#[must_use]
+pub fn coherent_order(rays: &[QueryRay]) -> Vec<u32> {
+    let (lo, hi) = rays.par_iter().map(|q| (q.ray.origin, q.ray.origin)).reduce(
+        || (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |a, b| (a.0.min(b.0), a.1.max(b.1)),
+    );
+    let extent = hi - lo;
+    let scale = DVec3::select(extent.cmpgt(DVec3::ZERO), 1023.0 / extent, DVec3::ZERO);
+    let spread = |v: u64| -> u64 {
+        // the 10 low bits of `v` moved to every third bit
+        let mut x = v & 0x3ff;
+        x = (x | (x << 16)) & 0x0300_00ff;
+        x = (x | (x << 8)) & 0x0300_f00f;
+        x = (x | (x << 4)) & 0x030c_30c3;
+        (x | (x << 2)) & 0x0924_9249
+    };
+    let mut keyed: Vec<(u64, u32)> = rays
+        .par_iter()
+        .enumerate()
+        .map(|(i, q)| {
+            let d = q.ray.dir;
+            let octant = u64::from(d.x < 0.0) | u64::from(d.y < 0.0) << 1 | u64::from(d.z < 0.0) << 2;
+            let cell = ((q.ray.origin - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(1023.0));
+            let morton = spread(cell.x as u64) | spread(cell.y as u64) << 1 | spread(cell.z as u64) << 2;
+            let unit = d / d.abs().max_element();
+            let quantised = ((unit + 1.0) * 15.5).clamp(DVec3::ZERO, DVec3::splat(31.0));
+            let direction = (quantised.x as u64) << 10 | (quantised.y as u64) << 5 | quantised.z as u64;
+            (octant << 45 | morton << 15 | direction, i as u32)
         })
-        .collect()
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
 }
 
 /// The checks every ray passes, whatever its format, and its construction as `setup` says
@@ -757,11 +833,24 @@ pub struct BatchCounts {
 /// # Errors
 /// A malformed ray (located) or an I/O error; the rows of earlier chunks may have been written.
 pub fn run_batch(scene: &Scene, source: &mut dyn RaySource, sink: &mut dyn HitSink) -> anyhow::Result<BatchCounts> {
+    run_batch_in(scene, source, sink, RayOrder::Input)
+}
+
+/// [`run_batch`] with each chunk traced in `order`.
+///
+/// # Errors
+/// As [`run_batch`].
+pub fn run_batch_in(
+    scene: &Scene,
+    source: &mut dyn RaySource,
+    sink: &mut dyn HitSink,
+    order: RayOrder,
+) -> anyhow::Result<BatchCounts> {
     let mut counts = BatchCounts::default();
     let mut rays = Vec::with_capacity(CHUNK_RAYS);
     loop {
         let more = source.read_chunk(CHUNK_RAYS, &mut rays)?;
-        let hits = trace_batch(scene, &rays);
+        let hits = trace_batch_in(scene, &rays, order);
         counts.rays += rays.len() as u64;
         counts.hits += hits.iter().filter(|h| h.hit.is_some()).count() as u64;
         counts.uncertain += hits.iter().filter(|h| h.uncertain).count() as u64;
@@ -799,6 +888,46 @@ pub fn parse_rays_with(text: &str, path: &str, setup: &RaySetup) -> Result<Vec<Q
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Tracing in the coherent order gives every ray the same answer as the input order, in
+    /// input order, and the order is a permutation.
+    #[test]
+    fn sorted_order_gives_the_same_answers() {
+        use rand::{Rng, SeedableRng};
+        let scene = Scene::from_ron(
+            "Scene(camera: (), objects: [(shape: Sphere(center: (0, 0, 0), radius: 1)), \
+             (shape: Box(min: (2, -1, -1), max: (3, 1, 1))), (shape: Plane(normal: (0, 1, 0), point: (0, -2, 0)))])",
+            "t.ron",
+        )
+        .unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let rays: Vec<QueryRay> = (0..5000)
+            .map(|_| {
+                let o = DVec3::new(
+                    rng.random_range(-4.0..4.0),
+                    rng.random_range(-1.5..4.0),
+                    rng.random_range(-4.0..4.0),
+                );
+                let d = DVec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                QueryRay {
+                    ray: Ray::new(o, d),
+                    range: Interval::new(0.0, f64::INFINITY),
+                }
+            })
+            .collect();
+        let mut order = coherent_order(&rays);
+        assert_ne!(order, (0..5000).collect::<Vec<u32>>(), "random rays get reordered");
+        order.sort_unstable();
+        assert_eq!(order, (0..5000).collect::<Vec<u32>>());
+        let input = trace_batch_in(&scene, &rays, RayOrder::Input);
+        let sorted = trace_batch_in(&scene, &rays, RayOrder::Sorted);
+        assert!(input.iter().filter(|h| h.hit.is_some()).count() > 1000);
+        assert_eq!(input, sorted);
+    }
 
     fn origins(rays: &[QueryRay]) -> Vec<f64> {
         rays.iter().map(|r| r.ray.origin.x).collect()

@@ -303,8 +303,8 @@ fn render_row(scene: &Scene, context: &RowContext, x0: u32, y: u32, out: &mut [f
             Ok(ray) => ray,
             Err(reason) => {
                 context.no_ray.add(reason);
-                write_miss(pixel, scene, &context);
-                flag_uncertain(pixel, &context, exhausted_before);
+                write_miss(pixel, scene, context);
+                flag_uncertain(pixel, context, exhausted_before);
                 continue;
             }
         };
@@ -320,10 +320,10 @@ fn render_row(scene: &Scene, context: &RowContext, x0: u32, y: u32, out: &mut [f
         });
         let mut rest = &mut pixel[..];
         for aov in context.aovs {
-            let n = write_aov(rest, scene, *aov, &ray, hit.as_ref(), &context);
+            let n = write_aov(rest, scene, *aov, &ray, hit.as_ref(), context);
             rest = &mut rest[n..];
         }
-        flag_uncertain(pixel, &context, exhausted_before);
+        flag_uncertain(pixel, context, exhausted_before);
     }
 }
 

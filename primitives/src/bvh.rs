@@ -1,33 +1,21 @@
-//! The scene's bounding volume hierarchy over its bounded objects: binned-SAH build of a binary
-//! tree, collapsed into 4-wide nodes for ordered closest-hit traversal. (Meshes have their own,
-//! `crate::mesh`.)
+//! The scene's bounding volume hierarchy over its bounded objects, and what every hierarchy
+//! shares: the 4-wide node ([`Quad`]) and its ordered closest-hit walk ([`traverse_quads`]).
+//! One builder (`build`: parallel binned SAH, collapsed into 4-wide nodes) makes both the
+//! scene's hierarchy (leaves of at most two objects) and each mesh's (leaves of at most four
+//! triangles, one SIMD block).
 //!
-//! Build: each split evaluates 16 bins of centroids per axis with the surface-area heuristic
-//! (traversal cost 1, intersection cost 1 per item) and makes a leaf when no split is cheaper
-//! or at most 2 items remain; below depth 28 it splits at the median. Binary nodes are stored
-//! depth-first (an interior node's first child follows it, the second is at `offset`), then each
-//! interior node is collapsed with its widest descendants into a 4-wide node (`Quad`).
-//!
-//! Traversal: quads hold their children's f32 bounds (rounded outward) in SoA layout, tested
-//! four at a time with SSE, conservative against the f64 ray (see `SlabRay`); entered children
-//! are pushed farthest first and skipped when popped if the closest hit is already nearer.
+//! Traversal of the scene's hierarchy: quads hold their children's f32 bounds (rounded outward
+//! from the objects' f64 bounds) in SoA layout, tested four at a time with SSE, conservative
+//! against the f64 ray (see `SlabRay`); the nearest entered child is visited next, the others
+//! pushed farthest first and skipped when popped if the closest hit is already nearer.
 //! Primitives are then tested in f64, so the f32 traversal never changes a hit.
 
-use crate::{Aabb, Interval, Ray};
-use glam::{Vec3, Vec3A, Vec4};
-use std::mem::MaybeUninit;
+pub(crate) mod build;
 
-/// A node: bounds in f32, rounded outward from the f64 bounds so they still contain them.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(32))]
-struct Node {
-    /// `[min, max]`.
-    bounds: [[f32; 3]; 2],
-    /// Leaf: first index into `items`; interior: index of the second child.
-    offset: u32,
-    /// Items in a leaf; 0 for an interior node.
-    count: u32,
-}
+use crate::{Aabb, Interval, Ray};
+use build::{Bb, BuildItem, QuadBvh};
+use glam::{Vec3A, Vec4};
+use std::mem::MaybeUninit;
 
 fn round_down(x: f64) -> f32 {
     let y = x as f32;
@@ -47,29 +35,13 @@ fn round_up(x: f64) -> f32 {
     }
 }
 
-impl Node {
-    #[cfg(test)]
-    fn new(b: &Aabb) -> Self {
-        Self {
-            bounds: [
-                [round_down(b.min.x), round_down(b.min.y), round_down(b.min.z)],
-                [round_up(b.max.x), round_up(b.max.y), round_up(b.max.z)],
-            ],
-            offset: 0,
-            count: 0,
-        }
-    }
-}
-
 /// A BVH over items identified by `u32` ids.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
-    /// The binary tree during the build; emptied (and its memory freed) once collapsed.
-    nodes: Vec<Node>,
-    node_count: usize,
+    /// The 4-wide nodes; leaves index `items`.
+    tree: QuadBvh,
+    /// Item ids in leaf order.
     items: Vec<u32>,
-    /// The binary tree collapsed into 4-wide nodes, which the traversal walks.
-    quads: Vec<Quad>,
 }
 
 /// A 4-wide node, shared by the scene's and the meshes' hierarchies: up to four children's f32
@@ -170,142 +142,9 @@ pub(crate) fn traverse_quads(
     }
 }
 
-/// Subtrees with at least this many items are built in parallel.
-pub const PARALLEL_ITEMS: usize = 4096;
-
-/// A binary subtree in depth-first order, its indices (second children, first items) relative
-/// to its own lists.
-struct Subtree {
-    nodes: Vec<Node>,
-    items: Vec<u32>,
-}
-
-impl Subtree {
-    fn build(work: &mut [BuildItem], depth: usize) -> Self {
-        let mut tree = Self {
-            nodes: Vec::with_capacity(work.len()),
-            items: Vec::with_capacity(work.len()),
-        };
-        tree.build_node(work, depth);
-        tree
-    }
-
-    /// Appends the node for `work` and its descendants; returns its index.
-    fn build_node(&mut self, work: &mut [BuildItem], depth: usize) -> usize {
-        let bounds = work.iter().fold(Box32::EMPTY, |b, w| b.union(w.bounds));
-        let node_index = self.nodes.len();
-        self.nodes.push(Node {
-            bounds: [bounds.lo.to_array(), bounds.hi.to_array()],
-            offset: 0,
-            count: 0,
-        });
-        let split = if work.len() <= MAX_LEAF {
-            None
-        } else if depth >= MEDIAN_DEPTH {
-            Some(median_split(work))
-        } else {
-            best_split(work, &bounds)
-        };
-        match split {
-            None => {
-                self.nodes[node_index].offset = self.items.len() as u32;
-                self.nodes[node_index].count = work.len() as u32;
-                self.items.extend(work.iter().map(|w| w.id));
-            }
-            Some(mid) if work.len() >= PARALLEL_ITEMS => {
-                let (left, right) = work.split_at_mut(mid);
-                let (left, right) = rayon::join(|| Self::build(left, depth + 1), || Self::build(right, depth + 1));
-                self.append(left);
-                let second = self.nodes.len();
-                self.append(right);
-                self.nodes[node_index].offset = second as u32;
-            }
-            Some(mid) => {
-                let (left, right) = work.split_at_mut(mid);
-                self.build_node(left, depth + 1);
-                let second = self.build_node(right, depth + 1);
-                self.nodes[node_index].offset = second as u32;
-            }
-        }
-        node_index
-    }
-
-    /// Appends `other` after the current nodes and items, rebasing its indices.
-    fn append(&mut self, other: Self) {
-        let (node_base, item_base) = (self.nodes.len() as u32, self.items.len() as u32);
-        self.nodes.extend(other.nodes.into_iter().map(|mut n| {
-            n.offset += if n.count > 0 { item_base } else { node_base };
-            n
-        }));
-        self.items.extend(other.items);
-    }
-}
-
-const BINS: usize = 16;
+/// Largest leaf of the scene's hierarchy.
 const MAX_LEAF: usize = 2;
-/// Below this depth nodes split at the median, so the tree is at most `MEDIAN_DEPTH + log₂ n`
-/// deep (under the 128 levels `QUAD_STACK` is sized for) for any `n < 2³²`.
-const MEDIAN_DEPTH: usize = 28;
 
-struct BuildItem {
-    /// The item's bounds rounded outward to f32 (as its leaf's node will store them).
-    bounds: Box32,
-    centroid: Vec3,
-    id: u32,
-}
-
-/// An f32 box, for the build: half the memory traffic of [`Aabb`], and unions of outward-rounded
-/// boxes are exactly the outward rounding of the f64 unions (rounding is monotone).
-#[derive(Clone, Copy, Debug)]
-struct Box32 {
-    lo: Vec3,
-    hi: Vec3,
-}
-
-impl Box32 {
-    const EMPTY: Self = Self {
-        lo: Vec3::splat(f32::INFINITY),
-        hi: Vec3::splat(f32::NEG_INFINITY),
-    };
-
-    fn outward(b: &Aabb) -> Self {
-        Self {
-            lo: Vec3::new(round_down(b.min.x), round_down(b.min.y), round_down(b.min.z)),
-            hi: Vec3::new(round_up(b.max.x), round_up(b.max.y), round_up(b.max.z)),
-        }
-    }
-
-    #[inline]
-    fn union(self, other: Self) -> Self {
-        Self {
-            lo: self.lo.min(other.lo),
-            hi: self.hi.max(other.hi),
-        }
-    }
-
-    #[inline]
-    fn including(self, p: Vec3) -> Self {
-        Self {
-            lo: self.lo.min(p),
-            hi: self.hi.max(p),
-        }
-    }
-
-    /// Half the surface area (in f64: an extent of 10³⁸ squared stays finite).
-    fn half_area(&self) -> f64 {
-        let e = (self.hi - self.lo).as_dvec3().max(glam::DVec3::ZERO);
-        e.x * e.y + e.y * e.z + e.z * e.x
-    }
-}
-
-/// Per-ray data for the f32 slab tests, conservative with respect to the f64 ray.
-///
-/// The origin is rounded to f32 with error `δ ≤ ½ ulp` per component, which is the same as
-/// testing the f64 ray against the box grown by `δ`: each axis's interval is widened by
-/// `|δ|·|1/d|`. Rounding of the subtraction, the reciprocal, the direction and the product is
-/// covered by enlarging exits by `1 + 2γ₅` (f32). A zero direction component gets a reciprocal
-/// of ±10³⁰ instead of ±∞, so an origin on a slab plane gives 0 rather than `0·∞ = NaN` and the
-/// axis constrains nothing unless the origin lies outside the slab.
 struct SlabRay {
     origin: Vec3A,
     inv: Vec3A,
@@ -359,9 +198,9 @@ impl SlabRay {
     /// Entry distance into the node within `[t0, t1]`, or `None`.
     #[inline(always)]
     #[cfg(test)]
-    fn entry(&self, node: &Node, t0: f32, t1: f32) -> Option<f32> {
-        let lo = (Vec3A::from_array(node.bounds[0]) - self.origin) * self.inv;
-        let hi = (Vec3A::from_array(node.bounds[1]) - self.origin) * self.inv;
+    fn entry(&self, bounds: &[[f32; 3]; 2], t0: f32, t1: f32) -> Option<f32> {
+        let lo = (Vec3A::from_array(bounds[0]) - self.origin) * self.inv;
+        let hi = (Vec3A::from_array(bounds[1]) - self.origin) * self.inv;
         let near = lo.min(hi) - self.pad;
         let far = lo.max(hi) * EXIT_PAD + self.pad;
         let near = near.max_element().max(t0);
@@ -371,17 +210,17 @@ impl SlabRay {
 }
 
 impl Bvh {
-    /// Builds over items `(bounds, id)` (all bounds finite); traversal reports the ids.
-    ///
-    /// Subtrees of at least [`PARALLEL_ITEMS`] items are built in parallel (rayon), each into
-    /// its own node and item lists, which are then appended with their indices rebased: the
-    /// tree is the one the sequential build makes, bit for bit.
+    /// Builds over items `(bounds, id)` (all bounds finite), in parallel; traversal reports
+    /// the ids. The tree does not depend on the thread count.
     #[must_use]
     pub fn build(items: &[(Aabb, u32)]) -> Self {
         let mut work: Vec<BuildItem> = items
             .iter()
             .map(|(b, id)| {
-                let bounds = Box32::outward(b);
+                let bounds = Bb {
+                    lo: Vec3A::new(round_down(b.min.x), round_down(b.min.y), round_down(b.min.z)),
+                    hi: Vec3A::new(round_up(b.max.x), round_up(b.max.y), round_up(b.max.z)),
+                };
                 BuildItem {
                     bounds,
                     centroid: 0.5 * bounds.lo + 0.5 * bounds.hi,
@@ -389,78 +228,26 @@ impl Bvh {
                 }
             })
             .collect();
-        let mut bvh = Self::default();
-        if !work.is_empty() {
-            let tree = Subtree::build(&mut work, 0);
-            drop(work);
-            bvh.nodes = tree.nodes;
-            bvh.items = tree.items;
-            bvh.node_count = bvh.nodes.len();
-            bvh.quads.reserve(items.len() / 2 + 1);
-            let children = bvh.collapse(0);
-            bvh.flatten_quad(&children);
-            bvh.quads.shrink_to_fit();
-            bvh.nodes = Vec::new();
+        if work.is_empty() {
+            return Self::default();
         }
-        bvh
+        let tree = QuadBvh::build(&mut work, MAX_LEAF, false);
+        Self {
+            tree,
+            items: work.iter().map(|w| w.id).collect(),
+        }
     }
 
-    fn half_area(&self, node: usize) -> f32 {
-        let [lo, hi] = self.nodes[node].bounds;
-        let e = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
-        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+    /// Bytes held by the traversal's nodes and item list.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        self.tree.memory_bytes() + self.items.capacity() * 4
     }
 
-    /// Up to four nodes standing for `node` in the 4-wide tree: its children, with the inner
-    /// one of largest surface area replaced by its own two children while fewer than four (a
-    /// leaf stands for itself).
-    fn collapse(&self, node: usize) -> Vec<usize> {
-        if self.nodes[node].count > 0 {
-            return vec![node];
-        }
-        let mut out = vec![node + 1, self.nodes[node].offset as usize];
-        while out.len() < 4 {
-            let widest = out
-                .iter()
-                .enumerate()
-                .filter(|(_, &n)| self.nodes[n].count == 0)
-                .max_by(|a, b| self.half_area(*a.1).total_cmp(&self.half_area(*b.1)));
-            let Some((i, &n)) = widest else { break };
-            out[i] = n + 1;
-            out.push(self.nodes[n].offset as usize);
-        }
-        out
-    }
-
-    fn flatten_quad(&mut self, children: &[usize]) -> u32 {
-        let index = self.quads.len();
-        self.quads.push(Quad::default());
-        let mut quad = Quad {
-            len: children.len() as u32,
-            ..Quad::default()
-        };
-        for (slot, &child) in children.iter().enumerate() {
-            let node = self.nodes[child];
-            for axis in 0..3 {
-                quad.lo[axis][slot] = node.bounds[0][axis];
-                quad.hi[axis][slot] = node.bounds[1][axis];
-            }
-            if node.count > 0 {
-                quad.child[slot] = node.offset;
-                quad.count[slot] = node.count;
-            } else {
-                let grandchildren = self.collapse(child);
-                quad.child[slot] = self.flatten_quad(&grandchildren);
-            }
-        }
-        self.quads[index] = quad;
-        index as u32
-    }
-
-    /// Number of nodes of the binary tree it was built as (0 for an empty hierarchy).
+    /// Number of 4-wide nodes.
     #[must_use]
     pub fn node_count(&self) -> usize {
-        self.node_count
+        self.tree.quad_count()
     }
 
     /// Closest-hit traversal: calls `test(id, range)` for items whose node the ray enters
@@ -492,7 +279,7 @@ impl Bvh {
         }
         let t0 = round_down(range.min);
         traverse_quads(
-            &self.quads,
+            self.tree.quads(),
             round_up(range.max),
             |q, t1| slab.entry4(q, t0, t1),
             |first, count, _| {
@@ -512,92 +299,6 @@ impl Bvh {
 }
 
 /// Splits `work` at its median centroid along the centroids' longest axis.
-fn median_split(work: &mut [BuildItem]) -> usize {
-    let centroids = work.iter().fold(Box32::EMPTY, |b, w| b.including(w.centroid));
-    let extent = centroids.hi - centroids.lo;
-    let axis = if extent.x >= extent.y && extent.x >= extent.z {
-        0
-    } else if extent.y >= extent.z {
-        1
-    } else {
-        2
-    };
-    let mid = work.len() / 2;
-    work.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
-    mid
-}
-
-/// Index at which to split `work` (sorted in place), or `None` for a leaf.
-///
-/// One pass over the items bins them on all three axes at once (each item's bounds and
-/// centroid read once per level), then each axis's 15 split planes are swept.
-fn best_split(work: &mut [BuildItem], bounds: &Box32) -> Option<usize> {
-    let centroid_bounds = work.iter().fold(Box32::EMPTY, |b, w| b.including(w.centroid));
-    let extent = centroid_bounds.hi - centroid_bounds.lo;
-    let leaf_cost = work.len() as f64;
-    let parent_area = bounds.half_area().max(f64::MIN_POSITIVE);
-    let scale: [f32; 3] = std::array::from_fn(|axis| {
-        if extent[axis] > 0.0 {
-            BINS as f32 / extent[axis]
-        } else {
-            0.0
-        }
-    });
-    let lo = centroid_bounds.lo;
-    let bin_of = |axis: usize, c: f32| (((c - lo[axis]) * scale[axis]) as usize).min(BINS - 1);
-    let mut bin_bounds = [[Box32::EMPTY; BINS]; 3];
-    let mut bin_counts = [[0usize; BINS]; 3];
-    for w in work.iter() {
-        for axis in 0..3 {
-            let bin = bin_of(axis, w.centroid[axis]);
-            bin_counts[axis][bin] += 1;
-            bin_bounds[axis][bin] = bin_bounds[axis][bin].union(w.bounds);
-        }
-    }
-    let mut best: Option<(f64, usize, usize)> = None; // (cost, axis, bins left of split)
-    for axis in 0..3 {
-        if !(extent[axis] > 0.0) {
-            continue;
-        }
-        let (bin_bounds, bin_counts) = (&bin_bounds[axis], &bin_counts[axis]);
-        // sweep from the right, then from the left
-        let mut right_area = [0.0; BINS];
-        let mut right_count = [0usize; BINS];
-        let (mut acc, mut count) = (Box32::EMPTY, 0);
-        for i in (1..BINS).rev() {
-            acc = acc.union(bin_bounds[i]);
-            count += bin_counts[i];
-            right_area[i] = acc.half_area();
-            right_count[i] = count;
-        }
-        let (mut acc, mut count) = (Box32::EMPTY, 0);
-        for split in 1..BINS {
-            acc = acc.union(bin_bounds[split - 1]);
-            count += bin_counts[split - 1];
-            if count == 0 || right_count[split] == 0 {
-                continue;
-            }
-            let cost =
-                1.0 + (acc.half_area() * count as f64 + right_area[split] * right_count[split] as f64) / parent_area;
-            if best.is_none_or(|(c, _, _)| cost < c) {
-                best = Some((cost, axis, split));
-            }
-        }
-    }
-    let (cost, axis, split) = best?;
-    if cost >= leaf_cost && work.len() <= 8 {
-        return None;
-    }
-    let mut mid = 0;
-    for i in 0..work.len() {
-        if bin_of(axis, work[i].centroid[axis]) < split {
-            work.swap(i, mid);
-            mid += 1;
-        }
-    }
-    (mid > 0 && mid < work.len()).then_some(mid)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -625,10 +326,14 @@ mod tests {
                     rng.random_range(0.0..2.0),
                     rng.random_range(0.0..2.0),
                 );
-                let node = Node::new(&Aabb::new(c - h, c + h));
-                for axis in 0..3 {
-                    quad.lo[axis][slot] = node.bounds[0][axis];
-                    quad.hi[axis][slot] = node.bounds[1][axis];
+                let (lo, hi) = (c - h, c + h);
+                let node = [
+                    [round_down(lo.x), round_down(lo.y), round_down(lo.z)],
+                    [round_up(hi.x), round_up(hi.y), round_up(hi.z)],
+                ];
+                for (axis, (lo, hi)) in node[0].iter().zip(&node[1]).enumerate() {
+                    quad.lo[axis][slot] = *lo;
+                    quad.hi[axis][slot] = *hi;
                 }
                 nodes.push(node);
             }
@@ -660,11 +365,11 @@ mod tests {
         closest_hit_equals_brute_force_with(500, 7, -20.0);
     }
 
-    /// Above `PARALLEL_ITEMS` the subtrees are built in parallel and appended; origins beyond
+    /// Above `build::PARALLEL_MIN` items the subtrees are built in parallel; origins beyond
     /// f32 range take the linear scan.
     #[test]
     fn parallel_build_and_far_origins_equal_brute_force() {
-        closest_hit_equals_brute_force_with(5 * PARALLEL_ITEMS, 8, -20.0);
+        closest_hit_equals_brute_force_with(5 * build::PARALLEL_MIN, 8, -20.0);
         closest_hit_equals_brute_force_with(600, 9, -1e39);
     }
 

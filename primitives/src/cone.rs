@@ -292,68 +292,73 @@ impl Implicit for Cone {
 
 impl Intersect for Cone {
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let dir_size = ray.dir.abs().max_element();
-        if !is_square_safe(dir_size) && dir_size > 0.0 && dir_size.is_finite() {
-            // |d|² and its products would overflow or underflow: the same line with d/k (k a
-            // power of two, exact), whose parameters are t·k
-            let k = power_of_two_scale(dir_size);
-            let scaled = Ray::new(ray.origin, ray.dir / k);
-            let hit = self.intersect(&scaled, Interval::new(range.min * k, range.max * k))?;
-            return Some(RawHit { t: hit.t / k, ..hit }).filter(|h| range.contains(h.t));
-        }
-        let (o, d) = (self.local(ray.origin), self.local_vector(ray.dir));
-        let (o2, d2) = (o.truncate(), d.truncate());
-        let mut best: Option<RawHit> = None;
-        let mut consider = |t: f64, feature: u32| {
-            // a finite t only: a denormal axial direction puts a cap at t = ±∞
-            if t.is_finite() && range.contains(t) && best.is_none_or(|b| t < b.t) {
-                best = Some(RawHit::on_feature(t, feature));
+        // the whole test inlined into the AVX2+FMA copy where the CPU has them
+        #[inline(always)]
+        fn test(this: &Cone, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let dir_size = ray.dir.abs().max_element();
+            if !is_square_safe(dir_size) && dir_size > 0.0 && dir_size.is_finite() {
+                // |d|² and its products would overflow or underflow: the same line with d/k (k a
+                // power of two, exact), whose parameters are t·k
+                let k = power_of_two_scale(dir_size);
+                let scaled = Ray::new(ray.origin, ray.dir / k);
+                let hit = this.intersect(&scaled, Interval::new(range.min * k, range.max * k))?;
+                return Some(RawHit { t: hit.t / k, ..hit }).filter(|h| range.contains(h.t));
             }
-        };
-        // caps, and the apex of a pointed end
-        let mut through_apex = false;
-        if d.z != 0.0 {
-            for (feature, h, r) in [(BOTTOM, 0.0, self.r0), (TOP, self.height, self.r1)] {
-                let t = (h - o.z) / d.z;
-                let at = o2 + t * d2;
-                if r == 0.0 {
-                    // the local origin and direction carry rounding of order ε·|o| and ε·|t·d|
-                    let rounding = 8.0 * f64::EPSILON * (o.length() + (t * d).length());
-                    if at.length() <= rounding {
-                        through_apex = true;
+            let (o, d) = (this.local(ray.origin), this.local_vector(ray.dir));
+            let (o2, d2) = (o.truncate(), d.truncate());
+            let mut best: Option<RawHit> = None;
+            let mut consider = |t: f64, feature: u32| {
+                // a finite t only: a denormal axial direction puts a cap at t = ±∞
+                if t.is_finite() && range.contains(t) && best.is_none_or(|b| t < b.t) {
+                    best = Some(RawHit::on_feature(t, feature));
+                }
+            };
+            // caps, and the apex of a pointed end
+            let mut through_apex = false;
+            if d.z != 0.0 {
+                for (feature, h, r) in [(BOTTOM, 0.0, this.r0), (TOP, this.height, this.r1)] {
+                    let t = (h - o.z) / d.z;
+                    let at = o2 + t * d2;
+                    if r == 0.0 {
+                        // the local origin and direction carry rounding of order ε·|o| and ε·|t·d|
+                        let rounding = 8.0 * f64::EPSILON * (o.length() + (t * d).length());
+                        if at.length() <= rounding {
+                            through_apex = true;
+                            consider(t, feature);
+                        }
+                    } else if this.capped && at.length_squared() <= r * r {
                         consider(t, feature);
                     }
-                } else if self.capped && at.length_squared() <= r * r {
-                    consider(t, feature);
                 }
             }
-        }
-        if through_apex {
-            // on a line through the apex the side equation is A·(t − t_apex)² = 0: no other root
-            return best;
-        }
-        // solve the side quadratic
-        let s0 = self.radius_at(o.z);
-        let ds = -(self.r0 - self.r1) / self.height * d.z;
-        // compensated sums of products (no cancellation loss for a far cone, an origin close
-        // to the side, or a ray nearly parallel to a side line)
-        let a = sum_of_products([(d2.x, d2.x), (d2.y, d2.y), (ds, -ds)]);
-        let b = sum_of_products([(o2.x, d2.x), (o2.y, d2.y), (s0, -ds)]);
-        let c = sum_of_products([(o2.x, o2.x), (o2.y, o2.y), (s0, -s0)]);
-        let cross = difference_of_products(o2.x, d2.y, o2.y, d2.x);
-        let m = DVec2::new(
-            difference_of_products(s0, d2.x, ds, o2.x),
-            difference_of_products(s0, d2.y, ds, o2.y),
-        );
-        let disc = sum_of_products([(m.x, m.x), (m.y, m.y), (cross, -cross)]);
-        if let Some((t0, t1)) = solve_quadratic(a, b, c, disc) {
-            for t in [t0, t1] {
-                if (0.0..=self.height).contains(&(o.z + t * d.z)) {
-                    consider(t, SIDE);
+            if through_apex {
+                // on a line through the apex the side equation is A·(t − t_apex)² = 0: no other root
+                return best;
+            }
+            // solve the side quadratic
+            let s0 = this.radius_at(o.z);
+            let ds = -(this.r0 - this.r1) / this.height * d.z;
+            // compensated sums of products (no cancellation loss for a far cone, an origin close
+            // to the side, or a ray nearly parallel to a side line)
+            let a = sum_of_products([(d2.x, d2.x), (d2.y, d2.y), (ds, -ds)]);
+            let b = sum_of_products([(o2.x, d2.x), (o2.y, d2.y), (s0, -ds)]);
+            let c = sum_of_products([(o2.x, o2.x), (o2.y, o2.y), (s0, -s0)]);
+            let cross = difference_of_products(o2.x, d2.y, o2.y, d2.x);
+            let m = DVec2::new(
+                difference_of_products(s0, d2.x, ds, o2.x),
+                difference_of_products(s0, d2.y, ds, o2.y),
+            );
+            let disc = sum_of_products([(m.x, m.x), (m.y, m.y), (cross, -cross)]);
+            if let Some((t0, t1)) = solve_quadratic(a, b, c, disc) {
+                for t in [t0, t1] {
+                    if (0.0..=this.height).contains(&(o.z + t * d.z)) {
+                        consider(t, SIDE);
+                    }
                 }
             }
+            best
         }
-        best
+        crate::with_fma!(test(this: &Cone = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
     fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 {

@@ -155,51 +155,56 @@ impl Intersect for Cuboid {
         reason = "`!(t_near <= t_far)` rejects NaN as well"
     )]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let (mut t_near, mut near_face) = (f64::NEG_INFINITY, 0);
-        let (mut t_far, mut far_face) = (f64::INFINITY, 0);
-        let mut in_face_plane = None;
-        for axis in 0..3 {
-            let (o, d) = (ray.origin[axis], ray.dir[axis]);
-            let (lo, hi) = (self.min[axis], self.max[axis]);
-            let lower = 2 * axis as u32;
-            if d == 0.0 {
-                // parallel to this slab (±0): inside or on it constrains nothing, else a miss
-                if !(lo <= o && o <= hi) {
-                    return None;
+        // the whole test inlined into the AVX2+FMA copy where the CPU has them
+        #[inline(always)]
+        fn test(this: &Cuboid, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let (mut t_near, mut near_face) = (f64::NEG_INFINITY, 0);
+            let (mut t_far, mut far_face) = (f64::INFINITY, 0);
+            let mut in_face_plane = None;
+            for axis in 0..3 {
+                let (o, d) = (ray.origin[axis], ray.dir[axis]);
+                let (lo, hi) = (this.min[axis], this.max[axis]);
+                let lower = 2 * axis as u32;
+                if d == 0.0 {
+                    // parallel to this slab (±0): inside or on it constrains nothing, else a miss
+                    if !(lo <= o && o <= hi) {
+                        return None;
+                    }
+                    if o == lo || o == hi {
+                        in_face_plane = Some(lower + u32::from(o == hi));
+                    }
+                    continue;
                 }
-                if o == lo || o == hi {
-                    in_face_plane = Some(lower + u32::from(o == hi));
+                let (mut t0, mut f0, mut t1, mut f1) = ((lo - o) / d, lower, (hi - o) / d, lower + 1);
+                if d < 0.0 {
+                    std::mem::swap(&mut t0, &mut t1);
+                    std::mem::swap(&mut f0, &mut f1);
                 }
-                continue;
+                if t0 > t_near {
+                    (t_near, near_face) = (t0, f0);
+                }
+                if t1 < t_far {
+                    (t_far, far_face) = (t1, f1);
+                }
             }
-            let (mut t0, mut f0, mut t1, mut f1) = ((lo - o) / d, lower, (hi - o) / d, lower + 1);
-            if d < 0.0 {
-                std::mem::swap(&mut t0, &mut t1);
-                std::mem::swap(&mut f0, &mut f1);
+            if !(t_near <= t_far) {
+                return None;
             }
-            if t0 > t_near {
-                (t_near, near_face) = (t0, f0);
+            if t_near.is_finite() && range.contains(t_near) {
+                return Some(RawHit::on_feature(t_near, near_face));
             }
-            if t1 < t_far {
-                (t_far, far_face) = (t1, f1);
+            if let Some(face) = in_face_plane {
+                // the ray runs along a face and is on it at t_min: it touches the closed box there
+                if t_near < range.min && range.min <= t_far && range.min.is_finite() && range.contains(range.min) {
+                    return Some(RawHit::on_feature(range.min, face));
+                }
             }
-        }
-        if !(t_near <= t_far) {
-            return None;
-        }
-        if t_near.is_finite() && range.contains(t_near) {
-            return Some(RawHit::on_feature(t_near, near_face));
-        }
-        if let Some(face) = in_face_plane {
-            // the ray runs along a face and is on it at t_min: it touches the closed box there
-            if t_near < range.min && range.min <= t_far && range.min.is_finite() && range.contains(range.min) {
-                return Some(RawHit::on_feature(range.min, face));
+            if t_far.is_finite() && range.contains(t_far) {
+                return Some(RawHit::on_feature(t_far, far_face));
             }
+            None
         }
-        if t_far.is_finite() && range.contains(t_far) {
-            return Some(RawHit::on_feature(t_far, far_face));
-        }
-        None
+        crate::with_fma!(test(this: &Cuboid = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
     fn normal_at(&self, _ray: &Ray, raw: &RawHit) -> DVec3 {

@@ -116,20 +116,25 @@ impl Implicit for Disk {
 impl Intersect for Disk {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let denom = dot_minus(ray.dir, self.normal, 0.0);
-        if denom == 0.0 {
-            return None;
+        // the whole test inlined into the AVX2+FMA copy where the CPU has them
+        #[inline(always)]
+        fn test(this: &Disk, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let denom = dot_minus(ray.dir, this.normal, 0.0);
+            if denom == 0.0 {
+                return None;
+            }
+            let t = -dot_minus(ray.origin, this.normal, this.center.dot(this.normal)) / denom;
+            if !range.contains(t) {
+                return None;
+            }
+            let uv = this.plane_coordinates(ray.at(t));
+            (uv.length_squared() <= this.radius * this.radius).then_some(RawHit {
+                t,
+                feature: 0,
+                local: uv,
+            })
         }
-        let t = -dot_minus(ray.origin, self.normal, self.center.dot(self.normal)) / denom;
-        if !range.contains(t) {
-            return None;
-        }
-        let uv = self.plane_coordinates(ray.at(t));
-        (uv.length_squared() <= self.radius * self.radius).then_some(RawHit {
-            t,
-            feature: 0,
-            local: uv,
-        })
+        crate::with_fma!(test(this: &Disk = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
     fn normal_at(&self, _ray: &Ray, _raw: &RawHit) -> DVec3 {

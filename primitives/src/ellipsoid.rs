@@ -142,11 +142,16 @@ impl Implicit for Ellipsoid {
 impl Intersect for Ellipsoid {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let local = Ray::new(
-            self.unit_space(ray.origin),
-            self.local_from_world * ray.dir / self.radii,
-        );
-        self.unit.intersect(&local, range)
+        // the whole test inlined into the AVX2+FMA copy where the CPU has them
+        #[inline(always)]
+        fn test(this: &Ellipsoid, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let local = Ray::new(
+                this.unit_space(ray.origin),
+                this.local_from_world * ray.dir / this.radii,
+            );
+            this.unit.intersect(&local, range)
+        }
+        crate::with_fma!(test(this: &Ellipsoid = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
     fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 {

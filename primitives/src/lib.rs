@@ -41,6 +41,7 @@
 // infrastructure
 pub mod bounds;
 pub mod bvh;
+pub mod cpu;
 pub mod crossings;
 pub mod error;
 pub mod expr;

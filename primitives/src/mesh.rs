@@ -34,22 +34,21 @@
 //! # Storage
 //! Vertices `12 B` each (plus `12 B` with normals), triangles `12 B` (index triple, kept in BVH
 //! leaf order) plus `8 B` (leaf ↔ file order maps), BVH nodes `32 B` each, about `N/2` of them
-//! for `N` triangles (see [`Mesh::memory_bytes`]). The BVH is described in `mesh/bvh.rs`.
+//! for `N` triangles (see [`Mesh::memory_bytes`]). The BVH is described in `bvh/build.rs`.
 //!
 //! One mesh can be placed many times without copying: wrap an `Arc<Mesh>` in
 //! [`crate::Transformed`] per instance; the scene BVH holds the instances, each instance's mesh
 //! its own BVH (two levels).
 
 mod block;
-mod bvh;
 
 use crate::bounds::Aabb;
+use crate::bvh::build::{Bb, BuildItem, Node, QuadBvh, SlabRay};
 use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect};
 use block::{test_block, TriBlock};
-use bvh::{Bb, BuildTri, MeshBvh, Node, SlabRay};
 use glam::{DVec2, DVec3, Vec3A};
 use rayon::prelude::*;
 use std::fmt;
@@ -64,7 +63,7 @@ pub struct Mesh {
     leaf_to_file: Vec<u32>,
     file_to_leaf: Vec<u32>,
     in_bvh: usize,
-    bvh: MeshBvh,
+    bvh: QuadBvh,
     /// One block per BVH leaf, in node order: the leaf's triangles' vertices for the SIMD test.
     blocks: Vec<TriBlock>,
     bounds: Aabb,
@@ -279,7 +278,7 @@ impl Mesh {
             }
         }
         // triangle boxes; degenerate triangles are left out
-        let mut build: Vec<BuildTri> = indices
+        let mut build: Vec<BuildItem> = indices
             .par_iter()
             .enumerate()
             .filter_map(|(id, t)| {
@@ -292,7 +291,7 @@ impl Mesh {
                     lo: a.min(b).min(c),
                     hi: a.max(b).max(c),
                 };
-                Some(BuildTri {
+                Some(BuildItem {
                     bounds,
                     centroid: (bounds.lo + bounds.hi) * 0.5,
                     id: id as u32,
@@ -306,7 +305,7 @@ impl Mesh {
                 "every triangle is degenerate (zero area)",
             ));
         }
-        let mut bvh = MeshBvh::build(&mut build);
+        let mut bvh = QuadBvh::build(&mut build, block::LANES, true);
         let in_bvh = build.len();
         let mut leaf_to_file: Vec<u32> = build.iter().map(|b| b.id).collect();
         drop(build);
@@ -527,58 +526,63 @@ impl Implicit for Mesh {
 
 impl Intersect for Mesh {
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let len = ray.dir.length();
-        if !(len > 0.0 && len.is_finite() && ray.origin.is_finite()) || range.is_empty() {
-            return None;
-        }
-        let dir = (ray.dir / len).as_vec3a();
-        let r = MeshRay::new(ray.origin.as_vec3a(), dir);
-        // t along the unit f32 direction
-        let t_min = down(range.min * len).clamp(0.0, f32::MAX);
-        let t_max = up(range.max * len);
-        let band = t_min + (1e-5 * (self.radius + (ray.origin - self.center).length())) as f32;
-        let mut best: Option<(usize, f32, f32, f32)> = None;
-        self.bvh.traverse(&r.slab, t_min, t_max, |block, _count, mut t_far| {
-            let block = &self.blocks[block as usize];
-            let lanes = test_block(r.origin, r.k, r.shear, block, t_min, t_far);
-            let mut found = None;
-            for lane in 0..block.count as usize {
-                let bit = 1 << lane;
-                let (t, u, v) = if lanes.hit & bit != 0 {
-                    (lanes.t[lane], lanes.u[lane], lanes.v[lane])
-                } else if lanes.rescan & bit != 0 {
-                    let [a, b, c] = [0, 1, 2].map(|corner| block.corner(corner, lane));
-                    match r.triangle(a, b, c, t_min, t_far) {
-                        Some(hit) => hit,
-                        None => continue,
-                    }
-                } else {
-                    continue;
-                };
-                // lanes were tested against the range on entry; keep the scalar loop's order
-                if t > t_far {
-                    continue;
-                }
-                let k = block.first as usize + lane;
-                if t <= band && !self.plane_t(ray, k).is_some_and(|t| range.contains(t)) {
-                    continue;
-                }
-                t_far = t;
-                found = Some(t);
-                best = Some((k, t, u, v));
+        // the whole test inlined into the AVX2+FMA copy where the CPU has them
+        #[inline(always)]
+        fn test(this: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let len = ray.dir.length();
+            if !(len > 0.0 && len.is_finite() && ray.origin.is_finite()) || range.is_empty() {
+                return None;
             }
-            found
-        });
-        let (k, t32, u, v) = best?;
-        let t = self.plane_t(ray, k).unwrap_or(f64::from(t32) / len).max(range.min);
-        if t > range.max {
-            return None;
+            let dir = (ray.dir / len).as_vec3a();
+            let r = MeshRay::new(ray.origin.as_vec3a(), dir);
+            // t along the unit f32 direction
+            let t_min = down(range.min * len).clamp(0.0, f32::MAX);
+            let t_max = up(range.max * len);
+            let band = t_min + (1e-5 * (this.radius + (ray.origin - this.center).length())) as f32;
+            let mut best: Option<(usize, f32, f32, f32)> = None;
+            this.bvh.traverse(&r.slab, t_min, t_max, |block, _count, mut t_far| {
+                let block = &this.blocks[block as usize];
+                let lanes = test_block(r.origin, r.k, r.shear, block, t_min, t_far);
+                let mut found = None;
+                for lane in 0..block.count as usize {
+                    let bit = 1 << lane;
+                    let (t, u, v) = if lanes.hit & bit != 0 {
+                        (lanes.t[lane], lanes.u[lane], lanes.v[lane])
+                    } else if lanes.rescan & bit != 0 {
+                        let [a, b, c] = [0, 1, 2].map(|corner| block.corner(corner, lane));
+                        match r.triangle(a, b, c, t_min, t_far) {
+                            Some(hit) => hit,
+                            None => continue,
+                        }
+                    } else {
+                        continue;
+                    };
+                    // lanes were tested against the range on entry; keep the scalar loop's order
+                    if t > t_far {
+                        continue;
+                    }
+                    let k = block.first as usize + lane;
+                    if t <= band && !this.plane_t(ray, k).is_some_and(|t| range.contains(t)) {
+                        continue;
+                    }
+                    t_far = t;
+                    found = Some(t);
+                    best = Some((k, t, u, v));
+                }
+                found
+            });
+            let (k, t32, u, v) = best?;
+            let t = this.plane_t(ray, k).unwrap_or(f64::from(t32) / len).max(range.min);
+            if t > range.max {
+                return None;
+            }
+            Some(RawHit {
+                t,
+                feature: this.leaf_to_file[k],
+                local: DVec2::new(f64::from(u), f64::from(v)),
+            })
         }
-        Some(RawHit {
-            t,
-            feature: self.leaf_to_file[k],
-            local: DVec2::new(f64::from(u), f64::from(v)),
-        })
+        crate::with_fma!(test(this: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
     /// The hit triangle's geometric normal, `(b − a) × (c − a)` normalised.

@@ -247,20 +247,25 @@ impl Implicit for Polygon {
 impl Intersect for Polygon {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let denom = dot_minus(ray.dir, self.normal, 0.0);
-        if denom == 0.0 {
-            return None;
+        // the whole test inlined into the AVX2+FMA copy where the CPU has them
+        #[inline(always)]
+        fn test(this: &Polygon, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let denom = dot_minus(ray.dir, this.normal, 0.0);
+            if denom == 0.0 {
+                return None;
+            }
+            let t = -dot_minus(ray.origin, this.normal, this.origin.dot(this.normal)) / denom;
+            if !range.contains(t) {
+                return None;
+            }
+            let q = this.uv(ray.at(t));
+            this.contains_2d(q).then_some(RawHit {
+                t,
+                feature: 0,
+                local: q,
+            })
         }
-        let t = -dot_minus(ray.origin, self.normal, self.origin.dot(self.normal)) / denom;
-        if !range.contains(t) {
-            return None;
-        }
-        let q = self.uv(ray.at(t));
-        self.contains_2d(q).then_some(RawHit {
-            t,
-            feature: 0,
-            local: q,
-        })
+        crate::with_fma!(test(this: &Polygon = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
     fn normal_at(&self, _ray: &Ray, _raw: &RawHit) -> DVec3 {

@@ -78,7 +78,7 @@ impl Sphere {
     /// beyond `2^±240` ≈ `10^±72`, a direction length likewise) are scaled first: `o`, `c` and `r`
     /// by a power of two `s` near `max(|o − c|, r)`, the direction by one `k` near `|d|`, all
     /// exact, and the roots `t'` of the scaled ray mapped back by `t = t'·s/k`.
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn roots(&self, ray: &Ray) -> Option<(f64, f64)> {
         let size = (ray.origin - self.center).abs().max_element().max(self.radius);
@@ -103,7 +103,7 @@ impl Sphere {
     }
 
     /// [`Sphere::roots`] for magnitudes whose squares are safe.
-    #[inline]
+    #[inline(always)]
     fn roots_in_range(&self, ray: &Ray) -> Option<(f64, f64)> {
         // Fast path in plain f64 (with an FMA cross product), taken where its rounding provably
         // cannot matter, else the compensated path below. With the cross product rounded once per
@@ -217,14 +217,19 @@ impl Implicit for Sphere {
 impl Intersect for Sphere {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        let (t0, t1) = self.roots(ray)?;
-        if range.contains(t0) {
-            Some(RawHit::at(t0))
-        } else if range.contains(t1) {
-            Some(RawHit::at(t1))
-        } else {
-            None
+        // the whole test inlined into the AVX2+FMA copy where the CPU has them
+        #[inline(always)]
+        fn test(this: &Sphere, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let (t0, t1) = this.roots(ray)?;
+            if range.contains(t0) {
+                Some(RawHit::at(t0))
+            } else if range.contains(t1) {
+                Some(RawHit::at(t1))
+            } else {
+                None
+            }
         }
+        crate::with_fma!(test(this: &Sphere = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
     /// From `(o − c) + t·d` with one rounding per component (exact two-sum of `o − c`, fused

@@ -147,7 +147,7 @@ impl Triangle {
 /// `x₁·y₂ − y₁·x₂`, with the exact sign when the rounded difference is 0: then the two rounded
 /// products are equal and the exact value is the difference of their rounding errors.
 /// Swapping the arguments gives exactly the negated result.
-#[inline]
+#[inline(always)]
 fn edge_function(x1: f64, y1: f64, x2: f64, y2: f64) -> f64 {
     let (p, q) = (x1 * y2, y1 * x2);
     let e = p - q;
@@ -193,52 +193,57 @@ impl Implicit for Triangle {
 impl Intersect for Triangle {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        if self.is_degenerate() {
-            return None;
+        // the whole test inlined into the AVX2+FMA copy where the CPU has them
+        #[inline(always)]
+        fn test(this: &Triangle, ray: &Ray, range: Interval) -> Option<RawHit> {
+            if this.is_degenerate() {
+                return None;
+            }
+            // permute so the largest direction component is z, keeping the winding
+            let d = ray.dir;
+            let kz = d.abs().max_position();
+            let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+            if d[kz] < 0.0 {
+                std::mem::swap(&mut kx, &mut ky);
+            }
+            // shear so the ray is the +z axis
+            let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+            let local = |v: DVec3| {
+                let v = v - ray.origin;
+                DVec3::new(v[kx] - sx * v[kz], v[ky] - sy * v[kz], sz * v[kz])
+            };
+            let (a, b, c) = (local(this.a), local(this.b), local(this.c));
+            // edge functions at the origin: u for edge b→c, v for c→a, w for a→b
+            let u = edge_function(c.x, c.y, b.x, b.y);
+            let v = edge_function(a.x, a.y, c.x, c.y);
+            let w = edge_function(b.x, b.y, a.x, a.y);
+            if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+                return None;
+            }
+            let det = u + v + w;
+            if det == 0.0 || !det.is_finite() {
+                return None; // parallel to the plane (or invalid ray)
+            }
+            // the hit/miss decision above is Woop's (watertight); t comes from the plane with
+            // compensated sums, which stays accurate for slivers, where the sheared barycentric
+            // interpolation loses ε·(edge length)²/area
+            let n = this.cross;
+            let denom = dot_minus(ray.dir, n, 0.0);
+            let t = if denom != 0.0 {
+                dot_minus(this.a - ray.origin, n, 0.0) / denom
+            } else {
+                (u * a.z + v * b.z + w * c.z) / det
+            };
+            if !t.is_finite() {
+                return None;
+            }
+            range.contains(t).then(|| RawHit {
+                t,
+                feature: 0,
+                local: DVec2::new(v / det, w / det),
+            })
         }
-        // permute so the largest direction component is z, keeping the winding
-        let d = ray.dir;
-        let kz = d.abs().max_position();
-        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        // shear so the ray is the +z axis
-        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
-        let local = |v: DVec3| {
-            let v = v - ray.origin;
-            DVec3::new(v[kx] - sx * v[kz], v[ky] - sy * v[kz], sz * v[kz])
-        };
-        let (a, b, c) = (local(self.a), local(self.b), local(self.c));
-        // edge functions at the origin: u for edge b→c, v for c→a, w for a→b
-        let u = edge_function(c.x, c.y, b.x, b.y);
-        let v = edge_function(a.x, a.y, c.x, c.y);
-        let w = edge_function(b.x, b.y, a.x, a.y);
-        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-            return None;
-        }
-        let det = u + v + w;
-        if det == 0.0 || !det.is_finite() {
-            return None; // parallel to the plane (or invalid ray)
-        }
-        // the hit/miss decision above is Woop's (watertight); t comes from the plane with
-        // compensated sums, which stays accurate for slivers, where the sheared barycentric
-        // interpolation loses ε·(edge length)²/area
-        let n = self.cross;
-        let denom = dot_minus(ray.dir, n, 0.0);
-        let t = if denom != 0.0 {
-            dot_minus(self.a - ray.origin, n, 0.0) / denom
-        } else {
-            (u * a.z + v * b.z + w * c.z) / det
-        };
-        if !t.is_finite() {
-            return None;
-        }
-        range.contains(t).then(|| RawHit {
-            t,
-            feature: 0,
-            local: DVec2::new(v / det, w / det),
-        })
+        crate::with_fma!(test(this: &Triangle = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
     fn normal_at(&self, _ray: &Ray, _raw: &RawHit) -> DVec3 {

@@ -32,7 +32,7 @@ pub fn central_difference(f: impl Fn(glam::DVec3) -> f64, p: glam::DVec3, h: f64
 }
 
 /// `(p, e)` with `p = fl(a·b)` and `a·b = p + e` exactly (fused multiply-add).
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn two_prod(a: f64, b: f64) -> (f64, f64) {
     let p = a * b;
@@ -40,7 +40,7 @@ pub fn two_prod(a: f64, b: f64) -> (f64, f64) {
 }
 
 /// `(s, e)` with `s = fl(a + b)` and `a + b = s + e` exactly (Knuth's two-sum).
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn two_sum(a: f64, b: f64) -> (f64, f64) {
     let s = a + b;
@@ -52,7 +52,7 @@ pub fn two_sum(a: f64, b: f64) -> (f64, f64) {
 /// Ogita, Rump and Oishi, "Accurate sum and dot product", SIAM J. Sci. Comput. 2005): the error
 /// is at most `ε·|Σ| + γₙ²·Σ|aᵢbᵢ|`, so cancellation between the terms costs nothing until it
 /// reaches about 10⁻¹⁶ of their size.
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn sum_of_products<const N: usize>(terms: [(f64, f64); N]) -> f64 {
     let (mut s, mut c) = (0.0, 0.0);
@@ -67,7 +67,7 @@ pub fn sum_of_products<const N: usize>(terms: [(f64, f64); N]) -> f64 {
 
 /// `a·b − c·d` within 1.5 ulp (Kahan's algorithm with a fused multiply-add), also when the two
 /// products nearly cancel.
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn difference_of_products(a: f64, b: f64, c: f64, d: f64) -> f64 {
     let cd = c * d;
@@ -77,7 +77,7 @@ pub fn difference_of_products(a: f64, b: f64, c: f64, d: f64) -> f64 {
 
 /// `a × b` with each component within 1.5 ulp ([`difference_of_products`]), also for nearly
 /// parallel vectors.
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn cross_accurate(a: glam::DVec3, b: glam::DVec3) -> glam::DVec3 {
     glam::DVec3::new(
@@ -88,7 +88,7 @@ pub fn cross_accurate(a: glam::DVec3, b: glam::DVec3) -> glam::DVec3 {
 }
 
 /// `⟨a, b⟩ − c` by [`sum_of_products`].
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn dot_minus(a: glam::DVec3, b: glam::DVec3, c: f64) -> f64 {
     sum_of_products([(a.x, b.x), (a.y, b.y), (a.z, b.z), (c, -1.0)])

@@ -32,7 +32,7 @@ use robust::Coord;
 /// Twice the signed area of the triangle `(a, b, c)` with **exact sign**: positive when `c` is
 /// left of the directed line `a → b` (counter-clockwise), negative when right, zero when collinear.
 /// The magnitude is approximate; only the sign is guaranteed.
-#[inline]
+#[inline(always)]
 #[must_use]
 pub fn orient2d(a: DVec2, b: DVec2, c: DVec2) -> f64 {
     robust::orient2d(

@@ -14,7 +14,7 @@
 /// - `a = b = 0`: no isolated root, `None`.
 ///
 /// A non-finite candidate is never returned.
-#[inline]
+#[inline(always)]
 #[must_use]
 #[allow(clippy::neg_cmp_op_on_partial_ord, reason = "`!(disc >= 0)` rejects NaN as well")]
 pub fn solve_quadratic(a: f64, b: f64, c: f64, disc: f64) -> Option<(f64, f64)> {

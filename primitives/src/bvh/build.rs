@@ -1,6 +1,8 @@
-//! The per-mesh BVH: parallel binned-SAH build of a binary tree, kept as 32-byte f32 nodes in
-//! sibling pairs (for nearest-point queries) and collapsed into 4-wide SoA nodes ([`Quad`]) for
-//! ordered closest-hit traversal, four child boxes per SSE slab test.
+//! The one hierarchy builder, shared by the scene (over objects) and by meshes (over
+//! triangles): parallel binned-SAH build of a binary tree over f32 item boxes, collapsed into
+//! 4-wide SoA nodes ([`Quad`]) for ordered closest-hit traversal, four child boxes per SSE slab
+//! test; meshes also keep the binary tree as 32-byte f32 nodes in sibling pairs (for
+//! nearest-point queries). Items are referred to by their position in leaf order.
 //!
 //! Layout. Every interior node refers to a [`Pair`] holding its two children; a node is
 //! `lo[3], first, hi[3], count` (32 bytes): a leaf has `count > 0` triangles starting at `first`
@@ -11,8 +13,8 @@
 //! Build. Triangle boxes and centroids in f32; each split bins centroids into 32 bins per axis
 //! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 1, triangle
 //! cost 1), and partitions in place. Subtrees of more than [`PARALLEL_MIN`] triangles are built with
-//! `rayon::join`. A node becomes a leaf when SAH prefers it and it holds at most [`MAX_LEAF`]
-//! triangles; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split at the
+//! `rayon::join`. A node becomes a leaf when SAH prefers it and it holds at most the caller's `max_leaf`
+//! items; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split at the
 //! median instead, which bounds the depth to `MEDIAN_DEPTH + 32` and the traversal stack.
 //!
 //! Traversal. Slab tests in f32 against the mesh's own f32 ray (the one the triangle test uses),
@@ -21,18 +23,16 @@
 //! first; the farther one is pushed with its entry distance and skipped when popped if the
 //! closest hit found meanwhile is nearer.
 
-use crate::bvh::{traverse_quads, Quad};
+use super::{traverse_quads, Quad};
 use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
-/// Largest leaf the SAH may choose.
-pub(crate) const MAX_LEAF: usize = super::block::LANES;
 /// SAH cost of a traversal step (testing a pair of child boxes) relative to one triangle test.
 const TRAVERSAL_COST: f32 = 1.0;
 /// Centroid bins per axis.
 const BINS: usize = 32;
 /// Subtrees with more triangles than this are built in parallel.
-const PARALLEL_MIN: usize = 4096;
+pub(crate) const PARALLEL_MIN: usize = 4096;
 /// Nodes with more triangles than this bin in parallel.
 const PARALLEL_BINNING_MIN: usize = 65536;
 /// From this depth on, nodes are split at the median.
@@ -104,7 +104,7 @@ impl Bb {
 
 /// One triangle during the build: its box, its box's centre and its file index.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct BuildTri {
+pub(crate) struct BuildItem {
     pub bounds: Bb,
     pub centroid: Vec3A,
     pub id: u32,
@@ -119,7 +119,7 @@ enum BuildNode {
 /// traversal uses the 4-wide `quads` (collapsed from the binary tree); nearest-point queries
 /// use the binary `pairs`.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct MeshBvh {
+pub(crate) struct QuadBvh {
     pub root: Node,
     pub pairs: Vec<Pair>,
     quads: Vec<Quad>,
@@ -139,7 +139,7 @@ impl Bins {
         }
     }
 
-    fn add(&mut self, tris: &[BuildTri], lo: Vec3A, scale: Vec3A) {
+    fn add(&mut self, tris: &[BuildItem], lo: Vec3A, scale: Vec3A) {
         for t in tris {
             let b = ((t.centroid - lo) * scale).min(Vec3A::splat((BINS - 1) as f32));
             for axis in 0..3 {
@@ -161,23 +161,26 @@ impl Bins {
     }
 }
 
-impl MeshBvh {
-    /// Builds over `tris` (reordered in place into leaf order); `tris` must not be empty.
-    pub fn build(tris: &mut [BuildTri]) -> Self {
+impl QuadBvh {
+    /// Builds over `tris` (reordered in place into leaf order), with leaves of at most
+    /// `max_leaf` items; with `pairs`, also keeps the binary tree for nearest-point queries.
+    /// `tris` must not be empty.
+    pub fn build(tris: &mut [BuildItem], max_leaf: usize, pairs: bool) -> Self {
         let bounds = tris.par_iter().map(|t| t.bounds).reduce(|| Bb::EMPTY, Bb::union);
-        let tree = build_node(tris, 0, bounds, 0);
+        let tree = build_node(tris, 0, bounds, 0, max_leaf);
         let mut bvh = Self {
             root: Node::default(),
-            pairs: Vec::with_capacity(tris.len() / 2 + 1),
+            pairs: Vec::with_capacity(if pairs { tris.len() / 2 + 1 } else { 0 }),
             quads: Vec::with_capacity(tris.len() / 4 + 1),
         };
         bvh.flatten_quad(&collapse(&tree));
         bvh.root = match &tree {
             BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
-            BuildNode::Inner { bounds, children } => {
+            BuildNode::Inner { bounds, children } if pairs => {
                 let first = bvh.flatten(children);
                 bounds.node(first, 0)
             }
+            BuildNode::Inner { bounds, .. } => bounds.node(0, 0),
         };
         bvh.pairs.shrink_to_fit();
         bvh.quads.shrink_to_fit();
@@ -233,6 +236,16 @@ impl MeshBvh {
                 }
             }
         }
+    }
+
+    /// The 4-wide nodes, root first.
+    pub fn quads(&self) -> &[Quad] {
+        &self.quads
+    }
+
+    /// Number of 4-wide nodes.
+    pub fn quad_count(&self) -> usize {
+        self.quads.len()
     }
 
     /// Bytes held by the nodes.
@@ -351,7 +364,7 @@ fn collapse(node: &BuildNode) -> Vec<&BuildNode> {
     out
 }
 
-fn build_node(tris: &mut [BuildTri], start: u32, bounds: Bb, depth: usize) -> BuildNode {
+fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_leaf: usize) -> BuildNode {
     let n = tris.len();
     if n == 1 {
         return BuildNode::Leaf {
@@ -371,7 +384,7 @@ fn build_node(tris: &mut [BuildTri], start: u32, bounds: Bb, depth: usize) -> Bu
     let split = if depth >= MEDIAN_DEPTH || extent.max_element() <= 0.0 {
         None
     } else {
-        sah_split(tris, bounds, centroids)
+        sah_split(tris, bounds, centroids, max_leaf)
     };
     let mid = match split {
         Some(Split::Leaf) => {
@@ -396,13 +409,13 @@ fn build_node(tris: &mut [BuildTri], start: u32, bounds: Bb, depth: usize) -> Bu
     let rstart = start + mid as u32;
     let (l, r) = if n > PARALLEL_MIN {
         rayon::join(
-            || build_node(left, start, lb, depth + 1),
-            || build_node(right, rstart, rb, depth + 1),
+            || build_node(left, start, lb, depth + 1, max_leaf),
+            || build_node(right, rstart, rb, depth + 1, max_leaf),
         )
     } else {
         (
-            build_node(left, start, lb, depth + 1),
-            build_node(right, rstart, rb, depth + 1),
+            build_node(left, start, lb, depth + 1, max_leaf),
+            build_node(right, rstart, rb, depth + 1, max_leaf),
         )
     };
     BuildNode::Inner {
@@ -416,7 +429,7 @@ enum Split {
     At(usize),
 }
 
-fn sah_split(tris: &mut [BuildTri], bounds: Bb, centroids: Bb) -> Option<Split> {
+fn sah_split(tris: &mut [BuildItem], bounds: Bb, centroids: Bb, max_leaf: usize) -> Option<Split> {
     let n = tris.len();
     let extent = centroids.hi - centroids.lo;
     // axes with zero extent get scale 0: everything in bin 0, never a valid split there
@@ -468,11 +481,11 @@ fn sah_split(tris: &mut [BuildTri], bounds: Bb, centroids: Bb) -> Option<Split> 
         }
     }
     let (cost, axis, split) = best?;
-    if n <= MAX_LEAF && cost >= n as f32 {
+    if n <= max_leaf && cost >= n as f32 {
         return Some(Split::Leaf);
     }
     let (lo, s) = (centroids.lo[axis], scale[axis]);
-    let bin_of = |t: &BuildTri| (((t.centroid[axis] - lo) * s) as usize).min(BINS - 1);
+    let bin_of = |t: &BuildItem| (((t.centroid[axis] - lo) * s) as usize).min(BINS - 1);
     let mut mid = 0;
     for i in 0..n {
         if bin_of(&tris[i]) < split {
