@@ -682,7 +682,7 @@ def print_report(raw, figs, extra, a):
       f"1280×720 pixel-centre rays, Mrays/s, medians of {a.runs})")
     p()
     p(f"load average {meta['loadavg_start'][0]:.2f} at the start, {meta['loadavg_end'][0]:.2f} at the end; "
-      f"{meta['elapsed_s']:.0f} s; zeroset {meta['zeroset_version']} ({meta.get('git_head') or 'no git'}); "
+      f"{meta['elapsed_s']:.0f} s; {meta['zeroset_version']} ({meta.get('git_head') or 'no git'}); "
       f"pinned to CPUs {meta['pinned_cpus'] or 'all'}")
     p()
     p("In brackets: zeroset's ratio to that peer (AOV render against the AOV peers, Depth-only against "
