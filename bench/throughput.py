@@ -672,6 +672,15 @@ def figures(raw, a):
         q[scene] = {"sorted": sr if isinstance(sr, NA) else sr["e2e_mrays"],
                     "single": si if isinstance(si, NA) else si["e2e_mrays"]}
     extra["query"] = q
+    hits = {}
+    for scene in a.scenes:
+        lv = MESH_LEVEL.get(scene)
+        if lv is None or scene not in raw["query"]:
+            continue
+        cam = raw["query"][scene].get("camera", NA("camera rays not queried"))
+        e = emb if isinstance(emb, NA) else (emb[lv]["hits"] if lv in emb else NA(f"level {lv} not run"))
+        hits[scene] = {"zeroset": cam if isinstance(cam, NA) else cam["hits"], "embree": e}
+    extra["hits"] = hits
     return figs, extra
 
 

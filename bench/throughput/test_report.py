@@ -118,9 +118,31 @@ class Floors(unittest.TestCase):
         v = self.verdicts({"build": {"zeroset_bvh_s": 0.9, "zeroset_load_bvh_s": 4.0, "embree_s": 0.3}})
         self.assertEqual(v["mesh8: BVH build ≤ 1.5× Embree's"], "FAIL")
 
+    def test_hit_counts(self):
+        v = self.verdicts({"hits": {"mesh4": {"zeroset": 343793, "embree": 343793},
+                                    "mesh6": {"zeroset": 345297, "embree": 345298},
+                                    "mesh8": {"zeroset": 345393, "embree": NA("embreex not installed")}}})
+        self.assertEqual(v["mesh4: (must not regress) hit count identical to Embree's on its camera rays"], "PASS")
+        self.assertEqual(v["mesh6: (must not regress) hit count identical to Embree's on its camera rays"], "FAIL")
+        self.assertEqual(v["mesh8: (must not regress) hit count identical to Embree's on its camera rays"], "n/a")
+
     def test_no_baseline_is_not_measured(self):
         v = self.verdicts({"baseline_default": NA("give --baseline-zeroset")})
         self.assertEqual(v["mesh8: default render ≥ 2× today's"], "n/a")
+
+
+class FloorsTable(unittest.TestCase):
+    def test_na_rows_of_one_reason_merge_and_counts_add_up(self):
+        rows = [("quadrics: default render ≥ 2× today's", "n/a", "no baseline"),
+                ("mesh8: default render ≥ 2× today's", "n/a", "no baseline"),
+                ("quadrics: scaling", "FAIL", "1.0×"),
+                ("mesh8: scaling", "PASS", "2.0×"),
+                ("mesh4: AOV render ≥ 1.0× Open3D cast_rays", "n/a", "open3d not installed")]
+        t = R.floors_markdown(rows)
+        self.assertIn("| quadrics, mesh8: default render ≥ 2× today's | **n/a** | no baseline |", t)
+        self.assertIn("| quadrics: scaling | **FAIL** |", t)
+        self.assertIn("| mesh4: AOV render ≥ 1.0× Open3D cast_rays | **n/a** | open3d not installed |", t)
+        self.assertTrue(t.endswith("1 PASS, 1 FAIL, 3 n/a (of 5 checks)"))
 
 
 class Table(unittest.TestCase):
