@@ -669,8 +669,12 @@ def figures(raw, a):
                           "single-ray path) to compare")
             continue
         sr, si = qq["random"], qq.get("single")
-        q[scene] = {"sorted": sr if isinstance(sr, NA) else sr["e2e_mrays"],
-                    "single": si if isinstance(si, NA) else si["e2e_mrays"]}
+        if isinstance(sr, NA) or isinstance(si, NA):
+            q[scene] = sr if isinstance(sr, NA) else si
+            continue
+        # the trace figure where zeroset prints one for both, else end to end less loading
+        key = next(k for k in ("trace_mrays", "mrays_less_load", "e2e_mrays") if k in sr and k in si)
+        q[scene] = {"sorted": sr[key], "single": si[key], "figure": key}
     extra["query"] = q
     hits = {}
     for scene in a.scenes:
@@ -682,6 +686,10 @@ def figures(raw, a):
         hits[scene] = {"zeroset": cam if isinstance(cam, NA) else cam["hits"], "embree": e}
     extra["hits"] = hits
     return figs, extra
+
+
+def seconds(x):
+    return f"n/a ({x.reason})" if isinstance(x, NA) else f"{R.fmt(x, 3)} s"
 
 
 def print_report(raw, figs, extra, a):
@@ -753,12 +761,23 @@ def print_report(raw, figs, extra, a):
         p()
         p("### Level-8 mesh (1,310,720 triangles): build and memory")
         p()
-        p(f"- zeroset BVH build alone (`Mesh::new`, `cargo bench --bench mesh -- 8`): {R.fmt(b['zeroset_bvh_s'], 3)} s"
-          + (f" ({b['zeroset_bvh_s'].reason})" if isinstance(b["zeroset_bvh_s"], NA) else ""))
-        p(f"- zeroset load+BVH of a 1×1 render (PLY reading included): {R.fmt(b['zeroset_load_bvh_s'], 3)} s")
-        p(f"- Embree build (rtcCommitScene): {R.fmt(b['embree_s'], 3)} s; Open3D build (first cast_rays): {R.fmt(b['open3d_s'], 3)} s")
+        p(f"- zeroset BVH build alone (`Mesh::new`, `cargo bench --bench mesh -- 8`): {seconds(b['zeroset_bvh_s'])}")
+        p(f"- zeroset load+BVH of a 1×1 render (PLY reading included): {seconds(b['zeroset_load_bvh_s'])}")
+        p(f"- Embree build (rtcCommitScene): {seconds(b['embree_s'])}; Open3D build (first cast_rays): {seconds(b['open3d_s'])}")
+        builds = []
+        for name, src, pick in (("Embree", raw["embree"], lambda e: e["build_s"]["median"]),
+                                ("Open3D", raw["open3d"], lambda e: e["build_s"])):
+            if isinstance(src, dict) and src:
+                builds.append(f"{name} " + ", ".join(f"level {lv} {pick(src[lv]):.4f} s" for lv in sorted(src)))
+        for lv in (4, 6, 8):
+            runs_ = raw["zeroset"].get(f"mesh{lv}", {}).get("load")
+            if isinstance(runs_, list) and runs_:
+                builds.append(f"zeroset load+BVH level {lv} {median([r['load_s'] for r in runs_]):.3f} s")
+        if builds:
+            p("- builds: " + "; ".join(builds))
         bpt = extra.get("bytes_per_tri")
-        p(f"- zeroset bytes per triangle (`Mesh::memory_bytes`): {R.fmt(bpt, 1)}"
+        p(f"- zeroset bytes per triangle (`Mesh::memory_bytes`): "
+          + (f"n/a ({bpt.reason})" if isinstance(bpt, NA) else R.fmt(bpt, 1))
           + (f"; peak RSS of the 1×1 render above the quadrics one, per triangle: "
              f"{extra['peak_rss_per_tri_above_quadrics']:.0f} B" if "peak_rss_per_tri_above_quadrics" in extra else ""))
 
