@@ -510,6 +510,12 @@ def main():
     if a.runs < 1 or a.threads < 1 or a.query_rays < 1:
         ap.error("--runs, --threads and --query-rays must be at least 1")
     shared = os.path.abspath(a.shared)
+    # the children run in the repository root: paths given relative to the caller's directory
+    for k in ("baseline_zeroset", "libllvm"):
+        if getattr(a, k):
+            setattr(a, k, os.path.abspath(getattr(a, k)))
+    if a.baseline_zeroset and not (os.path.isfile(a.baseline_zeroset) and os.access(a.baseline_zeroset, os.X_OK)):
+        ap.error(f"--baseline-zeroset {a.baseline_zeroset}: not an executable file")
     started = time.perf_counter()
     meta = machine()
     meta.update({"date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
