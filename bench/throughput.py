@@ -381,8 +381,8 @@ def mitsuba(runner, scenes, threads, runs, shared, libllvm, peers_ok):
         for mode in ("rays", "render"):
             cmd = [sys.executable, launcher, str(threads), harness, mode, "--scene", MITSUBA_SCENE[scene],
                    "--variant", "llvm_ad_rgb", "--runs", str(runs)]
-            if mode == "render":
-                cmd += ["--exr", os.path.join(tempfile.gettempdir(), f"throughput_mitsuba_{scene}.exr")]
+            if mode == "render":  # pixel-centre rays (stratified, no jitter), as every other figure
+                cmd += ["--sampler", "center", "--exr", os.path.join(tempfile.gettempdir(), f"throughput_mitsuba_{scene}.exr")]
             log(f"Mitsuba 3 {mode} {scene} …")
             p = runner.run(cmd, cwd=os.path.dirname(harness), env=env, timeout=900)
             bad = p.failure(f"run_mitsuba.py {mode} --scene {MITSUBA_SCENE[scene]}")
