@@ -37,8 +37,13 @@ const AHEAD_PER_WORKER: usize = 4;
 /// the module docs). On `None`, meshes this attempt loaded are forgotten again, so that the load
 /// in one piece reports their warnings.
 pub(crate) fn load_streamed(source: impl Read, context: &BuildContext) -> Option<BuiltObjects> {
+    load_streamed_in_blocks(source, context, BLOCK_BYTES)
+}
+
+/// [`load_streamed`], reading `block_bytes` at a time.
+fn load_streamed_in_blocks(source: impl Read, context: &BuildContext, block_bytes: usize) -> Option<BuiltObjects> {
     let loaded_before: Vec<std::path::PathBuf> = lock(&context.loaded).keys().cloned().collect();
-    let built = stream(source, context);
+    let built = stream(source, context, block_bytes);
     if built.is_none() {
         lock(&context.loaded).retain(|path, _| loaded_before.contains(path));
         context.take_warnings();
@@ -69,12 +74,12 @@ impl<R: Read> Blocks<R> {
 /// A batch of elements to parse: its sequence number, its text as a RON list, its element count.
 type Job = (usize, String, usize);
 
-fn stream(source: impl Read, context: &BuildContext) -> Option<BuiltObjects> {
+fn stream(source: impl Read, context: &BuildContext, block_bytes: usize) -> Option<BuiltObjects> {
     let mut blocks = Blocks { source, eof: false };
     // the text up to the list's `[`, read in growing blocks (the lexer restarts on each)
     let mut buf = Vec::new();
     let list_start = loop {
-        let n = BLOCK_BYTES.max(buf.len());
+        let n = block_bytes.max(buf.len());
         blocks.append(&mut buf, n)?;
         if let Some(at) = objects_list_start(&buf) {
             break at;
@@ -131,9 +136,11 @@ fn stream(source: impl Read, context: &BuildContext) -> Option<BuiltObjects> {
             let (resume, end) = match scan {
                 ListScan::Unsure => return None,
                 ListScan::Open(_) if blocks.eof => return None,
-                // a short list so far: read on before deciding
+                // a short list so far: read on (in growing blocks: it is scanned again) before
+                // deciding
                 ListScan::Open(_) if !started && elements.len() < PARALLEL_OBJECTS => {
-                    blocks.append(&mut pending, BLOCK_BYTES)?;
+                    let n = block_bytes.max(pending.len());
+                    blocks.append(&mut pending, n)?;
                     continue;
                 }
                 ListScan::Closed(_) if !started && elements.len() < PARALLEL_OBJECTS => return None,
@@ -153,7 +160,7 @@ fn stream(source: impl Read, context: &BuildContext) -> Option<BuiltObjects> {
                 break end;
             }
             pending.drain(..resume);
-            blocks.append(&mut pending, BLOCK_BYTES)?;
+            blocks.append(&mut pending, block_bytes)?;
         };
         drop(jobs);
         build.wait_until_below(1)?;
@@ -253,5 +260,61 @@ impl InOrder<'_> {
             self.next += 1;
         }
         Some(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scene of `n` spheres, every third named with brackets, commas and comment markers in
+    /// its name, between comments holding the same.
+    fn spheres(n: usize) -> String {
+        let mut text = String::from("Scene(camera: (), /* objects: [ */ objects: [\n");
+        for i in 0..n {
+            if i % 3 == 0 {
+                text.push_str(&format!(
+                    "(name: \"s [{i}], // /* ]\", shape: Sphere(center: ({i}, 0, 0), radius: 0.5)), /* ] , */\n"
+                ));
+            } else {
+                text.push_str(&format!("(shape: Sphere(center: ({i}, 1, 0))), // ], [\n"));
+            }
+        }
+        text.push_str("], ambient: (0.2, 0.2, 0.2))\n");
+        text
+    }
+
+    #[test]
+    fn a_large_list_is_streamed_whatever_the_block_size() {
+        let text = spheres(PARALLEL_OBJECTS + 1_234);
+        for block in [1 << 20, 4096, 61, 7] {
+            let built = load_streamed_in_blocks(text.as_bytes(), &BuildContext::default(), block)
+                .unwrap_or_else(|| panic!("streamed in {block}-byte blocks"));
+            assert_eq!(built.objects.len(), PARALLEL_OBJECTS + 1_234);
+            assert_eq!(built.skeleton.ambient, glam::DVec3::splat(0.2));
+            for (i, object) in built.objects.iter().enumerate().step_by(997) {
+                let bounds = object.primitive.bounds();
+                let (x, r) = (i as f64, if i % 3 == 0 { 0.5 } else { 1.0 });
+                assert_eq!(bounds.min.x, x - r, "object {i}");
+                let name = (i % 3 == 0).then(|| format!("s [{i}], // /* ]"));
+                assert_eq!(object.name.as_deref(), name.as_deref(), "object {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn short_lists_and_doubtful_text_are_left_to_the_load_in_one_piece() {
+        let context = BuildContext::default();
+        assert!(load_streamed(spheres(100).as_bytes(), &context).is_none());
+        let text = spheres(PARALLEL_OBJECTS);
+        let with_attribute = format!("#![enable(implicit_some)]\n{text}");
+        assert!(load_streamed(with_attribute.as_bytes(), &context).is_none());
+        let bad_object = text.replacen("radius: 0.5", "radius: -1", 1);
+        assert!(load_streamed(bad_object.as_bytes(), &context).is_none());
+        let bad_rest = text.replace("ambient: (0.2, 0.2, 0.2)", "ambient: (0.2, 0.2)");
+        assert!(load_streamed(bad_rest.as_bytes(), &context).is_none());
+        let unclosed = &text[..text.len() - 40];
+        assert!(load_streamed(unclosed.as_bytes(), &context).is_none());
+        assert!(load_streamed(text.as_bytes(), &context).is_some());
     }
 }

@@ -178,14 +178,24 @@ pub(crate) fn scan_elements(bytes: &[u8], start: usize, elements: &mut Vec<Range
     ListScan::Open(element_start)
 }
 
-/// Pushes `range` of `bytes` trimmed of ASCII whitespace, unless nothing is left (a trailing
-/// comma). Comments stay inside (the parser skips them).
+/// Pushes `range` of `bytes` trimmed of ASCII whitespace, unless nothing is left but comments
+/// (a trailing comma, a comment after the last element). Comments before an element stay inside
+/// (the parser skips them).
 fn push_trimmed(bytes: &[u8], range: Range<usize>, out: &mut Vec<Range<usize>>) {
     let slice = &bytes[range.clone()];
     let Some(first) = slice.iter().position(|c| !c.is_ascii_whitespace()) else {
         return;
     };
     let last = slice.iter().rposition(|c| !c.is_ascii_whitespace()).unwrap_or(first);
+    if slice[first] == b'/' {
+        let mut lexer = Lexer {
+            bytes: &bytes[..range.end],
+            at: range.start + first,
+        };
+        if lexer.token() == Some(Token::End) {
+            return;
+        }
+    }
     out.push(range.start + first..range.start + last + 1);
 }
 
