@@ -168,7 +168,7 @@ fn stream(source: impl Read, context: &BuildContext, block_bytes: usize) -> Opti
         let mut skeleton = prefix;
         skeleton.extend_from_slice(&pending[list_end..]);
         drop(pending);
-        (&mut blocks.source).read_to_end(&mut skeleton).ok()?;
+        blocks.source.read_to_end(&mut skeleton).ok()?;
         let skeleton = String::from_utf8(skeleton).ok()?;
         let desc = std::thread::Builder::new()
             .name("scene parser".into())
