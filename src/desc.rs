@@ -1,9 +1,10 @@
 //! The scene file's descriptions: the serde types a RON scene parses into, before anything is
 //! built (the camera, objects, lights, outputs), and the RON options every scene parse uses.
 //!
-//! This is the bottom layer of the crate's loading path (see the crate docs): it imports no other
-//! layer. A primitive's own description is a [`ShapeDesc`] (see [`crate::shape_desc`]); the
-//! format is documented with one example per primitive in `scenes/README.md`.
+//! These are the descriptions layer of the crate (see the crate docs): besides the foundations
+//! (AOV names, camera models and poses, sampling), this imports only [`ShapeDesc`], the parsed
+//! description of a primitive ([`crate::shape_desc`]). The format is documented with one example
+//! per primitive in `scenes/README.md`.
 
 use crate::aov::Aov;
 use crate::camera::desc::ModelDesc;
