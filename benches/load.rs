@@ -1,11 +1,15 @@
-//! Scene loading benchmark: `cargo bench --bench load -- SCENE.ron [--runs N] [--erased]`
-//! (`--erased`: spheres, boxes and planes parsed through `erased-serde`, as user types are;
-//! `--sequential`: the whole text parsed in one piece, not the `objects` list split over threads).
+//! Scene loading benchmark: `cargo bench --bench load -- SCENE.ron [--runs N] [--erased]
+//! [--descriptions [--sequential]]`.
 //!
-//! Reports, per run, the time to read the file, to parse it (RON → descriptions), to build and
-//! validate the objects, and to build the hierarchy, then the median of each and the process's
-//! peak resident memory per object. Generate a large scene with
-//! `python3 scenes/bench/make_spheres.py 1000000` (see its docstring).
+//! By default the scene is loaded as `zeroset render` loads it ([`Scene::load_timed`]: a large
+//! `objects` list streamed, read, parsed and built at once); reported per run are that time and
+//! the hierarchy's. `--descriptions` loads in two steps instead, the whole text read, parsed into
+//! descriptions ([`parse_scene_desc`], the `objects` list split over threads) and then built,
+//! each step timed; `--sequential` with it parses the text in one piece. `--erased`: spheres,
+//! boxes and planes parsed through `erased-serde`, as user types are.
+//!
+//! Then the median of each step and the process's peak resident memory per object. Generate a
+//! large scene with `python3 scenes/bench/make_spheres.py 1000000` (see its docstring).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -63,6 +67,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn main() {
     let mut runs = 3;
     let mut sequential = false;
+    let mut descriptions = false;
     let mut path = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -71,6 +76,8 @@ fn main() {
             "--bench" => {}
             // the whole text parsed in one piece, as before the parallel `objects` split
             "--sequential" => sequential = true,
+            // the two-step load: the whole text into descriptions, then built
+            "--descriptions" => descriptions = true,
             // re-register the built-in leaf primitives as a user would: parsed through
             // `erased-serde` as before the typed path, for a same-binary comparison
             "--erased" => {
@@ -93,39 +100,44 @@ fn main() {
     let baseline = current_rss_bytes();
     let heap_baseline = LIVE.load(Ordering::Relaxed);
     for run in 0..runs {
-        let start = Instant::now();
-        let text = std::fs::read_to_string(&path).expect("readable scene");
-        let t_read = start.elapsed().as_secs_f64();
-        let start = Instant::now();
-        let desc = if sequential {
-            std::thread::scope(|s| {
-                std::thread::Builder::new()
-                    .stack_size(1 << 30)
-                    .spawn_scoped(s, || zeroset::scene::ron_options().from_str(&text))
-                    .expect("a parser thread")
-                    .join()
-                    .expect("no panic")
-            })
+        let (t_read, t_parse, t_build, scene, timing) = if descriptions {
+            let start = Instant::now();
+            let text = std::fs::read_to_string(&path).expect("readable scene");
+            let t_read = start.elapsed().as_secs_f64();
+            let start = Instant::now();
+            let desc = if sequential {
+                std::thread::scope(|s| {
+                    std::thread::Builder::new()
+                        .stack_size(1 << 30)
+                        .spawn_scoped(s, || zeroset::scene::ron_options().from_str(&text))
+                        .expect("a parser thread")
+                        .join()
+                        .expect("no panic")
+                })
+            } else {
+                parse_scene_desc(&text)
+            }
+            .unwrap_or_else(|e| panic!("{e}"));
+            let t_parse = start.elapsed().as_secs_f64();
+            drop(text);
+            let context = BuildContext::new(path.parent().unwrap_or(std::path::Path::new(".")));
+            let (scene, timing) = Scene::from_desc_timed(desc, &context).unwrap_or_else(|(l, m)| panic!("{l}: {m}"));
+            (t_read, t_parse, timing.objects, scene, timing)
         } else {
-            parse_scene_desc(&text)
-        }
-        .unwrap_or_else(|e| panic!("{e}"));
-        let t_parse = start.elapsed().as_secs_f64();
-        drop(text);
-        let start = Instant::now();
-        let context = BuildContext::new(path.parent().unwrap_or(std::path::Path::new(".")));
-        let (scene, timing) = Scene::from_desc_timed(desc, &context).unwrap_or_else(|(l, m)| panic!("{l}: {m}"));
-        let t_total = start.elapsed().as_secs_f64();
+            let (scene, timing) = Scene::load_timed(&path).unwrap_or_else(|e| panic!("{e}"));
+            // streamed: reading and parsing overlap the build, all in `timing.objects`
+            (0.0, 0.0, timing.objects, scene, timing)
+        };
         objects = scene.objects.len();
         println!(
-            "run {run}: read {t_read:.3} s, parse {t_parse:.3} s, build objects {:.3} s, hierarchy {:.3} s (load + hierarchy {:.3} s)",
-            t_total - timing.hierarchy,
+            "run {run}: read {t_read:.3} s, parse {t_parse:.3} s, {} {t_build:.3} s, hierarchy {:.3} s (load + hierarchy {:.3} s)",
+            if descriptions { "build objects" } else { "read + parse + build objects (streamed)" },
             timing.hierarchy,
-            t_parse + t_total
+            t_read + t_parse + t_build + timing.hierarchy
         );
         read.push(t_read);
         parse.push(t_parse);
-        build.push(t_total - timing.hierarchy);
+        build.push(t_build);
         hierarchy.push(timing.hierarchy);
         if run == 0 {
             retained = current_rss_bytes() - baseline;
@@ -133,12 +145,12 @@ fn main() {
         }
         drop(scene);
     }
-    let (p, b, h) = (median(parse), median(build), median(hierarchy));
+    let (r, p, b, h) = (median(read), median(parse), median(build), median(hierarchy));
     println!(
-        "{}: {objects} objects; median of {runs}: read {:.3} s, parse {p:.3} s, build objects {b:.3} s, hierarchy {h:.3} s; parse + build + hierarchy {:.3} s; loaded scene {:.0} B per object on the heap ({:.0} B of RSS after the first load, text and descriptions freed), peak RSS {:.0} B per object",
+        "{}: {objects} objects; median of {runs}: read {r:.3} s, parse {p:.3} s, {} {b:.3} s, hierarchy {h:.3} s; load + hierarchy {:.3} s; loaded scene {:.0} B per object on the heap ({:.0} B of RSS after the first load, text and descriptions freed), peak RSS {:.0} B per object",
         path.display(),
-        median(read),
-        p + b + h,
+        if descriptions { "build objects" } else { "read + parse + build (streamed)" },
+        r + p + b + h,
         heap / objects.max(1) as f64,
         retained / objects.max(1) as f64,
         peak_rss_bytes() / objects.max(1) as f64

@@ -11,25 +11,14 @@
 //! Function(phi: "x^2 + y^2 + z^2 - 1", min: (-1, -1, -1), max: (1, 1, 1), tolerance: 1e-7)
 //! ```
 
-use crate::registry::{parser_for, BuildContext, SceneShape, ShapeDesc, ShapeParserFn};
-use crate::scene::TransformDesc;
+use crate::desc::TransformDesc;
+use crate::shape_desc::{BuildContext, SceneShape, ShapeDesc};
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
 use zeroset_primitives::{
     Aabb, Csg, CsgOp, Expr, Function, Offset, Primitive, PrimitiveError, RootOptions, SmoothUnion, Transformed,
 };
-
-/// Calls `add(name, parser)` for every combinator.
-pub(crate) fn register(add: &mut dyn FnMut(&str, ShapeParserFn)) {
-    add("Union", parser_for::<UnionDesc>());
-    add("Intersection", parser_for::<IntersectionDesc>());
-    add("Difference", parser_for::<DifferenceDesc>());
-    add("SmoothUnion", parser_for::<SmoothUnionDesc>());
-    add("Offset", parser_for::<OffsetDesc>());
-    add("Transformed", parser_for::<TransformedDesc>());
-    add("Function", parser_for::<FunctionDesc>());
-}
 
 /// An operand of a Boolean combinator after flattening, with its path from the combinator for
 /// messages (`children[0] (Difference).children[3] (Sphere)`).

@@ -9,7 +9,7 @@
 //!
 //! Every error names the file, and the element, line or face where the format gives one.
 
-use crate::registry::{BuildContext, SceneShape};
+use crate::shape_desc::{BuildContext, SceneShape};
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::{Property, PropertyAccess};
 use serde::Deserialize;

@@ -9,7 +9,7 @@
 //! parse — returns `None`, and the caller parses the whole text as usual, so errors keep their
 //! exact line and column and a successful parse always gives the same descriptions.
 
-use crate::scene::{ron_options, ObjectDesc, SceneDesc, PARSE_STACK_BYTES};
+use crate::desc::{ron_options, ObjectDesc, SceneDesc, PARSE_STACK_BYTES};
 use std::ops::Range;
 
 /// Lists shorter than this are parsed in one piece.
@@ -38,8 +38,9 @@ pub(crate) fn parse_objects_in_parallel(text: &str) -> Option<SceneDesc> {
                     .stack_size(PARSE_STACK_BYTES)
                     .spawn_scoped(scope, move || {
                         // the chunk's elements as one list (one parser per chunk: a parser per
-                        // element costs 17 % more instructions, measured)
-                        let source = format!("[{}]", &text[range]);
+                        // element costs 17 % more instructions, measured); the `]` on a line of
+                        // its own, out of a last element's line comment
+                        let source = format!("[{}\n]", &text[range]);
                         let objects: Vec<ObjectDesc> = ron_options().from_str(&source).ok()?;
                         (objects.len() == expected).then_some(objects)
                     })
@@ -68,10 +69,20 @@ pub(crate) fn parse_objects_in_parallel(text: &str) -> Option<SceneDesc> {
 /// elements (trimmed, without separating commas), or `None` if the lexer is unsure.
 fn objects_list(text: &str) -> Option<(Range<usize>, Vec<Range<usize>>)> {
     let bytes = text.as_bytes();
+    let list_start = objects_list_start(bytes)?;
+    let mut elements = Vec::new();
+    match scan_elements(bytes, list_start, &mut elements) {
+        ListScan::Closed(list_end) => Some((list_start..list_end, elements)),
+        ListScan::Open(_) | ListScan::Unsure => None,
+    }
+}
+
+/// The position just after the `[` of the top-level `objects: [`, or `None` if there is none or
+/// the lexer is unsure (or `bytes` ends first).
+pub(crate) fn objects_list_start(bytes: &[u8]) -> Option<usize> {
     let mut lexer = Lexer { bytes, at: 0 };
     let mut depth = 0usize;
-    // find `objects` `:` `[` at depth 1
-    let list_start = loop {
+    loop {
         match lexer.token()? {
             Token::Open => depth += 1,
             Token::Close => depth = depth.checked_sub(1)?,
@@ -79,14 +90,12 @@ fn objects_list(text: &str) -> Option<(Range<usize>, Vec<Range<usize>>)> {
                 if lexer.token()? != Token::Colon || lexer.token()? != Token::Open || bytes[lexer.at - 1] != b'[' {
                     return None;
                 }
-                break lexer.at;
+                return Some(lexer.at);
             }
             Token::End => return None,
             _ => {}
         }
-    };
-    let (list_end, elements) = list_elements(text, list_start)?;
-    Some((list_start..list_end, elements))
+    }
 }
 
 /// Bytes the element scan must look at; everything else (digits, letters, spaces) is skipped
@@ -102,11 +111,21 @@ const SPECIAL: [bool; 256] = {
     table
 };
 
-/// The elements of a list whose `[` ends just before `start`: separated by commas at the list's
-/// own depth; returns the position of the closing `]` and the trimmed element ranges.
-fn list_elements(text: &str, start: usize) -> Option<(usize, Vec<Range<usize>>)> {
-    let bytes = text.as_bytes();
-    let mut elements = Vec::new();
+/// How far [`scan_elements`] got.
+#[derive(Debug, PartialEq, Eq)]
+pub(crate) enum ListScan {
+    /// The list's closing `]` is at this position.
+    Closed(usize),
+    /// The bytes end inside the list; the first element not found whole starts here.
+    Open(usize),
+    /// Unbalanced brackets: the lexer cannot tell.
+    Unsure,
+}
+
+/// Appends to `elements` the elements of a list whose `[` ends just before `start`: separated by
+/// commas at the list's own depth, trimmed of whitespace. Stops at the closing `]` or, where
+/// `bytes` is a prefix of the text, before the first element that does not end in it.
+pub(crate) fn scan_elements(bytes: &[u8], start: usize, elements: &mut Vec<Range<usize>>) -> ListScan {
     let mut element_start = start;
     let mut depth = 0usize;
     let mut at = start;
@@ -118,31 +137,35 @@ fn list_elements(text: &str, start: usize) -> Option<(usize, Vec<Range<usize>>)>
         }
         match c {
             b'(' | b'[' | b'{' => depth += 1,
-            b')' | b'}' => depth = depth.checked_sub(1)?,
+            b')' | b'}' if depth == 0 => return ListScan::Unsure,
+            b')' | b'}' => depth -= 1,
             b']' if depth == 0 => {
-                push_trimmed(text, element_start..at, &mut elements);
-                return Some((at, elements));
+                push_trimmed(bytes, element_start..at, elements);
+                return ListScan::Closed(at);
             }
             b']' => depth -= 1,
             b',' if depth == 0 => {
-                push_trimmed(text, element_start..at, &mut elements);
+                push_trimmed(bytes, element_start..at, elements);
                 element_start = at + 1;
             }
             b'r' if at > 0 && (bytes[at - 1].is_ascii_alphanumeric() || bytes[at - 1] == b'_') => {}
+            // what follows decides (`//`, `/*`, `r#"`): wait for it
+            b'/' | b'r' if at + 1 == bytes.len() => return ListScan::Open(element_start),
             b'"' | b'\'' | b'/' | b'r' => {
                 // strings, characters, comments and raw strings: the full lexer skips them
                 let mut lexer = Lexer { bytes, at };
                 let before = lexer.at;
-                match lexer.token()? {
-                    Token::End => return None,
+                match lexer.token() {
+                    // the bytes end inside it (or right after a comment)
+                    None | Some(Token::End) => return ListScan::Open(element_start),
                     // a lone `/` or an identifier starting with `r`: one byte on
-                    Token::Ident(_) | Token::Other if lexer.at == before + 1 => {}
-                    Token::Ident(_) | Token::Other => {
+                    Some(Token::Ident(_) | Token::Other) if lexer.at == before + 1 => {}
+                    Some(Token::Ident(_) | Token::Other) => {
                         at = lexer.at;
                         continue;
                     }
                     // the lexer skipped a comment and read the next token: rescan from it
-                    _ => {
+                    Some(_) => {
                         at = lexer.at - 1;
                         continue;
                     }
@@ -152,18 +175,28 @@ fn list_elements(text: &str, start: usize) -> Option<(usize, Vec<Range<usize>>)>
         }
         at += 1;
     }
-    None
+    ListScan::Open(element_start)
 }
 
-/// Pushes `range` of `text` trimmed of whitespace, unless nothing is left (a trailing comma).
-/// Comments stay inside (the parser skips them).
-fn push_trimmed(text: &str, range: Range<usize>, out: &mut Vec<Range<usize>>) {
-    let slice = &text[range.clone()];
-    let start = range.start + (slice.len() - slice.trim_start().len());
-    let end = range.end - (slice.len() - slice.trim_end().len());
-    if start < end {
-        out.push(start..end);
+/// Pushes `range` of `bytes` trimmed of ASCII whitespace, unless nothing is left but comments
+/// (a trailing comma, a comment after the last element). Comments before an element stay inside
+/// (the parser skips them).
+fn push_trimmed(bytes: &[u8], range: Range<usize>, out: &mut Vec<Range<usize>>) {
+    let slice = &bytes[range.clone()];
+    let Some(first) = slice.iter().position(|c| !c.is_ascii_whitespace()) else {
+        return;
+    };
+    let last = slice.iter().rposition(|c| !c.is_ascii_whitespace()).unwrap_or(first);
+    if slice[first] == b'/' {
+        let mut lexer = Lexer {
+            bytes: &bytes[..range.end],
+            at: range.start + first,
+        };
+        if lexer.token() == Some(Token::End) {
+            return;
+        }
     }
+    out.push(range.start + first..range.start + last + 1);
 }
 
 #[derive(Debug, PartialEq, Eq)]

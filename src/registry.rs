@@ -3,8 +3,8 @@
 //! Every primitive a scene names — built-in or user-defined — is found here by its RON name
 //! (`Sphere(...)`, `Torus(...)`). A name maps to a parser that deserialises the entry into a type
 //! implementing [`SceneShape`], whose [`SceneShape::build`] validates the parameters and makes the
-//! [`Primitive`]. Built-ins are registered the same way as user types (see [`register`]); there is
-//! no privileged list.
+//! primitive. The built-ins (`shapes`, `combinators`, `mesh_io`, the layer below) are listed here
+//! and registered the same way as user types (see [`register`]), which may replace them.
 //!
 //! ```
 //! use serde::Deserialize;
@@ -28,74 +28,22 @@
 //! assert!(zeroset::registry::registered_names().contains(&"UnitBall".to_string()));
 //! ```
 
+use crate::combinators::{
+    DifferenceDesc, FunctionDesc, IntersectionDesc, OffsetDesc, SmoothUnionDesc, TransformedDesc, UnionDesc,
+};
+use crate::mesh_io::MeshDesc;
+use crate::shapes::{
+    BoxDesc, ConeDesc, CylinderDesc, DiskDesc, EllipsoidDesc, PlaneDesc, PolygonDesc, SphereDesc, TriangleDesc,
+};
 use serde::de::{DeserializeOwned, DeserializeSeed, EnumAccess, Error as _, VariantAccess, Visitor};
 use serde::{Deserialize, Deserializer};
 use std::collections::BTreeMap;
 use std::fmt;
-use std::sync::{Arc, LazyLock, RwLock};
-use zeroset_primitives::{CsgOp, Primitive, PrimitiveError};
+use std::sync::{LazyLock, RwLock};
 
-/// What a [`SceneShape`] may need from the scene being loaded.
-#[derive(Debug, Default)]
-pub struct BuildContext {
-    /// Directory of the scene file: relative paths in a description (mesh files) are resolved
-    /// against it.
-    pub scene_dir: std::path::PathBuf,
-    /// Primitives already built from files, by resolved path, so that objects naming the same file
-    /// share one copy (instancing without copying).
-    pub loaded: std::sync::Mutex<BTreeMap<std::path::PathBuf, Arc<dyn Primitive>>>,
-    /// Warnings raised while building (valid input the user may want to know about, such as
-    /// degenerate triangles); the scene collects them per object ([`crate::scene::Scene::warnings`]).
-    pub warnings: std::sync::Mutex<Vec<String>>,
-}
+pub use crate::shape_desc::{BuildContext, SceneShape, ShapeDesc};
 
-impl BuildContext {
-    /// A context for a scene in `scene_dir`.
-    #[must_use]
-    pub fn new(scene_dir: impl Into<std::path::PathBuf>) -> Self {
-        Self {
-            scene_dir: scene_dir.into(),
-            loaded: std::sync::Mutex::default(),
-            warnings: std::sync::Mutex::default(),
-        }
-    }
-
-    /// Records a warning about the primitive being built.
-    pub fn warn(&self, message: impl Into<String>) {
-        self.warnings
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push(message.into());
-    }
-
-    /// Takes the warnings recorded so far.
-    pub fn take_warnings(&self) -> Vec<String> {
-        std::mem::take(&mut *self.warnings.lock().unwrap_or_else(|e| e.into_inner()))
-    }
-
-    /// `path` resolved against the scene's directory (absolute paths are kept).
-    #[must_use]
-    pub fn resolve(&self, path: &std::path::Path) -> std::path::PathBuf {
-        self.scene_dir.join(path)
-    }
-}
-
-/// A scene-file description of a primitive: parsed from RON, validated and built into a
-/// [`Primitive`] after the whole file has parsed.
-pub trait SceneShape: fmt::Debug + Send + Sync {
-    /// Validates the parameters and builds the primitive (in the object's local space; the
-    /// object's transform is applied by the scene).
-    fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError>;
-
-    /// For a Boolean combinator (`Union`, `Intersection`, `Difference`), its operation and
-    /// operands, so that an enclosing combinator can splice same-operation chains at load
-    /// (`crate::combinators`); `None` (the default) for everything else.
-    fn boolean_operands(&self) -> Option<(CsgOp, &[ShapeDesc])> {
-        None
-    }
-}
-
-pub(crate) type ShapeParserFn =
+type ShapeParserFn =
     for<'a, 'de> fn(&'a mut dyn erased_serde::Deserializer<'de>) -> Result<Box<dyn SceneShape>, erased_serde::Error>;
 
 /// A registered name: its parser, and whether it is still the built-in of that name that
@@ -106,12 +54,31 @@ struct Entry {
     typed: bool,
 }
 
-static REGISTRY: LazyLock<RwLock<BTreeMap<String, Entry>>> = LazyLock::new(|| {
+/// The table, by name. A name is kept for the life of the program (a user type's is leaked once,
+/// when first registered), so that every [`ShapeDesc`] refers to it instead of holding a copy.
+static REGISTRY: LazyLock<RwLock<BTreeMap<&'static str, Entry>>> = LazyLock::new(|| {
     let mut map = BTreeMap::new();
-    crate::shapes::register_builtins(&mut |name, parser| {
+    let mut add = |name: &'static str, parser| {
         let typed = TYPED_BUILTINS.contains(&name);
-        map.insert(name.to_string(), Entry { parser, typed });
-    });
+        map.insert(name, Entry { parser, typed });
+    };
+    add("Sphere", parser_for::<SphereDesc>());
+    add("Plane", parser_for::<PlaneDesc>());
+    add("Box", parser_for::<BoxDesc>());
+    add("Cylinder", parser_for::<CylinderDesc>());
+    add("Cone", parser_for::<ConeDesc>());
+    add("Ellipsoid", parser_for::<EllipsoidDesc>());
+    add("Triangle", parser_for::<TriangleDesc>());
+    add("Disk", parser_for::<DiskDesc>());
+    add("Polygon", parser_for::<PolygonDesc>());
+    add("Union", parser_for::<UnionDesc>());
+    add("Intersection", parser_for::<IntersectionDesc>());
+    add("Difference", parser_for::<DifferenceDesc>());
+    add("SmoothUnion", parser_for::<SmoothUnionDesc>());
+    add("Offset", parser_for::<OffsetDesc>());
+    add("Transformed", parser_for::<TransformedDesc>());
+    add("Function", parser_for::<FunctionDesc>());
+    add("Mesh", parser_for::<MeshDesc>());
     RwLock::new(map)
 });
 
@@ -132,9 +99,6 @@ const TYPED_BUILTINS: [&str; 9] = [
 /// deserializer, not through `erased-serde`: the same description, without a virtual call and a
 /// type-erased boxing per value (a third of the parse of a million spheres).
 fn typed_builtin<'de, V: VariantAccess<'de>>(name: &str, variant: V) -> Result<Box<dyn SceneShape>, V::Error> {
-    use crate::shapes::{
-        BoxDesc, ConeDesc, CylinderDesc, DiskDesc, EllipsoidDesc, PlaneDesc, PolygonDesc, SphereDesc, TriangleDesc,
-    };
     fn boxed<T: SceneShape + 'static>(t: T) -> Box<dyn SceneShape> {
         Box::new(t)
     }
@@ -153,14 +117,19 @@ fn typed_builtin<'de, V: VariantAccess<'de>>(name: &str, variant: V) -> Result<B
 }
 
 /// The parser for `T`, as stored in the registry.
-pub(crate) fn parser_for<T: SceneShape + DeserializeOwned + 'static>() -> ShapeParserFn {
+fn parser_for<T: SceneShape + DeserializeOwned + 'static>() -> ShapeParserFn {
     |d| Ok(Box::new(erased_serde::deserialize::<T>(d)?))
 }
 
 /// Registers `T` under the RON name `name` (replacing an earlier registration of that name).
 pub fn register<T: SceneShape + DeserializeOwned + 'static>(name: &str) {
-    REGISTRY.write().unwrap_or_else(|e| e.into_inner()).insert(
-        name.to_string(),
+    let mut map = REGISTRY.write().unwrap_or_else(|e| e.into_inner());
+    let key: &'static str = match map.get_key_value(name) {
+        Some((&key, _)) => key,
+        None => Box::leak(name.into()),
+    };
+    map.insert(
+        key,
         Entry {
             parser: parser_for::<T>(),
             typed: false,
@@ -175,21 +144,17 @@ pub fn registered_names() -> Vec<String> {
         .read()
         .unwrap_or_else(|e| e.into_inner())
         .keys()
-        .cloned()
+        .map(|name| (*name).to_string())
         .collect()
 }
 
-fn lookup(name: &str) -> Option<Entry> {
-    REGISTRY.read().unwrap_or_else(|e| e.into_inner()).get(name).copied()
-}
-
-/// A parsed primitive description of any registered type (`Name(field: value, …)` in RON).
-#[derive(Debug)]
-pub struct ShapeDesc {
-    /// The RON name it was given under.
-    pub name: String,
-    /// The parsed description.
-    pub shape: Box<dyn SceneShape>,
+/// The entry of `name`, with the registry's copy of the name.
+fn lookup(name: &str) -> Option<(&'static str, Entry)> {
+    REGISTRY
+        .read()
+        .unwrap_or_else(|e| e.into_inner())
+        .get_key_value(name)
+        .map(|(&name, &entry)| (name, entry))
 }
 
 impl<'de> Deserialize<'de> for ShapeDesc {
@@ -208,15 +173,18 @@ impl<'de> Visitor<'de> for ShapeVisitor {
     }
 
     fn visit_enum<A: EnumAccess<'de>>(self, data: A) -> Result<ShapeDesc, A::Error> {
-        let (VariantName(name), variant) = data.variant()?;
-        let Some(entry) = lookup(&name) else {
-            return Err(A::Error::custom(format!(
-                "unknown primitive `{name}`; registered primitives: {}",
-                registered_names().join(", ")
-            )));
+        let (name, variant) = data.variant()?;
+        let (name, entry) = match name {
+            VariantName::Registered(name, entry) => (name, entry),
+            VariantName::Unknown(name) => {
+                return Err(A::Error::custom(format!(
+                    "unknown primitive `{name}`; registered primitives: {}",
+                    registered_names().join(", ")
+                )))
+            }
         };
         let shape = if entry.typed {
-            typed_builtin(&name, variant)?
+            typed_builtin(name, variant)?
         } else {
             variant.newtype_variant_seed(ParserSeed(entry.parser))?
         };
@@ -224,8 +192,13 @@ impl<'de> Visitor<'de> for ShapeVisitor {
     }
 }
 
-/// A variant name, read as an identifier (not a quoted string).
-struct VariantName(String);
+/// A variant name, read as an identifier (not a quoted string), looked up in the registry.
+enum VariantName {
+    /// A registered name (the registry's copy) and its entry.
+    Registered(&'static str, Entry),
+    /// A name nobody registered.
+    Unknown(String),
+}
 
 impl<'de> Deserialize<'de> for VariantName {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
@@ -236,7 +209,10 @@ impl<'de> Deserialize<'de> for VariantName {
                 f.write_str("a primitive name")
             }
             fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<VariantName, E> {
-                Ok(VariantName(v.to_string()))
+                Ok(match lookup(v) {
+                    Some((name, entry)) => VariantName::Registered(name, entry),
+                    None => VariantName::Unknown(v.to_string()),
+                })
             }
         }
         deserializer.deserialize_identifier(NameVisitor)

@@ -4,29 +4,14 @@
 //! [`SceneShape::build`] calls the primitive's validating constructor. Defaults are stated per
 //! field; see `scenes/README.md` for one example per primitive.
 
-use crate::registry::{parser_for, BuildContext, SceneShape};
-use crate::scene::RotationDesc;
+use crate::desc::RotationDesc;
+use crate::shape_desc::{BuildContext, SceneShape};
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
 use zeroset_primitives::{
     Cone, Cuboid, Cylinder, Disk, Ellipsoid, Plane, Polygon, Primitive, PrimitiveError, Sphere, Triangle,
 };
-
-/// Calls `add(name, parser)` for every built-in primitive.
-pub(crate) fn register_builtins(add: &mut dyn FnMut(&str, crate::registry::ShapeParserFn)) {
-    add("Sphere", parser_for::<SphereDesc>());
-    add("Plane", parser_for::<PlaneDesc>());
-    add("Box", parser_for::<BoxDesc>());
-    add("Cylinder", parser_for::<CylinderDesc>());
-    add("Cone", parser_for::<ConeDesc>());
-    add("Ellipsoid", parser_for::<EllipsoidDesc>());
-    add("Triangle", parser_for::<TriangleDesc>());
-    add("Disk", parser_for::<DiskDesc>());
-    add("Polygon", parser_for::<PolygonDesc>());
-    crate::combinators::register(add);
-    add("Mesh", parser_for::<crate::mesh_io::MeshDesc>());
-}
 
 fn origin() -> DVec3 {
     DVec3::ZERO

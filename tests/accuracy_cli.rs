@@ -2,43 +2,10 @@
 //! origins from normal columns, `Function` expressions (syntax and domain errors, guaranteed
 //! roots on a thin shell), degenerate triangles (warned, rendered), `matrix:` transforms.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod support;
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_zeroset"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn assert_ok(o: &Output, what: &str) {
-    assert!(o.status.success(), "{what}: exit {:?}\n{}", o.status, stderr(o));
-}
-
-/// Non-zero exit that is not a panic, with every needle in stderr.
-fn assert_fails(o: &Output, needles: &[&str], what: &str) {
-    let err = stderr(o);
-    assert!(!o.status.success(), "{what}: should fail\n{err}");
-    assert_ne!(o.status.code(), Some(101), "{what}: panicked\n{err}");
-    assert!(!err.contains("panicked"), "{what}: panicked\n{err}");
-    for n in needles {
-        assert!(err.contains(n), "{what}: stderr should mention {n:?}:\n{err}");
-    }
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
+use std::process::Output;
+use support::{assert_fails, assert_ok, p, run, stderr, stdout, write_file};
 
 /// Parsed output rows: `(hit, t)`.
 fn query(scene: &str, rays: &str, extra: &[&str]) -> (Output, Vec<Option<f64>>) {
@@ -157,8 +124,7 @@ fn scene_with_transform(shape: &str, transform: &str) -> String {
 
 fn render(scene: &str) -> Output {
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("s.ron");
-    std::fs::write(&path, scene).unwrap();
+    let path = write_file(dir.path(), "s.ron", scene);
     let out_dir = dir.path().join("out");
     run(&["render", p(&path), "-o", p(&out_dir), "--no-previews"])
 }
@@ -256,8 +222,7 @@ fn degenerate_triangles_warn_and_render() {
         "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 5\nf 2 3 5\nf 3 3 3\n",
     )
     .unwrap();
-    let scene = dir.path().join("s.ron");
-    std::fs::write(&scene, scene_with(r#"Mesh(path: "m.obj")"#)).unwrap();
+    let scene = write_file(dir.path(), "s.ron", scene_with(r#"Mesh(path: "m.obj")"#));
     let out = run(&["render", p(&scene), "-o", p(&dir.path().join("out")), "--no-previews"]);
     assert_ok(&out, "mesh with degenerate triangles");
     assert!(

@@ -5,6 +5,8 @@
 
 #![cfg(unix)]
 
+mod support;
+
 use exr::meta::attribute::{AttributeValue, Text};
 use exr::prelude::*;
 use std::io::{BufRead, BufReader};
@@ -12,6 +14,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
+use support::{bin, write_file};
 
 /// A cheap scene (one sphere, one plane, no shadows) so the 4K frame traces in about a second.
 const SCENE: &str = "Scene(
@@ -23,12 +26,6 @@ const SCENE: &str = "Scene(
 )";
 
 const AOVS: &str = "Beauty,Alpha,Depth,Distance,Normal,Position,PrimitiveId";
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_zeroset"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
-    c
-}
 
 /// The render command writing `dir/scene.exr`, its misses' depth set to `depth_miss` (which
 /// tells the old file from the new one).
@@ -67,8 +64,7 @@ fn seconds_after(line: &str, key: &str) -> f64 {
 #[test]
 fn sigkill_at_seven_moments_leaves_the_old_or_the_new_file() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("scene.ron");
-    std::fs::write(&scene, SCENE).unwrap();
+    let scene = write_file(dir.path(), "scene.ron", SCENE);
     let out = dir.path().join("out");
     let exr = out.join("scene.exr");
 

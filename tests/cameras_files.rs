@@ -5,46 +5,18 @@
 //! same rays; the EXR header's intrinsics; `query --pixels` giving the rays a render traces; bad
 //! views and pixels are errors naming file and line.
 
-use exr::prelude::*;
+mod support;
+
+use exr::prelude::Text;
+
 use glam::{DMat3, DMat4, DVec2, DVec3, DVec4};
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
+use support::{assert_fails, assert_ok, p, read_channel, run, write_file};
 use zeroset::aov::Aov;
 use zeroset::render::{render_view, RenderOptions};
 use zeroset::scene::Scene;
 use zeroset_primitives::Interval;
-
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_zeroset"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn assert_ok(o: &Output, what: &str) {
-    assert!(
-        o.status.success(),
-        "{what}: exit {:?}\n{}\n{}",
-        o.status,
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
-
-fn assert_fails(o: &Output, needles: &[&str], what: &str) {
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "{what}: should fail\n{err}");
-    assert_ne!(o.status.code(), Some(101), "{what}: panicked\n{err}");
-    for n in needles {
-        assert!(err.contains(n), "{what}: stderr lacks {n:?}:\n{err}");
-    }
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
 
 fn load(file: &str, width: u32, height: u32) -> Scene {
     let mut scene = Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join(file)).unwrap();
@@ -53,18 +25,6 @@ fn load(file: &str, width: u32, height: u32) -> Scene {
         *view = view.with_resolution(width, height).unwrap();
     }
     scene
-}
-
-/// One channel of an EXR file, row-major.
-fn read_channel(path: &Path, name: &str) -> Vec<f32> {
-    let image = read_all_flat_layers_from_file(path).unwrap();
-    let channel = image.layer_data[0]
-        .channel_data
-        .list
-        .iter()
-        .find(|c| c.name.to_string() == name)
-        .unwrap_or_else(|| panic!("{}: no channel {name}", path.display()));
-    channel.sample_data.values_as_f32().collect()
 }
 
 fn json(path: &Path) -> Value {
@@ -341,8 +301,11 @@ fn transforms_json_read_the_nerf_way_gives_the_same_rays() {
 #[test]
 fn query_pixels_traces_the_rays_of_the_render() {
     let dir = tempfile::tempdir().unwrap();
-    let pixels = dir.path().join("pixels.csv");
-    std::fs::write(&pixels, "x,y,view\n10.5,20.5\n100.5,60.5,0\n33.25,71.75\n").unwrap();
+    let pixels = write_file(
+        dir.path(),
+        "pixels.csv",
+        "x,y,view\n10.5,20.5\n100.5,60.5,0\n33.25,71.75\n",
+    );
     let out = dir.path().join("hits.csv");
     let o = run(&[
         "query",
@@ -469,8 +432,7 @@ fn non_converging_pixels_are_reported_by_render_and_refused_by_query() {
     assert_eq!(z[0], f32::INFINITY);
     assert!((z[30 * 80 + 40] - 8.0).abs() < 1e-5, "{}", z[30 * 80 + 40]);
     assert_eq!(z.iter().filter(|v| v.is_infinite()).count() as u64, count);
-    let pixels = dir.path().join("corner.csv");
-    std::fs::write(&pixels, "40.5,30.5\n0.5,0.5\n").unwrap();
+    let pixels = write_file(dir.path(), "corner.csv", "40.5,30.5\n0.5,0.5\n");
     assert_fails(
         &run(&["query", p(&scene), "--pixels", p(&pixels)]),
         &["corner.csv:2", "does not converge"],

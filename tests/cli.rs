@@ -2,77 +2,19 @@
 //! input must fail with a non-zero exit status and a message that locates the problem, never a
 //! panic).
 
+mod support;
+
 use exr::meta::MetaData;
 use exr::prelude::*;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use support::{
+    assert_fails, assert_ok, bin, channel_names, file_names, p, read_channels, run, stderr, stdout, write_file,
+};
 use zeroset::aov::Aov;
 use zeroset::render::{render, RenderOptions};
 use zeroset::scene::Scene;
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_zeroset"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
-    c
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("the binary runs")
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn assert_ok(o: &Output, what: &str) {
-    assert!(
-        o.status.success(),
-        "{what}: exit {:?}\nstdout:\n{}\nstderr:\n{}",
-        o.status,
-        stdout(o),
-        stderr(o)
-    );
-}
-
-/// The command failed cleanly: non-zero status that is not a panic's (101), no panic message,
-/// and stderr mentions every one of `needles`. Returns stderr.
-fn assert_fails(o: &Output, needles: &[&str], what: &str) -> String {
-    let err = stderr(o);
-    assert!(!o.status.success(), "{what}: should fail, but exited 0\nstderr:\n{err}");
-    assert_ne!(o.status.code(), Some(101), "{what}: exit code 101 is a panic\n{err}");
-    assert!(o.status.code().is_some(), "{what}: killed by a signal\n{err}");
-    assert!(!err.contains("panicked"), "{what}: panicked\n{err}");
-    for n in needles {
-        assert!(err.contains(n), "{what}: stderr should mention {n:?}:\n{err}");
-    }
-    err
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
-
-fn file_names(dir: &Path) -> BTreeSet<String> {
-    std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect()
-}
-
-fn channel_names(path: &Path) -> BTreeSet<String> {
-    let meta = MetaData::read_from_file(path, true).expect("valid EXR");
-    meta.headers[0]
-        .channels
-        .list
-        .iter()
-        .map(|c| c.name.to_string())
-        .collect()
-}
 
 fn set(names: &[&str]) -> BTreeSet<String> {
     names.iter().map(|s| s.to_string()).collect()
@@ -111,22 +53,6 @@ fn render_default_scene() {
             "{png}"
         );
     }
-}
-
-/// Reads every channel of a single-layer EXR: `(name, samples)`.
-fn read_channels(path: &Path) -> Vec<(String, Vec<f32>)> {
-    let image = read_all_flat_layers_from_file(path).expect("readable EXR");
-    image.layer_data[0]
-        .channel_data
-        .list
-        .iter()
-        .map(|ch| {
-            let FlatSamples::F32(v) = &ch.sample_data else {
-                panic!("{} is not FLOAT", ch.name)
-            };
-            (ch.name.to_string(), v.clone())
-        })
-        .collect()
 }
 
 #[test]
@@ -299,8 +225,7 @@ const QUERY_SCENE: &str = r#"Scene(
 #[test]
 fn query_hits_and_misses() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("q.ron");
-    std::fs::write(&scene, QUERY_SCENE).unwrap();
+    let scene = write_file(dir.path(), "q.ron", QUERY_SCENE);
     let rays = dir.path().join("rays.csv");
     // (ray line, expected: None for a miss or Some((t, normal, id, name)))
     type Expect = Option<(f64, [f64; 3], u32, &'static str)>;
@@ -383,8 +308,7 @@ const CAMERA: &str = "camera: (eye: (0, 0, -5), look_at: (0, 0, 0), width: 32, h
 
 /// Writes `text` to `dir/name` and renders it; the command must fail.
 fn render_bad(dir: &Path, name: &str, text: &str) -> (PathBuf, Output) {
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
+    let path = write_file(dir, name, text);
     let out = dir.join("out");
     let o = run(&["render", p(&path), "-o", p(&out), "--no-previews"]);
     (path, o)
@@ -678,8 +602,7 @@ fn bad_command_line_values() {
 #[test]
 fn bad_query_csv() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("q.ron");
-    std::fs::write(&scene, QUERY_SCENE).unwrap();
+    let scene = write_file(dir.path(), "q.ron", QUERY_SCENE);
     let cases = [
         ("words", "ox,oy,oz,dx,dy,dz\n0,0,-5,0,0,1\n0,0,-5,zero,0,1\n", 3),
         ("count", "0,0,-5,0,0,1\n0,0,-5,0,0\n", 2),
@@ -692,8 +615,7 @@ fn bad_query_csv() {
         ("second_header", "ox,oy,oz,dx,dy,dz\nox,oy,oz,dx,dy,dz\n", 2),
     ];
     for (name, text, line) in cases {
-        let rays = dir.path().join(format!("{name}.csv"));
-        std::fs::write(&rays, text).unwrap();
+        let rays = write_file(dir.path(), format!("{name}.csv"), text);
         let o = run(&["query", p(&scene), "--rays", p(&rays)]);
         assert_fails(&o, &[&format!("{}:{line}:", p(&rays))], &format!("query {name}"));
         assert!(stdout(&o).is_empty(), "query {name}: no partial output");
@@ -833,8 +755,7 @@ fn os_errors_are_printed_once() {
     let err = assert_fails(&o, &["missing.ron", "os error 2"], "missing scene");
     assert_eq!(err.matches("os error").count(), 1, "{err}");
     // an output directory that cannot be created (a file is in the way) is found before tracing
-    let blocker = dir.path().join("file");
-    std::fs::write(&blocker, "x").unwrap();
+    let blocker = write_file(dir.path(), "file", "x");
     let target = blocker.join("sub");
     let o = run(&["render", "scenes/default.ron", "-o", p(&target)]);
     let err = assert_fails(&o, &["output directory", "file/sub"], "unwritable output");
@@ -992,8 +913,7 @@ type Expected = std::result::Result<usize, (usize, &'static str)>;
 #[test]
 fn query_never_drops_the_first_line() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("q.ron");
-    std::fs::write(&scene, QUERY_SCENE).unwrap();
+    let scene = write_file(dir.path(), "q.ron", QUERY_SCENE);
     let ray = "0,0,-5,0,0,1";
     // (first line, rows expected, or the error's line and text)
     let cases: [(&str, Expected); 7] = [
@@ -1006,8 +926,7 @@ fn query_never_drops_the_first_line() {
         ("0 0 -5 0 0 1", Err((1, "not a number"))),
     ];
     for (first, expected) in cases {
-        let rays = dir.path().join("rays.csv");
-        std::fs::write(&rays, format!("{first}\n{ray}\n{ray}\n")).unwrap();
+        let rays = write_file(dir.path(), "rays.csv", format!("{first}\n{ray}\n{ray}\n"));
         let out = dir.path().join("hits.csv");
         let _ = std::fs::remove_file(&out);
         let o = run(&["query", p(&scene), "--rays", p(&rays), "-o", p(&out)]);
@@ -1034,8 +953,7 @@ fn query_never_drops_the_first_line() {
 #[test]
 fn query_npy_in_and_out_match_csv() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("q.ron");
-    std::fs::write(&scene, QUERY_SCENE).unwrap();
+    let scene = write_file(dir.path(), "q.ron", QUERY_SCENE);
     // hits on the ball, the floor, misses, a t range; 8 columns
     let mut values = Vec::new();
     let mut csv = String::new();
@@ -1202,11 +1120,13 @@ const LOOSE_SCENE: &str = "Scene(camera: (eye: (0, 0, -6), look_at: (0, 0, 0), v
 #[test]
 fn exhausted_budgets_are_counted_and_flagged() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("loose.ron");
-    std::fs::write(&scene, LOOSE_SCENE).unwrap();
+    let scene = write_file(dir.path(), "loose.ron", LOOSE_SCENE);
     // through the sphere, through the box beside it, and two missing the box
-    let rays = dir.path().join("rays.csv");
-    std::fs::write(&rays, "0,0,-6,0,0,1\n1.5,1.5,-6,0,0,1\n0,5,-6,0,0,1\n5,0,0,0,1,0\n").unwrap();
+    let rays = write_file(
+        dir.path(),
+        "rays.csv",
+        "0,0,-6,0,0,1\n1.5,1.5,-6,0,0,1\n0,5,-6,0,0,1\n5,0,0,0,1,0\n",
+    );
     let o = run(&["query", p(&scene), "--rays", p(&rays), "--uncertain"]);
     assert_ok(&o, "query --uncertain");
     assert!(stderr(&o).contains("warning: 1 rays may be wrong"), "{}", stderr(&o));

@@ -1,7 +1,10 @@
 //! Loading large scenes: the `objects` list parsed in parallel gives exactly the descriptions of
-//! the one-piece parse, and an error keeps its line and column.
+//! the one-piece parse, a streamed load builds exactly the objects of a load in one piece (and
+//! reports the same errors), and an error keeps its line and column.
 
-use zeroset::scene::{parse_scene_desc, ron_options, SceneDesc};
+use std::sync::Arc;
+use zeroset::registry::BuildContext;
+use zeroset::scene::{parse_scene_desc, ron_options, Scene, SceneDesc};
 
 /// A scene of `n` objects of several kinds, with names, materials, comments and strings holding
 /// brackets and commas.
@@ -42,4 +45,95 @@ fn an_error_in_a_large_list_keeps_its_position() {
     let one_piece = sequential(&text).unwrap_err();
     assert_eq!(parallel.to_string(), one_piece.to_string());
     assert!(parallel.to_string().contains("oops"), "{parallel}");
+}
+
+/// `text` with the `n`th occurrence (from 1) of `from` replaced by `to`.
+fn replace_nth(text: &str, from: &str, to: &str, n: usize) -> String {
+    let (at, _) = text.match_indices(from).nth(n - 1).expect("n occurrences");
+    format!("{}{to}{}", &text[..at], &text[at + from.len()..])
+}
+
+/// The scene built in one piece from the whole text's descriptions, as before streaming.
+fn built_in_one_piece(text: &str) -> Result<Scene, (String, String)> {
+    Scene::from_desc(sequential(text).expect("parses"), &BuildContext::default())
+}
+
+/// What a loaded scene is made of, for comparison: every object (primitive, motion, material,
+/// name) and the warnings.
+fn contents(scene: &Scene) -> String {
+    format!("{:?}\n{:?}\n{:?}", scene.objects, scene.warnings, scene.lights)
+}
+
+#[test]
+fn a_streamed_load_builds_the_objects_of_a_load_in_one_piece() {
+    // 30,000 objects, about 3.5 MB: read in 1 MB blocks whose ends fall inside strings, raw
+    // strings and comments; every fifth a degenerate triangle (warned) in place of the ellipsoid
+    let text = many_objects(30_000)
+        .replace("Ellipsoid(center: (", "Triangle(b: (0, 0, 0), c: (0, 0, 0), a: (")
+        .replace(", radii: (0.1, 0.2, 0.3))", ")");
+    assert_eq!(text.matches("Triangle").count(), 6_000);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("many.ron");
+    std::fs::write(&path, &text).unwrap();
+    let streamed = Scene::load(&path).unwrap();
+    let in_memory = Scene::from_ron(&text, "many.ron").unwrap();
+    let one_piece = built_in_one_piece(&text).unwrap();
+    assert_eq!(streamed.objects.len(), 30_000);
+    assert!(!one_piece.warnings.is_empty());
+    assert_eq!(contents(&streamed), contents(&one_piece));
+    assert_eq!(contents(&in_memory), contents(&one_piece));
+    // equal materials share one allocation, across the streamed batches too
+    let first = &streamed.objects[0].material;
+    let same = streamed
+        .objects
+        .iter()
+        .filter(|o| Arc::ptr_eq(&o.material, first))
+        .count();
+    let equal = streamed.objects.iter().filter(|o| o.material == *first).count();
+    assert_eq!((same, equal), (6_000, 6_000));
+}
+
+#[test]
+fn a_streamed_load_reports_errors_as_a_load_in_one_piece() {
+    let dir = tempfile::tempdir().unwrap();
+    // an object that does not build, past the first batches
+    let bad_radius = replace_nth(&many_objects(30_000), "radius: 0.2)", "radius: -0.2)", 5_000);
+    let one_piece = built_in_one_piece(&bad_radius).unwrap_err();
+    assert!(one_piece.0.starts_with("objects[24995]"), "{one_piece:?}");
+    let path = dir.path().join("bad_radius.ron");
+    std::fs::write(&path, &bad_radius).unwrap();
+    let message = Scene::load(&path).unwrap_err().to_string();
+    assert_eq!(message, format!("{}: {}: {}", path.display(), one_piece.0, one_piece.1));
+    // a syntax error keeps its line and column; so does one after the list
+    for (name, text) in [
+        (
+            "bad_field.ron",
+            replace_nth(
+                &many_objects(30_000),
+                "radius: 0.1, height",
+                "radius: 0.1, heigth",
+                4_000,
+            ),
+        ),
+        (
+            "bad_light.ron",
+            many_objects(30_000).replace("(direction: (0, -1, 0))", "(direction: (0, -1, 0), x: 1)"),
+        ),
+    ] {
+        let expected = sequential(&text).unwrap_err();
+        let path = dir.path().join(name);
+        std::fs::write(&path, &text).unwrap();
+        let message = Scene::load(&path).unwrap_err().to_string();
+        assert_eq!(
+            message,
+            format!(
+                "{}:{}:{}: {}",
+                path.display(),
+                expected.span.start.line,
+                expected.span.start.col,
+                expected.code
+            )
+        );
+        assert!(expected.span.start.line > 3_000, "{expected}");
+    }
 }

@@ -1,0 +1,81 @@
+//! What a primitive's description is: the [`SceneShape`] contract (validate the parameters,
+//! build the [`Primitive`]), the [`BuildContext`] a build may use, and [`ShapeDesc`], a parsed
+//! description of any registered type.
+//!
+//! This is the bottom of the loading layers (see the crate docs): the built-in descriptions
+//! (`shapes`, `combinators`, `mesh_io`) implement [`SceneShape`], and the registry above them
+//! maps RON names to their parsers (it implements `Deserialize` for [`ShapeDesc`]).
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::sync::Arc;
+use zeroset_primitives::{CsgOp, Primitive, PrimitiveError};
+
+/// What a [`SceneShape`] may need from the scene being loaded.
+#[derive(Debug, Default)]
+pub struct BuildContext {
+    /// Directory of the scene file: relative paths in a description (mesh files) are resolved
+    /// against it.
+    pub scene_dir: std::path::PathBuf,
+    /// Primitives already built from files, by resolved path, so that objects naming the same file
+    /// share one copy (instancing without copying).
+    pub loaded: std::sync::Mutex<BTreeMap<std::path::PathBuf, Arc<dyn Primitive>>>,
+    /// Warnings raised while building (valid input the user may want to know about, such as
+    /// degenerate triangles); the scene collects them per object (`Scene::warnings`).
+    pub warnings: std::sync::Mutex<Vec<String>>,
+}
+
+impl BuildContext {
+    /// A context for a scene in `scene_dir`.
+    #[must_use]
+    pub fn new(scene_dir: impl Into<std::path::PathBuf>) -> Self {
+        Self {
+            scene_dir: scene_dir.into(),
+            loaded: std::sync::Mutex::default(),
+            warnings: std::sync::Mutex::default(),
+        }
+    }
+
+    /// Records a warning about the primitive being built.
+    pub fn warn(&self, message: impl Into<String>) {
+        self.warnings
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(message.into());
+    }
+
+    /// Takes the warnings recorded so far.
+    pub fn take_warnings(&self) -> Vec<String> {
+        std::mem::take(&mut *self.warnings.lock().unwrap_or_else(|e| e.into_inner()))
+    }
+
+    /// `path` resolved against the scene's directory (absolute paths are kept).
+    #[must_use]
+    pub fn resolve(&self, path: &std::path::Path) -> std::path::PathBuf {
+        self.scene_dir.join(path)
+    }
+}
+
+/// A scene-file description of a primitive: parsed from RON, validated and built into a
+/// [`Primitive`] after the whole file has parsed.
+pub trait SceneShape: fmt::Debug + Send + Sync {
+    /// Validates the parameters and builds the primitive (in the object's local space; the
+    /// object's transform is applied by the scene).
+    fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError>;
+
+    /// For a Boolean combinator (`Union`, `Intersection`, `Difference`), its operation and
+    /// operands, so that an enclosing combinator can splice same-operation chains at load
+    /// (`combinators`); `None` (the default) for everything else.
+    fn boolean_operands(&self) -> Option<(CsgOp, &[ShapeDesc])> {
+        None
+    }
+}
+
+/// A parsed primitive description of any registered type (`Name(field: value, …)` in RON).
+#[derive(Debug)]
+pub struct ShapeDesc {
+    /// The RON name it was given under (the registry's copy).
+    pub name: &'static str,
+    /// The parsed description.
+    pub shape: Box<dyn SceneShape>,
+}
