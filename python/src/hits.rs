@@ -67,22 +67,28 @@ fn rows<'py>(py: Python<'py>, n: usize, width: usize, wanted: bool) -> Option<Bo
     wanted.then(|| unsafe { PyArray2::new(py, [n, width], false) })
 }
 
-/// The pieces of one array, `per_ray` elements a ray, one per chunk of rays (`count` of them).
-fn pieces<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
+/// The data of a new array as one mutable slice.
+///
+/// # Safety
+/// No other reference to the array's data may exist while the slice lives (the arrays of
+/// [`HitArrays::new`] are fresh and reach Python only after the slices are gone).
+#[allow(clippy::mut_from_ref)]
+unsafe fn data_mut<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
     array: Option<&'a Bound<'_, numpy::PyArray<T, D>>>,
-    per_ray: usize,
-    count: usize,
-) -> PyResult<std::vec::IntoIter<Option<&'a mut [T]>>> {
-    let pieces: Vec<Option<&'a mut [T]>> = match array {
+) -> PyResult<Option<&'a mut [T]>> {
+    array
+        .map(|a| unsafe { a.as_slice_mut() })
+        .transpose()
+        .map_err(|e| crate::error(e.to_string()))
+}
+
+/// The pieces of one array's data, `per_ray` elements a ray, one per chunk of rays (`count`).
+fn pieces<T>(data: Option<&mut [T]>, per_ray: usize, count: usize) -> std::vec::IntoIter<Option<&mut [T]>> {
+    let pieces: Vec<Option<&mut [T]>> = match data {
         None => (0..count).map(|_| None).collect(),
-        Some(array) => {
-            // SAFETY: the array was created by `vector`/`rows` and no other reference to its
-            // data exists until it is returned
-            let data = unsafe { array.as_slice_mut() }.map_err(|e| crate::error(e.to_string()))?;
-            data.chunks_mut(per_ray * COLUMN_CHUNK).map(Some).collect()
-        }
+        Some(data) => data.chunks_mut(per_ray * COLUMN_CHUNK).map(Some).collect(),
     };
-    Ok(pieces.into_iter())
+    pieces.into_iter()
 }
 
 impl<'py> HitArrays<'py> {
@@ -118,14 +124,20 @@ impl<'py> HitArrays<'py> {
     /// Never for arrays made by [`HitArrays::new`] (they are contiguous).
     pub fn chunks(&self, n: usize) -> PyResult<Vec<HitChunk<'_>>> {
         let count = n.div_ceil(COLUMN_CHUNK);
-        let mut t = pieces(self.t.as_ref(), 1, count)?;
-        let mut hit = pieces(self.hit.as_ref(), 1, count)?;
-        let mut point = pieces(self.point.as_ref(), 3, count)?;
-        let mut normal = pieces(self.normal.as_ref(), 3, count)?;
-        let mut object_id = pieces(self.object_id.as_ref(), 1, count)?;
-        let mut uv = pieces(self.uv.as_ref(), 2, count)?;
-        let mut primitive_id = pieces(self.primitive_id.as_ref(), 1, count)?;
-        let mut uncertain = pieces(self.uncertain.as_ref(), 1, count)?;
+        // SAFETY: the arrays were made by `new` and nothing else refers to their data (see
+        // `data_mut`); each is split once, into disjoint pieces
+        let (mut t, mut hit, mut point, mut normal, mut object_id, mut uv, mut primitive_id, mut uncertain) = unsafe {
+            (
+                pieces(data_mut(self.t.as_ref())?, 1, count),
+                pieces(data_mut(self.hit.as_ref())?, 1, count),
+                pieces(data_mut(self.point.as_ref())?, 3, count),
+                pieces(data_mut(self.normal.as_ref())?, 3, count),
+                pieces(data_mut(self.object_id.as_ref())?, 1, count),
+                pieces(data_mut(self.uv.as_ref())?, 2, count),
+                pieces(data_mut(self.primitive_id.as_ref())?, 1, count),
+                pieces(data_mut(self.uncertain.as_ref())?, 1, count),
+            )
+        };
         Ok((0..count)
             .map(|_| HitChunk {
                 t: t.next().flatten(),

@@ -565,7 +565,7 @@ impl PyScene {
         if spp == Some(0) {
             return Err(error("spp must be at least 1"));
         }
-        let frame = self.with(py, |state| -> PyResult<((usize, usize), Vec<Aov>, Vec<Vec<f32>>)> {
+        let frame = self.with(py, |state| -> PyResult<RenderedPlanes> {
             state.built();
             let scene = &mut state.scene;
             let aovs = parse_aovs(aovs, scene)?;
@@ -670,6 +670,15 @@ fn thread_pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
     Ok(Arc::clone(pools.entry(threads).or_insert(Arc::new(pool))))
 }
 
+/// A rendered window: `(width, height)`, its AOVs and one plane per AOV.
+type RenderedPlanes = ((usize, usize), Vec<Aov>, Vec<Vec<f32>>);
+
+/// Flat origins and directions of a batch of rays.
+type RayArrays<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// An AOV plane as `write_exr` receives it: name, flat data, `(height, width, channels)`.
+type NamedPlane<'py> = (String, PyReadonlyArray1<'py, f32>, (usize, usize, usize));
+
 /// A 3×3 matrix as row-major nested arrays.
 fn rows3(m: &DMat3) -> [[f64; 3]; 3] {
     let t = m.transpose();
@@ -698,7 +707,7 @@ fn rays_pinhole<'py>(
     width: u32,
     height: u32,
     distortion: [f64; 5],
-) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<RayArrays<'py>> {
     let [[fx, skew, cx], [zero, fy, cy], last] = intrinsics;
     if skew != 0.0 || zero != 0.0 || last != [0.0, 0.0, 1.0] {
         return Err(error(format!(
@@ -757,7 +766,7 @@ fn rays_pinhole<'py>(
 fn write_exr(
     py: Python<'_>,
     path: PathBuf,
-    arrays: Vec<(String, PyReadonlyArray1<'_, f32>, (usize, usize, usize))>,
+    arrays: Vec<NamedPlane<'_>>,
     world_to_camera: Option<[[f64; 4]; 4]>,
     scene_file: String,
     depth_miss: f32,
