@@ -15,9 +15,20 @@
 //! `magnitude` the largest coordinate magnitude of the scene's bounded objects: a ray cast from a
 //! stored (e.g. float32) hit point cannot re-hit the surface it starts on through rounding, and
 //! loses no hit farther than `spawn_distance` from the point (see `docs/numerics.md`).
+//!
+//! **Columns.** Rays already in memory as arrays (the Python package's numpy arrays) are a
+//! [`RayColumns`]: each ray is built by the same [`ray_from_fields`] as a line of input, and
+//! [`trace_columns`] builds, traces ([`crate::query::trace_batch`]) and hands over the hits a
+//! chunk of [`COLUMN_CHUNK`] rays at a time, in parallel, so rays and hit records only ever exist
+//! for the chunks in flight (cache-sized) and the caller writes each chunk's answers straight
+//! into its own output buffers.
 
+use crate::query::{trace_batch, QueryHit, QueryRay};
 use crate::scene::Scene;
 use glam::DVec3;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
 use zeroset_primitives::offset::{spawn_origin, PointPrecision};
 use zeroset_primitives::{Interval, Ray};
 
@@ -113,6 +124,179 @@ pub fn ray_from_fields(v: &[f64], setup: &RaySetup) -> Result<(Ray, Interval), S
     Ok((Ray::new(origin, dir), Interval::new(min, tmax)))
 }
 
+/// Rays per step of [`trace_columns`]: the rays and hit records of one chunk (about 64 and 120
+/// bytes a ray) stay in a core's cache between building, tracing and handing over, and a chunk is
+/// no longer than the pieces `trace_batch` splits a batch into, so one thread does all of it.
+pub const COLUMN_CHUNK: usize = 256;
+
+/// Rays as columns: `origins` and `directions` flat `[x₀, y₀, z₀, x₁, …]`, `tmin` and `tmax` one
+/// value for every ray or one per ray, and optionally the surface normals at the origins (flat like
+/// the origins) for spawned origins.
+#[derive(Clone, Copy, Debug)]
+pub struct RayColumns<'a> {
+    origins: &'a [f64],
+    directions: &'a [f64],
+    tmin: &'a [f64],
+    tmax: &'a [f64],
+    normals: Option<&'a [f64]>,
+}
+
+impl<'a> RayColumns<'a> {
+    /// Checks that the columns agree in length; the error names the column that does not.
+    ///
+    /// # Errors
+    /// A length that is not a multiple of 3, columns of different ray counts, or a `tmin`/`tmax`
+    /// that is neither one value nor one per ray.
+    pub fn new(
+        origins: &'a [f64],
+        directions: &'a [f64],
+        tmin: &'a [f64],
+        tmax: &'a [f64],
+        normals: Option<&'a [f64]>,
+    ) -> Result<Self, String> {
+        if origins.len() % 3 != 0 {
+            return Err(format!("origins: {} values are not rows of 3", origins.len()));
+        }
+        let n = origins.len() / 3;
+        if directions.len() != origins.len() {
+            return Err(format!(
+                "origins and directions differ in length: {n} and {}",
+                directions.len() / 3
+            ));
+        }
+        if let Some(normals) = normals {
+            if normals.len() != origins.len() {
+                return Err(format!("normals: expected {n} rows, got {}", normals.len() / 3));
+            }
+        }
+        for (name, column) in [("tmin", tmin), ("tmax", tmax)] {
+            if column.len() != 1 && column.len() != n {
+                return Err(format!("{name}: expected a scalar or {n} values, got {}", column.len()));
+            }
+        }
+        Ok(Self {
+            origins,
+            directions,
+            tmin,
+            tmax,
+            normals,
+        })
+    }
+
+    /// Number of rays.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.origins.len() / 3
+    }
+
+    /// Whether there are no rays.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.origins.is_empty()
+    }
+
+    /// Ray `i`, exactly as [`ray_from_fields`] builds it from the same numbers on one line.
+    ///
+    /// # Errors
+    /// What is wrong with the ray (see [`ray_from_fields`]).
+    ///
+    /// # Panics
+    /// If `i ≥ self.len()`.
+    pub fn ray(&self, i: usize, setup: &RaySetup) -> Result<QueryRay, String> {
+        let at = |column: &[f64]| column[if column.len() == 1 { 0 } else { i }];
+        let (o, d) = (&self.origins[3 * i..3 * i + 3], &self.directions[3 * i..3 * i + 3]);
+        let mut fields = [
+            o[0],
+            o[1],
+            o[2],
+            d[0],
+            d[1],
+            d[2],
+            at(self.tmin),
+            at(self.tmax),
+            0.0,
+            0.0,
+            0.0,
+        ];
+        let count = match self.normals {
+            Some(normals) => {
+                fields[8..].copy_from_slice(&normals[3 * i..3 * i + 3]);
+                11
+            }
+            None => 8,
+        };
+        let (ray, range) = ray_from_fields(&fields[..count], setup)?;
+        Ok(QueryRay { ray, range })
+    }
+
+    /// Every ray, built in parallel.
+    ///
+    /// # Errors
+    /// The first bad ray by index: `(index, what is wrong)`.
+    pub fn rays(&self, setup: &RaySetup) -> Result<Vec<QueryRay>, (usize, String)> {
+        (0..self.len())
+            .into_par_iter()
+            .map(|i| self.ray(i, setup).map_err(|message| (i, message)))
+            .collect()
+    }
+}
+
+/// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, traced by
+/// [`trace_batch`]), handed to `take(out, hits)` one chunk at a time: `outputs[k]` receives the
+/// hits of rays `k·COLUMN_CHUNK ..` (up to [`COLUMN_CHUNK`] of them, in ray order). Chunks run in
+/// parallel on rayon's pool, each built, traced and handed over while in cache; the hits equal
+/// `trace_batch` on all the rays at once (every ray is traced on its own).
+///
+/// # Errors
+/// The first bad ray by index, `(index, what is wrong)`; every ray is still checked (so the
+/// reported one is the first), but no chunk is traced once one is found, and the outputs are then
+/// partly filled.
+///
+/// # Panics
+/// If `outputs` does not hold one entry per chunk (`len.div_ceil(COLUMN_CHUNK)`).
+pub fn trace_columns<O: Send>(
+    scene: &Scene,
+    columns: &RayColumns<'_>,
+    setup: &RaySetup,
+    outputs: Vec<O>,
+    take: impl Fn(&mut O, &[QueryHit]) + Sync,
+) -> Result<(), (usize, String)> {
+    let n = columns.len();
+    assert_eq!(outputs.len(), n.div_ceil(COLUMN_CHUNK), "one output per chunk of rays");
+    let failed = AtomicBool::new(false);
+    let first_error: Mutex<Option<(usize, String)>> = Mutex::new(None);
+    outputs.into_par_iter().enumerate().for_each_init(
+        || Vec::with_capacity(COLUMN_CHUNK),
+        |rays: &mut Vec<QueryRay>, (k, mut out)| {
+            let chunk = k * COLUMN_CHUNK..((k + 1) * COLUMN_CHUNK).min(n);
+            rays.clear();
+            for i in chunk {
+                match columns.ray(i, setup) {
+                    Ok(ray) => rays.push(ray),
+                    Err(message) => {
+                        failed.store(true, Ordering::Relaxed);
+                        let mut first = first_error.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                        if first.as_ref().is_none_or(|(j, _)| i < *j) {
+                            *first = Some((i, message));
+                        }
+                        return;
+                    }
+                }
+            }
+            if !failed.load(Ordering::Relaxed) {
+                take(&mut out, &trace_batch(scene, rays));
+            }
+        },
+    );
+    match first_error
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+    {
+        Some(error) => Err(error),
+        None => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -151,5 +335,100 @@ mod tests {
             ray.origin
         );
         assert!(ray_from_fields(&[0.0; 7], &RaySetup::default()).is_err());
+    }
+
+    /// Two spheres and a box; rays from a grid of origins in many directions, about a third
+    /// missing, over more than two chunks (the last one partial).
+    fn scene_and_columns() -> (Scene, Vec<f64>, Vec<f64>, Vec<f64>) {
+        let scene = Scene::from_ron(
+            "Scene(camera: (eye: (0, 0, 5)), objects: [\
+             (shape: Sphere(center: (0, 0, 0), radius: 1)),\
+             (shape: Sphere(center: (2, 0.5, 0), radius: 0.5)),\
+             (shape: Box(min: (-2, -2, -0.2), max: (-1, -1, 0.2)))])",
+            "<test>",
+        )
+        .unwrap();
+        let n = 2 * COLUMN_CHUNK + 77;
+        let (mut origins, mut directions, mut tmax) = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..n {
+            let a = i as f64 * 0.618_033_988_749_895;
+            origins.extend_from_slice(&[(a * 7.0).sin() * 0.5, (a * 3.0).cos() * 0.5, 4.0]);
+            directions.extend_from_slice(&[a.cos() * 0.3, a.sin() * 0.3, -1.0]);
+            tmax.push(if i % 5 == 0 { 3.5 } else { f64::INFINITY });
+        }
+        (scene, origins, directions, tmax)
+    }
+
+    #[test]
+    fn traced_columns_equal_trace_batch_on_the_same_rays() {
+        let (scene, origins, directions, tmax) = scene_and_columns();
+        let setup = RaySetup::default();
+        let columns = RayColumns::new(&origins, &directions, &[0.0], &tmax, None).unwrap();
+        let rays = columns.rays(&setup).unwrap();
+        // the rays are those of the text path, field for field
+        let line = [
+            origins[30],
+            origins[31],
+            origins[32],
+            directions[30],
+            directions[31],
+            directions[32],
+            0.0,
+            3.5,
+        ];
+        assert_eq!(rays[10], {
+            let (ray, range) = ray_from_fields(&line, &setup).unwrap();
+            QueryRay { ray, range }
+        });
+        let expected = trace_batch(&scene, &rays);
+        let chunks = columns.len().div_ceil(COLUMN_CHUNK);
+        let slots: Vec<Mutex<Vec<QueryHit>>> = (0..chunks).map(|_| Mutex::new(Vec::new())).collect();
+        trace_columns(&scene, &columns, &setup, slots.iter().collect(), |slot, hits| {
+            slot.lock().unwrap().extend_from_slice(hits);
+        })
+        .unwrap();
+        let got: Vec<QueryHit> = slots.into_iter().flat_map(|s| s.into_inner().unwrap()).collect();
+        let hits = got.iter().filter(|h| h.hit.is_some()).count();
+        assert!(hits > columns.len() / 3 && hits < columns.len(), "{hits} hits");
+        assert_eq!(got, expected);
+    }
+
+    #[test]
+    fn the_first_bad_ray_by_index_is_reported_and_nothing_traced() {
+        let (scene, origins, mut directions, tmax) = scene_and_columns();
+        // bad rays in the last chunk and, later-found or not, an earlier one in the second
+        directions[3 * (2 * COLUMN_CHUNK + 5)..][..3].copy_from_slice(&[0.0; 3]);
+        directions[3 * (COLUMN_CHUNK + 9) + 1] = f64::NAN;
+        let columns = RayColumns::new(&origins, &directions, &[0.0], &tmax, None).unwrap();
+        let setup = RaySetup::default();
+        let traced = std::sync::atomic::AtomicUsize::new(0);
+        let error = trace_columns(&scene, &columns, &setup, vec![(); 3], |(), hits| {
+            traced.fetch_add(hits.len(), Ordering::Relaxed);
+        })
+        .unwrap_err();
+        assert_eq!(
+            error,
+            (COLUMN_CHUNK + 9, "origin and direction must be finite".to_string())
+        );
+        assert_eq!(columns.rays(&setup).unwrap_err().0, COLUMN_CHUNK + 9);
+        // the chunks holding bad rays are never traced; the first may have been before the error
+        assert!(traced.into_inner() <= COLUMN_CHUNK);
+    }
+
+    #[test]
+    fn columns_of_different_lengths_are_named() {
+        let six = [0.0; 6];
+        assert!(RayColumns::new(&six, &six[..3], &[0.0], &[1.0], None)
+            .unwrap_err()
+            .contains("origins and directions differ in length: 2 and 1"));
+        assert!(RayColumns::new(&six, &six, &[0.0; 3], &[1.0], None)
+            .unwrap_err()
+            .starts_with("tmin: expected a scalar or 2 values, got 3"));
+        assert!(RayColumns::new(&six, &six, &[0.0], &[1.0], Some(&six[..3]))
+            .unwrap_err()
+            .starts_with("normals: expected 2 rows, got 1"));
+        assert!(RayColumns::new(&six[..4], &six[..4], &[0.0], &[1.0], None)
+            .unwrap_err()
+            .contains("not rows of 3"));
     }
 }

@@ -14,18 +14,24 @@ use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
+use std::borrow::Cow;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use zeroset::aov::Aov;
 use zeroset::camera::{Camera, Model, NoRay, OpenCv};
 use zeroset::output::exr::{write_exr as write_frame, ExrHeader};
 use zeroset::primitives::offset::PointPrecision;
 use zeroset::primitives::{Mesh, Primitive, Ray, Transformed};
 use zeroset::query::{trace_batch, QueryRay};
-use zeroset::query_rays::{ray_from_fields, scene_magnitude, RangeConvention, RaySetup};
+use zeroset::query_rays::{scene_magnitude, trace_columns, RangeConvention, RayColumns, RaySetup};
 use zeroset::registry::BuildContext;
 use zeroset::render::{render_view, Frame, RenderOptions, Window};
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
+
+mod hits;
+
+use hits::{HitArrays, HitChunk};
 
 create_exception!(
     _zeroset,
@@ -144,37 +150,6 @@ impl State {
     }
 }
 
-/// How `cast_rays` and friends build rays: the range convention of `zeroset query` (open at
-/// `tmin` unless `closed`) and, with `precision`, origins spawned off the surface along `normals`.
-struct Setup<'a> {
-    closed: bool,
-    /// The scene's coordinate magnitude (spawn offsets scale with it).
-    magnitude: f64,
-    precision: Option<PointPrecision>,
-    normals: Option<&'a PyReadonlyArray2<'a, f64>>,
-}
-
-impl Setup<'_> {
-    /// Rays as given, with the range convention alone.
-    fn range_only(closed: bool) -> Self {
-        Self {
-            closed,
-            ..Self::default()
-        }
-    }
-}
-
-impl Default for Setup<'_> {
-    fn default() -> Self {
-        Self {
-            closed: false,
-            magnitude: 0.0,
-            precision: None,
-            normals: None,
-        }
-    }
-}
-
 /// `origin_precision` as `zeroset query --origin-precision` takes it (`f32`, `f64` or a bound).
 fn parse_precision(text: Option<&str>, have_normals: bool) -> PyResult<Option<PointPrecision>> {
     match (text, have_normals) {
@@ -190,110 +165,85 @@ fn parse_precision(text: Option<&str>, have_normals: bool) -> PyResult<Option<Po
     }
 }
 
-/// The rays of the arrays, each built and checked by `zeroset query`'s own
-/// [`zeroset::query_rays::ray_from_fields`].
-fn query_rays(
-    origins: &PyReadonlyArray2<'_, f64>,
-    directions: &PyReadonlyArray2<'_, f64>,
-    tmin: &PyReadonlyArray1<'_, f64>,
-    tmax: &PyReadonlyArray1<'_, f64>,
-    setup: &Setup<'_>,
-) -> PyResult<Vec<QueryRay>> {
-    let (o, d) = (
-        rows_of_three(origins, "origins")?,
-        rows_of_three(directions, "directions")?,
-    );
-    let n = o.len() / 3;
-    if d.len() != o.len() {
-        return Err(error(format!(
-            "origins and directions differ in length: {n} and {}",
-            d.len() / 3
-        )));
-    }
-    let normals = match setup.normals {
-        None => None,
-        Some(normals) => {
-            let v = rows_of_three(normals, "normals")?;
-            if v.len() != o.len() {
-                return Err(error(format!("normals: expected {n} rows, got {}", v.len() / 3)));
-            }
-            Some(v)
-        }
-    };
-    let (tmin, tmax) = (tmin.to_vec()?, tmax.to_vec()?);
-    for (name, s) in [("tmin", &tmin), ("tmax", &tmax)] {
-        if s.len() != 1 && s.len() != n {
-            return Err(error(format!(
-                "{name}: expected a scalar or {n} values, got {}",
-                s.len()
-            )));
-        }
-    }
-    let at = |s: &[f64], i: usize| s[if s.len() == 1 { 0 } else { i }];
-    let ray_setup = RaySetup {
-        range: RangeConvention::closed_if(setup.closed),
-        origin_precision: setup.precision,
-        magnitude: setup.magnitude,
-    };
-    // one pass straight into the output (an indexed collect: no per-ray allocation, no list of
-    // chunks); the first bad ray, by index, is kept aside and reported
-    let first_error: Mutex<Option<(usize, String)>> = Mutex::new(None);
-    let mut rays = Vec::new();
-    (0..n)
-        .into_par_iter()
-        .map(|i| {
-            // the fields of a `zeroset query` line, on the stack
-            let mut fields = [0.0; 11];
-            fields[..6].copy_from_slice(&[
-                o[3 * i],
-                o[3 * i + 1],
-                o[3 * i + 2],
-                d[3 * i],
-                d[3 * i + 1],
-                d[3 * i + 2],
-            ]);
-            fields[6..8].copy_from_slice(&[at(&tmin, i), at(&tmax, i)]);
-            let len = match &normals {
-                Some(v) => {
-                    fields[8..].copy_from_slice(&v[3 * i..3 * i + 3]);
-                    11
-                }
-                None => 8,
-            };
-            match ray_from_fields(&fields[..len], &ray_setup) {
-                Ok((ray, range)) => QueryRay { ray, range },
-                Err(message) => {
-                    let mut first = first_error.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-                    if first.as_ref().is_none_or(|(k, _)| i < *k) {
-                        *first = Some((i, message));
-                    }
-                    QueryRay {
-                        ray: Ray::new(DVec3::ZERO, DVec3::X),
-                        range: zeroset::primitives::Interval::POSITIVE,
-                    }
-                }
-            }
+/// The columns of a ray batch as flat slices, borrowed from the arrays when they are
+/// C-contiguous (the Python layer makes them so) and copied otherwise.
+struct Columns<'a> {
+    origins: Cow<'a, [f64]>,
+    directions: Cow<'a, [f64]>,
+    tmin: Cow<'a, [f64]>,
+    tmax: Cow<'a, [f64]>,
+    normals: Option<Cow<'a, [f64]>>,
+}
+
+impl<'a> Columns<'a> {
+    fn new(
+        origins: &'a PyReadonlyArray2<'_, f64>,
+        directions: &'a PyReadonlyArray2<'_, f64>,
+        tmin: &'a PyReadonlyArray1<'_, f64>,
+        tmax: &'a PyReadonlyArray1<'_, f64>,
+        normals: Option<&'a PyReadonlyArray2<'_, f64>>,
+    ) -> PyResult<Self> {
+        Ok(Self {
+            origins: rows_of_three(origins, "origins")?,
+            directions: rows_of_three(directions, "directions")?,
+            tmin: flat(tmin),
+            tmax: flat(tmax),
+            normals: normals.map(|v| rows_of_three(v, "normals")).transpose()?,
         })
-        .collect_into_vec(&mut rays);
-    match first_error
-        .into_inner()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-    {
-        Some((i, message)) => Err(error(format!("ray {i}: {message}"))),
-        None => Ok(rays),
+    }
+
+    /// The columns as `zeroset query`'s ray columns (lengths checked).
+    fn view(&self) -> PyResult<RayColumns<'_>> {
+        RayColumns::new(
+            &self.origins,
+            &self.directions,
+            &self.tmin,
+            &self.tmax,
+            self.normals.as_deref(),
+        )
+        .map_err(error)
     }
 }
 
+/// `zeroset query`'s ray setup: its range convention and, with a precision, spawned origins.
+fn ray_setup(closed: bool, precision: Option<PointPrecision>, magnitude: f64) -> RaySetup {
+    RaySetup {
+        range: RangeConvention::closed_if(closed),
+        origin_precision: precision,
+        magnitude,
+    }
+}
+
+/// The error of the first bad ray, as `zeroset query` words it.
+fn bad_ray((index, message): (usize, String)) -> PyErr {
+    error(format!("ray {index}: {message}"))
+}
+
+/// Every ray of the columns (range convention alone), built in parallel without the GIL, each by
+/// `zeroset query`'s own [`zeroset::query_rays::ray_from_fields`].
+fn query_rays(py: Python<'_>, columns: &Columns<'_>, closed: bool) -> PyResult<Vec<QueryRay>> {
+    let view = columns.view()?;
+    py.detach(|| view.rays(&ray_setup(closed, None, 0.0))).map_err(bad_ray)
+}
+
 /// The rows of an `(N, 3)` float64 array as one flat slice (borrowed when C-contiguous).
-fn rows_of_three<'a>(array: &'a PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<std::borrow::Cow<'a, [f64]>> {
+fn rows_of_three<'a>(array: &'a PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Cow<'a, [f64]>> {
     let shape = array.shape();
     if shape[1] != 3 {
         return Err(error(format!("{what}: expected shape (N, 3), got {shape:?}")));
     }
     Ok(match array.as_slice() {
-        Ok(flat) => std::borrow::Cow::Borrowed(flat),
-        Err(_) => std::borrow::Cow::Owned(array.as_array().iter().copied().collect()),
+        Ok(flat) => Cow::Borrowed(flat),
+        Err(_) => Cow::Owned(array.as_array().iter().copied().collect()),
     })
+}
+
+/// A 1-D float64 array as a slice (borrowed when contiguous).
+fn flat<'a>(array: &'a PyReadonlyArray1<'_, f64>) -> Cow<'a, [f64]> {
+    match array.as_slice() {
+        Ok(flat) => Cow::Borrowed(flat),
+        Err(_) => Cow::Owned(array.as_array().iter().copied().collect()),
+    }
 }
 
 fn parse_aovs(names: Option<Vec<String>>, scene: &Scene) -> PyResult<Vec<Aov>> {
@@ -475,8 +425,12 @@ impl PyScene {
         })
     }
 
-    /// First hits: the arrays of `zeroset query` (see `zeroset.Scene.cast_rays`).
-    #[pyo3(signature = (origins, directions, tmin, tmax, closed = false, origin_precision = None, normals = None))]
+    /// First hits: the arrays of `zeroset query` (see `zeroset.Scene.cast_rays`), only the
+    /// fields named in `outputs` (all when `None`; see `hits::FIELDS`).
+    ///
+    /// One parallel pass without the GIL: each chunk of rays is built from the arrays, traced by
+    /// `trace_batch` and written straight into the numpy arrays returned (see `hits`).
+    #[pyo3(signature = (origins, directions, tmin, tmax, closed = false, origin_precision = None, normals = None, outputs = None))]
     #[allow(clippy::too_many_arguments)]
     fn cast_rays<'py>(
         &self,
@@ -488,71 +442,30 @@ impl PyScene {
         closed: bool,
         origin_precision: Option<String>,
         normals: Option<PyReadonlyArray2<'py, f64>>,
+        outputs: Option<Vec<String>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let precision = parse_precision(origin_precision.as_deref(), normals.is_some())?;
-        let magnitude = match precision {
-            Some(_) => self.with(py, |state| scene_magnitude(state.built())),
-            None => 0.0,
-        };
-        let setup = Setup {
-            closed,
-            magnitude,
-            precision,
-            normals: normals.as_ref(),
-        };
-        let rays = query_rays(&origins, &directions, &tmin, &tmax, &setup)?;
-        let n = rays.len();
-        let (t, point, normal, object, uv, feature, uncertain) = self.with(py, |state| -> PyResult<_> {
-            let hits = trace_batch(state.built(), &rays);
-            let mut t = vec![f64::INFINITY; n];
-            let mut point = vec![0.0; 3 * n];
-            let mut normal = vec![0.0; 3 * n];
-            let mut object = vec![-1i32; n];
-            let mut uv = vec![0.0; 2 * n];
-            let mut feature = vec![-1i64; n];
-            let uncertain: Vec<bool> = hits.par_iter().map(|h| h.uncertain).collect();
-            (
-                t.par_iter_mut(),
-                object.par_iter_mut(),
-                feature.par_iter_mut(),
-                hits.par_iter(),
-            )
-                .into_par_iter()
-                .zip(
-                    point
-                        .par_chunks_mut(3)
-                        .zip(normal.par_chunks_mut(3))
-                        .zip(uv.par_chunks_mut(2)),
-                )
-                .for_each(|((t, object, feature, hit), ((point, normal), uv))| {
-                    if let Some((id, h)) = &hit.hit {
-                        *t = h.t;
-                        *object = *id as i32;
-                        *feature = i64::from(h.feature);
-                        point.copy_from_slice(&h.point.to_array());
-                        normal.copy_from_slice(&h.normal.unwrap_or_default().to_array());
-                        if let Some(p) = h.uv {
-                            uv.copy_from_slice(&p.to_array());
-                        }
-                    }
-                });
-            Ok((t, point, normal, object, uv, feature, uncertain))
-        })?;
-        let out = PyDict::new(py);
-        let hit: Vec<bool> = object.iter().map(|&o| o >= 0).collect();
-        out.set_item("t", PyArray1::from_vec(py, t))?;
-        out.set_item("hit", PyArray1::from_vec(py, hit))?;
-        out.set_item("point", PyArray1::from_vec(py, point).reshape([n, 3])?)?;
-        out.set_item("normal", PyArray1::from_vec(py, normal).reshape([n, 3])?)?;
-        out.set_item("object_id", PyArray1::from_vec(py, object))?;
-        out.set_item("uv", PyArray1::from_vec(py, uv).reshape([n, 2])?)?;
-        out.set_item("primitive_id", PyArray1::from_vec(py, feature))?;
-        out.set_item("uncertain", PyArray1::from_vec(py, uncertain))?;
-        Ok(out)
+        let columns = Columns::new(&origins, &directions, &tmin, &tmax, normals.as_ref())?;
+        let view = columns.view()?;
+        let arrays = HitArrays::new(py, view.len(), outputs.as_deref())?;
+        let chunks = arrays.chunks(view.len())?;
+        self.with(py, |state| {
+            let scene = state.built();
+            let magnitude = if precision.is_some() {
+                scene_magnitude(scene)
+            } else {
+                0.0
+            };
+            let setup = ray_setup(closed, precision, magnitude);
+            trace_columns(scene, &view, &setup, chunks, HitChunk::take)
+        })
+        .map_err(bad_ray)?;
+        arrays.into_dict(py)
     }
 
-    /// Seconds the Rust query path (`zeroset::query::trace_batch`) alone takes on these rays,
-    /// for the benchmark's Python-overhead column.
+    /// Seconds the Rust API alone takes on these rays: `zeroset::query::trace_batch` on the whole
+    /// batch, its rays already built (a `Vec<QueryRay>`), timed around that call in Rust — the
+    /// reference of the benchmark's Python-overhead column.
     fn time_first_hits(
         &self,
         py: Python<'_>,
@@ -563,13 +476,9 @@ impl PyScene {
             PyArray1::from_vec(py, vec![0.0]),
             PyArray1::from_vec(py, vec![f64::INFINITY]),
         );
-        let rays = query_rays(
-            &origins,
-            &directions,
-            &tmin.readonly(),
-            &tmax.readonly(),
-            &Setup::default(),
-        )?;
+        let (tmin, tmax) = (tmin.readonly(), tmax.readonly());
+        let columns = Columns::new(&origins, &directions, &tmin, &tmax, None)?;
+        let rays = query_rays(py, &columns, false)?;
         Ok(self.with(py, |state| {
             let scene = state.built();
             let start = std::time::Instant::now();
@@ -591,7 +500,7 @@ impl PyScene {
         tmax: PyReadonlyArray1<'py, f64>,
         closed: bool,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let rays = query_rays(&origins, &directions, &tmin, &tmax, &Setup::range_only(closed))?;
+        let rays = query_rays(py, &Columns::new(&origins, &directions, &tmin, &tmax, None)?, closed)?;
         let blocked: Vec<bool> = self.with(py, |state| {
             let scene = state.built();
             rays.par_iter().map(|q| scene.occluded(&q.ray, q.range)).collect()
@@ -611,7 +520,7 @@ impl PyScene {
         tmax: PyReadonlyArray1<'py, f64>,
         closed: bool,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
-        let rays = query_rays(&origins, &directions, &tmin, &tmax, &Setup::range_only(closed))?;
+        let rays = query_rays(py, &Columns::new(&origins, &directions, &tmin, &tmax, None)?, closed)?;
         let counts: Vec<i64> = self.with(py, |state| {
             let scene = state.built();
             rays.par_iter()
@@ -632,8 +541,9 @@ impl PyScene {
         Ok(PyArray1::from_vec(py, counts))
     }
 
-    /// Renders the scene's camera (see `zeroset.Scene.render`).
-    #[pyo3(signature = (aovs = None, width = None, height = None, crop = None, spp = None, depth_miss = f32::INFINITY, view = None, background = false))]
+    /// Renders the scene's camera (see `zeroset.Scene.render`), on `threads` threads (default:
+    /// rayon's global pool, one thread per core or `RAYON_NUM_THREADS`).
+    #[pyo3(signature = (aovs = None, width = None, height = None, crop = None, spp = None, depth_miss = f32::INFINITY, view = None, background = false, threads = None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -646,14 +556,16 @@ impl PyScene {
         depth_miss: f32,
         view: Option<([f64; 3], [f64; 3], [f64; 3])>,
         background: bool,
+        threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let pool = threads.map(thread_pool).transpose()?;
         if depth_miss.is_nan() {
             return Err(error("depth_miss must be a number or ±inf, not NaN"));
         }
         if spp == Some(0) {
             return Err(error("spp must be at least 1"));
         }
-        let frame = self.with(py, |state| -> PyResult<((usize, usize), Vec<Aov>, Vec<Vec<f32>>)> {
+        let frame = self.with(py, |state| -> PyResult<RenderedPlanes> {
             state.built();
             let scene = &mut state.scene;
             let aovs = parse_aovs(aovs, scene)?;
@@ -696,8 +608,13 @@ impl PyScene {
                 progress: false,
                 background,
             };
-            let (aovs, planes) = render_planes(scene, &camera, &options, window);
-            scene.sampling.spp = saved_spp;
+            let scene = &*scene;
+            let render = || render_planes(scene, &camera, &options, window);
+            let (aovs, planes) = match &pool {
+                Some(pool) => pool.install(render),
+                None => render(),
+            };
+            state.scene.sampling.spp = saved_spp;
             Ok(((window.width() as usize, window.height() as usize), aovs, planes))
         })?;
         plane_arrays(py, frame.0, frame.1, frame.2)
@@ -731,6 +648,37 @@ impl PyScene {
     }
 }
 
+/// A rayon pool of `threads` threads, made on first use and kept for later calls (a Dask worker
+/// renders tile after tile with the same count).
+fn thread_pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
+    static POOLS: OnceLock<Mutex<HashMap<usize, Arc<rayon::ThreadPool>>>> = OnceLock::new();
+    if threads == 0 {
+        return Err(error("threads must be at least 1"));
+    }
+    let mut pools = POOLS
+        .get_or_init(Mutex::default)
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if let Some(pool) = pools.get(&threads) {
+        return Ok(Arc::clone(pool));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .thread_name(move |i| format!("zeroset-{threads}-{i}"))
+        .build()
+        .map_err(|e| error(format!("threads: {e}")))?;
+    Ok(Arc::clone(pools.entry(threads).or_insert(Arc::new(pool))))
+}
+
+/// A rendered window: `(width, height)`, its AOVs and one plane per AOV.
+type RenderedPlanes = ((usize, usize), Vec<Aov>, Vec<Vec<f32>>);
+
+/// Flat origins and directions of a batch of rays.
+type RayArrays<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// An AOV plane as `write_exr` receives it: name, flat data, `(height, width, channels)`.
+type NamedPlane<'py> = (String, PyReadonlyArray1<'py, f32>, (usize, usize, usize));
+
 /// A 3×3 matrix as row-major nested arrays.
 fn rows3(m: &DMat3) -> [[f64; 3]; 3] {
     let t = m.transpose();
@@ -759,7 +707,7 @@ fn rays_pinhole<'py>(
     width: u32,
     height: u32,
     distortion: [f64; 5],
-) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<RayArrays<'py>> {
     let [[fx, skew, cx], [zero, fy, cy], last] = intrinsics;
     if skew != 0.0 || zero != 0.0 || last != [0.0, 0.0, 1.0] {
         return Err(error(format!(
@@ -818,7 +766,7 @@ fn rays_pinhole<'py>(
 fn write_exr(
     py: Python<'_>,
     path: PathBuf,
-    arrays: Vec<(String, PyReadonlyArray1<'_, f32>, (usize, usize, usize))>,
+    arrays: Vec<NamedPlane<'_>>,
     world_to_camera: Option<[[f64; 4]; 4]>,
     scene_file: String,
     depth_miss: f32,

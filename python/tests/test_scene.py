@@ -316,3 +316,57 @@ def test_spawned_rays_from_float32_points_equal_the_cli(cli, tmp_path):
     assert [r[0] == "1" for r in rows] == spawned["hit"].tolist()
     t_cli = np.array([float(r[1]) if r[0] == "1" else np.inf for r in rows])
     np.testing.assert_array_equal(t_cli, spawned["t"])
+
+
+def test_cast_rays_over_many_chunks_equals_rays_cast_one_by_one():
+    # more than four chunks of rays (the last one partial), per-ray ranges: each ray's answer is
+    # the one it gets alone
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    origins, directions = random_rays(4500, seed=11)
+    tmax = np.where(np.arange(4500) % 7 == 0, 2.0, np.inf)
+    got = scene.cast_rays(origins, directions, tmax=tmax)
+    assert 1000 < got["hit"].sum() < 4400
+    assert (got["t"][~got["hit"]] == np.inf).all() and (got["object_id"][~got["hit"]] == -1).all()
+    for i in range(0, 4500, 37):
+        alone = scene.cast_rays(origins[i], directions[i], tmax=tmax[i])
+        for k in alone:
+            np.testing.assert_array_equal(got[k][i], alone[k], err_msg=f"{k} of ray {i}")
+
+
+def test_cast_rays_outputs_asked_for_only():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    origins, directions = random_rays(3000, seed=12)
+    full = scene.cast_rays(origins, directions)
+    assert list(full) == ["t", "hit", "point", "normal", "object_id", "uv", "primitive_id", "uncertain"]
+    some = scene.cast_rays(origins, directions, outputs=["normal", "t"])
+    assert sorted(some) == ["normal", "t"]
+    np.testing.assert_array_equal(some["t"], full["t"])
+    np.testing.assert_array_equal(some["normal"], full["normal"])
+    assert scene.cast_rays(origins[:5], directions[:5], outputs=[]) == {}
+    with pytest.raises(zeroset.ZerosetError, match="outputs: unknown field `depth`"):
+        scene.cast_rays(origins, directions, outputs=["t", "depth"])
+
+
+def test_first_bad_ray_by_index_over_chunks():
+    # bad rays in the fourth chunk and in the second: the message names the earlier one
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    origins, directions = random_rays(5000, seed=13)
+    directions[3500] = 0.0
+    origins[1500, 1] = np.inf
+    with pytest.raises(zeroset.ZerosetError, match=r"^ray 1500: origin and direction must be finite"):
+        scene.cast_rays(origins, directions)
+    with pytest.raises(zeroset.ZerosetError, match=r"^ray 1500: "):
+        scene.test_occlusions(origins, directions)
+
+
+def test_render_threads_gives_the_same_frame():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    aovs = ["Depth", "Normal", "PrimitiveId"]
+    default = scene.render(aovs=aovs, width=61, height=47)
+    for threads in (1, 3):
+        got = scene.render(aovs=aovs, width=61, height=47, threads=threads)
+        for k in aovs:
+            np.testing.assert_array_equal(got[k], default[k], err_msg=f"{k}, {threads} threads")
+    assert np.isfinite(default["Depth"]).sum() > 100
+    with pytest.raises(zeroset.ZerosetError, match="threads must be at least 1"):
+        scene.render(aovs=aovs, width=8, height=8, threads=0)

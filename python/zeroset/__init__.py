@@ -231,7 +231,8 @@ class Scene:
         return Camera(self._core.camera())
 
     def cast_rays(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf, closed: bool = False,
-                  origin_precision: Any = None, normals: Any = None) -> Dict[str, np.ndarray]:
+                  origin_precision: Any = None, normals: Any = None,
+                  outputs: Optional[Sequence[str]] = None) -> Dict[str, np.ndarray]:
         """First hits of rays ``origins + t·directions`` with ``tmin < t ≤ tmax`` — the range of
         ``zeroset query``: open at ``tmin`` (an origin lying on a surface does not report it at
         ``t = 0``), closed at both ends with ``closed=True``.
@@ -256,15 +257,21 @@ class Scene:
         * ``uncertain`` bool: the answer is not guaranteed (a root finder ran out of its budget or
           a ``Function`` root could not be decided exactly; ``zeroset query --uncertain``).
 
-        The values equal ``zeroset query``'s on the same rays.
+        ``outputs``: the names of the arrays wanted (default all of the above); the others are
+        neither computed into nor allocated.
+
+        The values equal ``zeroset query``'s on the same rays. The call runs without the GIL: rays
+        are built from the arrays, traced and written into the returned arrays chunk by chunk on
+        all cores (do not modify the input arrays from another thread meanwhile).
         """
         o, d, lead = _rays(origins, directions)
         n = None
         if normals is not None:
             n = np.ascontiguousarray(np.broadcast_to(np.asarray(normals, dtype=np.float64), lead + (3,)).reshape(-1, 3))
         precision = None if origin_precision is None else str(origin_precision)
+        wanted = None if outputs is None else [str(name) for name in outputs]
         out = self._core.cast_rays(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax"), bool(closed),
-                                   precision, n)
+                                   precision, n, wanted)
         return {k: v.reshape(lead + v.shape[1:]) for k, v in out.items()}
 
     def test_occlusions(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf,
@@ -287,7 +294,8 @@ class Scene:
     def render(self, aovs: Optional[Sequence[str]] = None, width: Optional[int] = None,
                height: Optional[int] = None, crop: Optional[Tuple[int, int, int, int]] = None,
                spp: Optional[int] = None, depth_miss: float = float("inf"),
-               view: Optional[Dict[str, Any]] = None, background: bool = False) -> Dict[str, np.ndarray]:
+               view: Optional[Dict[str, Any]] = None, background: bool = False,
+               threads: Optional[int] = None) -> Dict[str, np.ndarray]:
         """Renders the scene's camera; returns ``{AOV name: float32 array}``, ``(H, W)`` for one
         channel and ``(H, W, C)`` for several, bit-identical to the EXR's channels.
 
@@ -298,6 +306,9 @@ class Scene:
         places the scene's camera (its model, field of view and resolution kept) for this render.
         ``Beauty`` is premultiplied by coverage (a miss is black), as in the EXR;
         ``background=True`` fills the uncovered part with the scene's background instead.
+        ``threads``: how many threads render (default: one per core, or ``RAYON_NUM_THREADS``);
+        ``zeroset.dask`` passes a worker's thread count, so workers sharing a machine share its
+        cores instead of each starting one thread per core.
         """
         pose = None
         if view is not None:
@@ -308,7 +319,7 @@ class Scene:
                     tuple(map(float, view.get("up", (0, 1, 0)))))
         return self._core.render(None if aovs is None else list(aovs), width, height,
                                  None if crop is None else tuple(int(c) for c in crop), spp, float(depth_miss),
-                                 pose, bool(background))
+                                 pose, bool(background), None if threads is None else int(threads))
 
     def __repr__(self) -> str:
         return f"Scene({self.object_count} objects, camera {self.camera.width}x{self.camera.height})"

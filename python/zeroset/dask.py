@@ -29,7 +29,7 @@ from . import Scene, ZerosetError
 
 SceneLike = Union[Scene, str, "os.PathLike[str]"]
 
-__all__ = ["render", "render_views", "cast_rays"]
+__all__ = ["render", "render_views", "cast_rays", "fetch"]
 
 
 def _as_scene(scene: SceneLike) -> Scene:
@@ -49,8 +49,21 @@ def _aov_channels(scene: Scene, aovs: Optional[Sequence[str]]) -> List[Tuple[str
     return [(name, 1 if a.ndim == 2 else a.shape[2]) for name, a in probe.items()]
 
 
+def _worker_threads() -> Optional[int]:
+    """The thread count of the Dask worker running this task (``None`` outside a worker)."""
+    try:
+        from distributed import get_worker
+
+        return get_worker().state.nthreads
+    except (ImportError, ValueError, AttributeError):
+        return None
+
+
 def _render_block(scene: Scene, kwargs: Dict[str, Any]) -> Dict[str, np.ndarray]:
-    return scene.render(**kwargs)
+    # on a worker, the render uses as many threads as the worker runs tasks at once, so workers
+    # sharing a machine do not oversubscribe its cores (each process would otherwise start one
+    # rayon thread per core)
+    return scene.render(**kwargs, threads=_worker_threads())
 
 
 def _assemble(nested: Any, axis: int = 0) -> da.Array:
@@ -166,4 +179,47 @@ def cast_rays(scene: SceneLike, origins: Any, directions: Any, tmin: float = 0.0
                 return da.from_delayed(results[prefix][field], shape=shape, dtype=dtype)
             return [nest(prefix + (i,)) for i in range(len(lead_chunks[level]))]
         out[field] = _assemble(nest(()))
+    return out
+
+
+def fetch(arrays: Dict[str, da.Array], client: Any = None) -> Dict[str, np.ndarray]:
+    """Computes dask arrays into numpy arrays in this process, block by block as they finish.
+
+    ``.compute()`` on a ``distributed`` cluster joins the blocks with a ``finalize`` task on a
+    worker — half of the blocks travel to that worker, it copies them into one array, and that
+    array travels again to the client. ``fetch`` instead allocates each result here and copies
+    every block into it as soon as the block is done, while the workers go on with the others:
+    each block crosses the network once, and the transfers overlap the computation. The values
+    are those of ``.compute()``. ``client``: a ``distributed.Client`` (default: the current one);
+    ``False``, or no client at all, computes the blocks with the local scheduler.
+    """
+    out = {name: np.empty(a.shape, dtype=a.dtype) for name, a in arrays.items()}
+    blocks = []
+    places = []
+    for name, a in arrays.items():
+        starts = [np.concatenate([[0], np.cumsum(c)[:-1]]).astype(int) for c in a.chunks]
+        delayed_blocks = a.to_delayed(optimize_graph=False)  # fused, a tile would run once per AOV
+        for index in np.ndindex(*delayed_blocks.shape):
+            window = tuple(slice(starts[k][i], starts[k][i] + a.chunks[k][i]) for k, i in enumerate(index))
+            blocks.append(delayed_blocks[index])
+            places.append((name, window))
+    if client is None:
+        try:
+            from distributed import default_client
+
+            client = default_client()
+        except (ImportError, ValueError):
+            client = False
+    if client is False:
+        for (name, window), block in zip(places, dask.compute(*blocks)):
+            out[name][window] = block
+        return out
+    from distributed import as_completed
+
+    futures = client.compute(blocks)
+    where = {f.key: place for f, place in zip(futures, places)}
+    for future, block in as_completed(futures, with_results=True):
+        name, window = where[future.key]
+        out[name][window] = block
+        future.release()
     return out

@@ -1,0 +1,218 @@
+//! The arrays `cast_rays` returns, filled in place.
+//!
+//! Each requested field is one numpy array, allocated (uninitialised) while the GIL is held and
+//! then split into one piece per chunk of [`COLUMN_CHUNK`] rays; [`trace_columns`] hands each
+//! chunk's hits to its piece on a rayon thread, with the GIL released, which writes every element
+//! of it (a miss writes the miss values). Nothing is copied after that: the arrays go back to
+//! Python as they are.
+//!
+//! Fields (one row per ray): `t` f64 (`+∞` on a miss), `hit` bool, `point` f64 ×3 and `normal`
+//! f64 ×3 (zero on a miss), `object_id` i32 (−1 on a miss), `uv` f64 ×2 (zero where the primitive
+//! has none), `primitive_id` i64 (the primitive's part, −1 on a miss), `uncertain` bool.
+//!
+//! [`trace_columns`]: zeroset::query_rays::trace_columns
+
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use zeroset::query::QueryHit;
+use zeroset::query_rays::COLUMN_CHUNK;
+
+/// Every field, in the order of the returned dict.
+pub const FIELDS: [&str; 8] = [
+    "t",
+    "hit",
+    "point",
+    "normal",
+    "object_id",
+    "uv",
+    "primitive_id",
+    "uncertain",
+];
+
+/// The output arrays of one batch (`None`: not requested).
+pub struct HitArrays<'py> {
+    t: Option<Bound<'py, PyArray1<f64>>>,
+    hit: Option<Bound<'py, PyArray1<bool>>>,
+    point: Option<Bound<'py, PyArray2<f64>>>,
+    normal: Option<Bound<'py, PyArray2<f64>>>,
+    object_id: Option<Bound<'py, PyArray1<i32>>>,
+    uv: Option<Bound<'py, PyArray2<f64>>>,
+    primitive_id: Option<Bound<'py, PyArray1<i64>>>,
+    uncertain: Option<Bound<'py, PyArray1<bool>>>,
+}
+
+/// One chunk's rows of every requested array.
+pub struct HitChunk<'a> {
+    t: Option<&'a mut [f64]>,
+    hit: Option<&'a mut [bool]>,
+    point: Option<&'a mut [f64]>,
+    normal: Option<&'a mut [f64]>,
+    object_id: Option<&'a mut [i32]>,
+    uv: Option<&'a mut [f64]>,
+    primitive_id: Option<&'a mut [i64]>,
+    uncertain: Option<&'a mut [bool]>,
+}
+
+/// Uninitialised `(n,)` array, when `wanted`.
+fn vector<'py, T: numpy::Element>(py: Python<'py>, n: usize, wanted: bool) -> Option<Bound<'py, PyArray1<T>>> {
+    // SAFETY: every element is written by `HitChunk::take` before the array reaches Python (the
+    // chunks cover all rows); on an error the array is dropped unread
+    wanted.then(|| unsafe { PyArray1::new(py, [n], false) })
+}
+
+/// Uninitialised `(n, width)` array, when `wanted`.
+fn rows<'py>(py: Python<'py>, n: usize, width: usize, wanted: bool) -> Option<Bound<'py, PyArray2<f64>>> {
+    // SAFETY: as in `vector`
+    wanted.then(|| unsafe { PyArray2::new(py, [n, width], false) })
+}
+
+/// The data of a new array as one mutable slice.
+///
+/// # Safety
+/// No other reference to the array's data may exist while the slice lives (the arrays of
+/// [`HitArrays::new`] are fresh and reach Python only after the slices are gone).
+#[allow(clippy::mut_from_ref)]
+unsafe fn data_mut<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    array: Option<&'a Bound<'_, numpy::PyArray<T, D>>>,
+) -> PyResult<Option<&'a mut [T]>> {
+    array
+        .map(|a| unsafe { a.as_slice_mut() })
+        .transpose()
+        .map_err(|e| crate::error(e.to_string()))
+}
+
+/// The pieces of one array's data, `per_ray` elements a ray, one per chunk of rays (`count`).
+fn pieces<T>(data: Option<&mut [T]>, per_ray: usize, count: usize) -> std::vec::IntoIter<Option<&mut [T]>> {
+    let pieces: Vec<Option<&mut [T]>> = match data {
+        None => (0..count).map(|_| None).collect(),
+        Some(data) => data.chunks_mut(per_ray * COLUMN_CHUNK).map(Some).collect(),
+    };
+    pieces.into_iter()
+}
+
+impl<'py> HitArrays<'py> {
+    /// The arrays of `n` rays for the fields named in `wanted` (all of them when `None`).
+    ///
+    /// # Errors
+    /// An unknown field name.
+    pub fn new(py: Python<'py>, n: usize, wanted: Option<&[String]>) -> PyResult<Self> {
+        if let Some(names) = wanted {
+            if let Some(unknown) = names.iter().find(|name| !FIELDS.contains(&name.as_str())) {
+                return Err(crate::error(format!(
+                    "outputs: unknown field `{unknown}`; expected some of {}",
+                    FIELDS.join(", ")
+                )));
+            }
+        }
+        let wants = |field: &str| wanted.is_none_or(|names| names.iter().any(|name| name == field));
+        Ok(Self {
+            t: vector(py, n, wants("t")),
+            hit: vector(py, n, wants("hit")),
+            point: rows(py, n, 3, wants("point")),
+            normal: rows(py, n, 3, wants("normal")),
+            object_id: vector(py, n, wants("object_id")),
+            uv: rows(py, n, 2, wants("uv")),
+            primitive_id: vector(py, n, wants("primitive_id")),
+            uncertain: vector(py, n, wants("uncertain")),
+        })
+    }
+
+    /// The arrays split into one [`HitChunk`] per chunk of `n` rays.
+    ///
+    /// # Errors
+    /// Never for arrays made by [`HitArrays::new`] (they are contiguous).
+    pub fn chunks(&self, n: usize) -> PyResult<Vec<HitChunk<'_>>> {
+        let count = n.div_ceil(COLUMN_CHUNK);
+        // SAFETY: the arrays were made by `new` and nothing else refers to their data (see
+        // `data_mut`); each is split once, into disjoint pieces
+        let (mut t, mut hit, mut point, mut normal, mut object_id, mut uv, mut primitive_id, mut uncertain) = unsafe {
+            (
+                pieces(data_mut(self.t.as_ref())?, 1, count),
+                pieces(data_mut(self.hit.as_ref())?, 1, count),
+                pieces(data_mut(self.point.as_ref())?, 3, count),
+                pieces(data_mut(self.normal.as_ref())?, 3, count),
+                pieces(data_mut(self.object_id.as_ref())?, 1, count),
+                pieces(data_mut(self.uv.as_ref())?, 2, count),
+                pieces(data_mut(self.primitive_id.as_ref())?, 1, count),
+                pieces(data_mut(self.uncertain.as_ref())?, 1, count),
+            )
+        };
+        Ok((0..count)
+            .map(|_| HitChunk {
+                t: t.next().flatten(),
+                hit: hit.next().flatten(),
+                point: point.next().flatten(),
+                normal: normal.next().flatten(),
+                object_id: object_id.next().flatten(),
+                uv: uv.next().flatten(),
+                primitive_id: primitive_id.next().flatten(),
+                uncertain: uncertain.next().flatten(),
+            })
+            .collect())
+    }
+
+    /// The requested arrays keyed by field name, in the order of [`FIELDS`].
+    ///
+    /// # Errors
+    /// A failing dict insertion (out of memory).
+    pub fn into_dict(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        let arrays: [(&str, Option<Bound<'py, PyAny>>); 8] = [
+            ("t", self.t.map(Bound::into_any)),
+            ("hit", self.hit.map(Bound::into_any)),
+            ("point", self.point.map(Bound::into_any)),
+            ("normal", self.normal.map(Bound::into_any)),
+            ("object_id", self.object_id.map(Bound::into_any)),
+            ("uv", self.uv.map(Bound::into_any)),
+            ("primitive_id", self.primitive_id.map(Bound::into_any)),
+            ("uncertain", self.uncertain.map(Bound::into_any)),
+        ];
+        for (name, array) in arrays {
+            if let Some(array) = array {
+                out.set_item(name, array)?;
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// `(object, hit)` of a query hit.
+type Found<'h> = Option<&'h (u32, zeroset::primitives::SurfaceHit)>;
+
+/// Writes one field over a chunk: `value` of each ray's hit, `width` elements a ray.
+fn fill<T: Copy, const W: usize>(out: Option<&mut [T]>, hits: &[QueryHit], value: impl Fn(Found<'_>) -> [T; W]) {
+    if let Some(out) = out {
+        for (row, q) in out.chunks_exact_mut(W).zip(hits) {
+            row.copy_from_slice(&value(q.hit.as_ref()));
+        }
+    }
+}
+
+impl HitChunk<'_> {
+    /// Writes this chunk's rows from its rays' hits (one hit per row, in order).
+    pub fn take(&mut self, hits: &[QueryHit]) {
+        fill(self.t.as_deref_mut(), hits, |h| [h.map_or(f64::INFINITY, |(_, h)| h.t)]);
+        fill(self.hit.as_deref_mut(), hits, |h| [h.is_some()]);
+        fill(self.point.as_deref_mut(), hits, |h| {
+            h.map_or([0.0; 3], |(_, h)| h.point.to_array())
+        });
+        fill(self.normal.as_deref_mut(), hits, |h| {
+            h.map_or([0.0; 3], |(_, h)| h.normal.unwrap_or_default().to_array())
+        });
+        fill(self.object_id.as_deref_mut(), hits, |h| {
+            [h.map_or(-1, |(id, _)| *id as i32)]
+        });
+        fill(self.uv.as_deref_mut(), hits, |h| {
+            h.and_then(|(_, h)| h.uv).unwrap_or_default().to_array()
+        });
+        fill(self.primitive_id.as_deref_mut(), hits, |h| {
+            [h.map_or(-1, |(_, h)| i64::from(h.feature))]
+        });
+        if let Some(out) = self.uncertain.as_deref_mut() {
+            for (u, q) in out.iter_mut().zip(hits) {
+                *u = q.uncertain;
+            }
+        }
+    }
+}
