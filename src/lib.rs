@@ -25,6 +25,7 @@ pub mod resources;
 pub mod sampling;
 pub mod scene;
 pub mod shapes;
+pub mod stream;
 pub mod tracing;
 pub mod views;
 
