@@ -105,24 +105,39 @@ pub(crate) fn normal_pixel(n: &[f32]) -> [u8; 3] {
 /// `(ln nearest, ln 98th percentile − ln nearest)`, so a far horizon does not flatten the
 /// foreground (a selection, not a sort: linear time). Reorders `depths`.
 pub(crate) fn depth_scale(depths: &mut [f32]) -> (f32, f32) {
-    let lo = depths.par_iter().copied().reduce(|| f32::INFINITY, f32::min);
-    let lo = if lo.is_finite() { lo.ln() } else { 0.0 };
-    let hi = if depths.is_empty() {
-        0.0
-    } else {
-        let rank = depths.len() * 98 / 100;
-        depths.select_nth_unstable_by(rank, f32::total_cmp).1.ln()
-    };
+    let nearest = depths.par_iter().copied().reduce(|| f32::INFINITY, f32::min);
+    let rank = depths.len() * 98 / 100;
+    let percentile = (!depths.is_empty()).then(|| *depths.select_nth_unstable_by(rank, f32::total_cmp).1);
+    depth_scale_of(nearest, percentile)
+}
+
+/// [`depth_scale`] from the nearest counted depth (`+∞` if none) and the 98th percentile (the
+/// element of rank `⌊0.98 n⌋` of the `n` counted depths, `None` if none).
+pub(crate) fn depth_scale_of(nearest: f32, percentile: Option<f32>) -> (f32, f32) {
+    let lo = if nearest.is_finite() { nearest.ln() } else { 0.0 };
+    let hi = percentile.map_or(0.0, f32::ln);
     (lo, (hi - lo).max(f32::MIN_POSITIVE))
 }
 
 /// The depth preview's pixel for depth `z` with scale `(lo, range)` ([`depth_scale`]): the
 /// ramp for a hit at a finite positive depth, a flat grey otherwise.
-pub(crate) fn depth_pixel(z: f32, hit: bool, (lo, range): (f32, f32)) -> [u8; 3] {
-    if hit && z.is_finite() && z > 0.0 {
-        depth_ramp((z.ln() - lo) / range).0
-    } else {
+pub(crate) fn depth_pixel(z: f32, hit: bool, scale: (f32, f32)) -> [u8; 3] {
+    depth_pixel_of_log(
+        if hit && z.is_finite() && z > 0.0 {
+            z.ln()
+        } else {
+            f32::NAN
+        },
+        scale,
+    )
+}
+
+/// [`depth_pixel`] from `ln z`, NaN where the pixel is drawn as a miss.
+pub(crate) fn depth_pixel_of_log(log_z: f32, (lo, range): (f32, f32)) -> [u8; 3] {
+    if log_z.is_nan() {
         MISS_GREY.0
+    } else {
+        depth_ramp((log_z - lo) / range).0
     }
 }
 

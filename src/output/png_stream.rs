@@ -4,17 +4,19 @@
 //! The beauty and normal previews are streamed: each band's 8-bit rows are made by the thread
 //! that traced it ([`BandSink::prepare`]) and fed in order to the `png` crate's `StreamWriter`
 //! (fast deflate, `Sub` filter), which writes the file as it goes. The depth preview's colours
-//! depend on the nearest depth and the 98th percentile of the whole frame, so it keeps one `f32`
-//! per pixel while the frame is traced and is made and encoded by [`PreviewStream::finish`].
+//! depend on the nearest depth and the 98th percentile of the whole frame, so it keeps two `f32`
+//! per pixel (the depth and its logarithm) and a histogram while the frame is traced, and is
+//! coloured and encoded by [`PreviewStream::finish`].
 //! Every file is written under a temporary name and renamed into place when complete
 //! ([`crate::output::atomic`]).
 
 use crate::aov::Aov;
 use crate::output::atomic::AtomicFile;
-use crate::output::png::{beauty_pixel, depth_pixel, depth_scale, normal_pixel, save, SrgbTable};
+use crate::output::png::{beauty_pixel, depth_pixel_of_log, depth_scale_of, normal_pixel, save, SrgbTable};
 use crate::render::FrameLayout;
 use crate::stream::BandSink;
 use anyhow::{Context, Result};
+use rayon::prelude::*;
 use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -45,8 +47,67 @@ enum Progress {
         file: AtomicFile,
         png: png::StreamWriter<'static, File>,
     },
-    /// Depth: the depths seen (see [`PreviewStream::prepare`]), one per pixel so far.
-    Depths(Vec<f32>),
+    /// Depth: what the scale and the colours need, gathered band by band.
+    Depths(DepthPlane),
+}
+
+/// The depth preview's data so far. A depth counts for the scale when it is finite and positive,
+/// a hit or not (as in `write_previews`); a pixel is coloured when it is a hit at a counted
+/// depth. The 98th percentile is found exactly without a selection over the whole frame: a
+/// histogram of the counted depths by the top 16 bits of their `f32` pattern (ordered like the
+/// values for positive numbers) gives the bin holding the wanted rank, and only that bin's
+/// depths are selected from.
+struct DepthPlane {
+    /// Per pixel: the depth if counted, else NaN.
+    counted: Vec<f32>,
+    /// Per pixel: `ln z` if coloured, else NaN.
+    logs: Vec<f32>,
+    /// Counted depths per bin of `bits >> 16`.
+    histogram: Vec<u64>,
+    /// The nearest counted depth (`+∞` before any).
+    nearest: f32,
+}
+
+impl DepthPlane {
+    fn with_capacity(pixels: usize) -> Self {
+        Self {
+            counted: Vec::with_capacity(pixels),
+            logs: Vec::with_capacity(pixels),
+            histogram: vec![0; 1 << 16],
+            nearest: f32::INFINITY,
+        }
+    }
+
+    fn push(&mut self, z: f32, hit: bool) {
+        let counts = z.is_finite() && z > 0.0;
+        if counts {
+            self.histogram[(z.to_bits() >> 16) as usize] += 1;
+            self.nearest = self.nearest.min(z);
+        }
+        self.counted.push(if counts { z } else { f32::NAN });
+        self.logs.push(if counts && hit { z.ln() } else { f32::NAN });
+    }
+
+    /// `(ln nearest, ln percentile − ln nearest)`, as `depth_scale` computes it over all depths.
+    fn scale(&self) -> (f32, f32) {
+        let total: u64 = self.histogram.iter().sum();
+        let rank = (total as usize) * 98 / 100;
+        let percentile = (total > 0).then(|| {
+            let (mut below, mut bin) = (0, 0);
+            while below + self.histogram[bin] as usize <= rank {
+                below += self.histogram[bin] as usize;
+                bin += 1;
+            }
+            let mut members: Vec<f32> = self
+                .counted
+                .par_iter()
+                .copied()
+                .filter(|z| !z.is_nan() && (z.to_bits() >> 16) as usize == bin)
+                .collect();
+            *members.select_nth_unstable_by(rank - below, f32::total_cmp).1
+        });
+        depth_scale_of(self.nearest, percentile)
+    }
 }
 
 impl PreviewStream {
@@ -58,7 +119,7 @@ impl PreviewStream {
     pub fn create(path: &Path, aov: Aov, layout: &FrameLayout, background: [f32; 3]) -> Result<Self> {
         let (width, height) = (layout.window.width(), layout.window.height());
         let state = if aov == Aov::Depth {
-            Progress::Depths(Vec::with_capacity(width as usize * height as usize))
+            Progress::Depths(DepthPlane::with_capacity(width as usize * height as usize))
         } else {
             let mut file = AtomicFile::create(path)?;
             let handle = file
@@ -109,15 +170,12 @@ impl PreviewStream {
                     .with_context(|| format!("writing {}", self.path.display()))?;
                 file.commit()
             }
-            Progress::Depths(depths) => {
-                // a depth counts for the scale when finite and positive, a hit or not (as in
-                // `write_previews`); it is stored negated when it is not a hit, NaN when neither
-                let mut counted: Vec<f32> = depths.iter().filter(|v| v.is_finite()).map(|v| v.abs()).collect();
-                let scale = depth_scale(&mut counted);
-                drop(counted);
+            Progress::Depths(plane) => {
+                let scale = plane.scale();
+                drop(plane.counted);
+                let logs = plane.logs;
                 save(self.width, self.height, &self.path, |i| {
-                    let v = depths[i];
-                    depth_pixel(v, v > 0.0, scale)
+                    depth_pixel_of_log(logs[i], scale)
                 })
             }
         }
@@ -146,16 +204,10 @@ impl BandSink for PreviewStream {
             Progress::Streaming { png, .. } => png
                 .write_all(&prepared)
                 .with_context(|| format!("writing {}", self.path.display())),
-            Progress::Depths(depths) => {
-                depths.extend(rows.chunks_exact(self.stride).map(|p| {
-                    let z = p[self.offset];
-                    let hit = self.alpha.is_none_or(|a| p[a] > 0.0);
-                    match (z.is_finite() && z > 0.0, hit) {
-                        (true, true) => z,
-                        (true, false) => -z,
-                        (false, _) => f32::NAN,
-                    }
-                }));
+            Progress::Depths(plane) => {
+                for p in rows.chunks_exact(self.stride) {
+                    plane.push(p[self.offset], self.alpha.is_none_or(|a| p[a] > 0.0));
+                }
                 Ok(())
             }
         }
