@@ -78,7 +78,7 @@ impl ExrStream {
             .map(|c| {
                 channels
                     .iter()
-                    .find(|(_, _, name, _)| c.name == Text::from(*name))
+                    .find(|(_, _, name, _)| c.name == **name)
                     .map(|(_, _, _, offset)| *offset)
                     .expect("the file's channels are the frame's")
             })

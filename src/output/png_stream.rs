@@ -45,7 +45,7 @@ enum Progress {
     /// Beauty and normal: the file, written row by row.
     Streaming {
         file: AtomicFile,
-        png: png::StreamWriter<'static, File>,
+        png: Box<png::StreamWriter<'static, File>>,
     },
     /// Depth: what the scale and the colours need, gathered band by band.
     Depths(DepthPlane),
@@ -135,7 +135,10 @@ impl PreviewStream {
                 .write_header()
                 .and_then(|w| w.into_stream_writer_with_size(CHUNK_BYTES))
                 .with_context(|| format!("writing {}", path.display()))?;
-            Progress::Streaming { file, png }
+            Progress::Streaming {
+                file,
+                png: Box::new(png),
+            }
         };
         Ok(Self {
             path: path.to_path_buf(),
