@@ -474,16 +474,17 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         (Some(a), Some(b)) => format!("; CPU {:.2} s", b - a),
         _ => String::new(),
     };
-    let (what, trace) = if cameras.len() == 1 {
+    // one view writes while it traces: its write time is what was left after the trace
+    let (what, trace, write) = if cameras.len() == 1 {
         let c = cameras[0];
         let w = crop.map_or(c.width, |w| w.width());
         let h = crop.map_or(c.height, |w| w.height());
-        (format!("{w}x{h}"), "trace")
+        (format!("{w}x{h}"), "trace", " after the trace")
     } else {
-        (format!("{} views", cameras.len()), "trace and write")
+        (format!("{} views", cameras.len()), "trace and write", "")
     };
     println!(
-        "rendered {what} at {} spp ({} objects) on {} threads: {trace} {:.3} s ({:.2} Mrays/s), wall {:.3} s (load+BVH {:.3} s, write {:.3} s{cpu})",
+        "rendered {what} at {} spp ({} objects) on {} threads: {trace} {:.3} s ({:.2} Mrays/s), wall {:.3} s (load+BVH {:.3} s, write {:.3} s{write}{cpu})",
         scene.sampling.spp,
         scene.objects.len(),
         rayon::current_num_threads(),

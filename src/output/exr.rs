@@ -18,6 +18,10 @@
 //!
 //! **Atomic**: the file is written next to its destination under a temporary name and renamed
 //! into place ([`crate::output::atomic`]).
+//!
+//! `zeroset render` writes the same file band by band while the frame is traced
+//! ([`crate::output::exr_stream`]); this module writes it from a whole [`Frame`] (views, merge,
+//! Python).
 
 use crate::aov::Aov;
 use crate::output::atomic::AtomicFile;
