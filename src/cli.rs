@@ -357,7 +357,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let cameras: Vec<&Camera> = selected.iter().map(|&i| views[i].0).collect();
     let background = scene.background.as_vec3().to_array();
     let write_seconds = std::sync::Mutex::new(0.0f64);
-    // writes view `k` of `selected` (EXR and previews in parallel, each atomically)
+    // the EXR header of view `index` through `camera`
     let exr_header = |camera: &Camera, index: usize| ExrHeader {
         world_to_camera: camera.world_to_camera(),
         world_to_ndc: camera.world_to_ndc(0.01, 1000.0),
