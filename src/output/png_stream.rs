@@ -216,3 +216,45 @@ impl BandSink for PreviewStream {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::output::png::depth_scale;
+
+    /// Depths with repeats, misses, zeros, infinities and a wide spread of magnitudes.
+    fn depth(i: usize) -> (f32, bool) {
+        let z = match i % 11 {
+            0 => f32::INFINITY,
+            1 => 0.0,
+            2 => f32::NAN,
+            3 => 7.25, // repeated exactly
+            _ => 1e-3 * (1.0 + ((i * 7919) % 100_003) as f32).powf(1.7),
+        };
+        (z, i % 5 != 0)
+    }
+
+    #[test]
+    fn histogram_scale_equals_the_selection_over_all_depths() {
+        for n in [0, 1, 2, 3, 50, 1000, 100_003] {
+            let mut plane = DepthPlane::with_capacity(n);
+            let mut counted = Vec::new();
+            for i in 0..n {
+                let (z, hit) = depth(i);
+                plane.push(z, hit);
+                if z.is_finite() && z > 0.0 {
+                    counted.push(z);
+                }
+                // a coloured pixel holds ln z, the others NaN
+                let log = plane.logs[i];
+                assert_eq!(log.is_nan(), !(hit && z.is_finite() && z > 0.0), "{i}");
+            }
+            let (a, b) = (plane.scale(), depth_scale(&mut counted));
+            assert_eq!(
+                (a.0.to_bits(), a.1.to_bits()),
+                (b.0.to_bits(), b.1.to_bits()),
+                "{n} depths"
+            );
+        }
+    }
+}
