@@ -7,18 +7,20 @@ use crate::diagnostics::{uncertain_message, uncertain_since};
 use crate::output::atomic::{check_destination, write_atomically, AtomicFile};
 use crate::output::cameras_json::{cameras_json, exr_camera_attributes, transforms_json};
 use crate::output::exr::{size_estimate, write_exr_with, ExrCompression, ExrHeader};
+use crate::output::exr_stream::ExrStream;
 use crate::output::merge::merge_crops;
-use crate::output::png::write_previews;
-use crate::query::{
-    run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS,
-};
+use crate::output::png::{write_previews, PREVIEWS};
+use crate::output::png_stream::PreviewStream;
+use crate::query::{run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS};
 use crate::query_rays::{scene_magnitude, RangeConvention, RaySetup};
-use crate::render::{render_view, Frame, RenderOptions, Window};
+use crate::render::{Frame, FrameLayout, RenderOptions, Window};
 use crate::resources::{capped_threads, check_memory, process_cpu_seconds, render_memory_estimate};
 use crate::scene::Scene;
+use crate::stream::{render_view_to, BandSink};
 use crate::views::{render_views, view_files};
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
+use rayon::iter::{IntoParallelIterator, ParallelIterator};
 use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -360,7 +362,15 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let cameras: Vec<&Camera> = selected.iter().map(|&i| views[i].0).collect();
     let background = scene.background.as_vec3().to_array();
     let write_seconds = std::sync::Mutex::new(0.0f64);
-    // writes view `k` of `selected` (EXR and previews in parallel, each atomically)
+    // the EXR header of view `index` through `camera`
+    let exr_header = |camera: &Camera, index: usize| ExrHeader {
+        world_to_camera: camera.world_to_camera(),
+        world_to_ndc: camera.world_to_ndc(0.01, 1000.0),
+        scene_file: args.scene.display().to_string(),
+        depth_miss: args.depth_miss,
+        camera_attributes: exr_camera_attributes(camera, index),
+    };
+    // writes view `k` of `selected` from its frame (EXR and previews in parallel, each atomically)
     let write_view = |k: usize, frame: &Frame| -> Result<()> {
         let index = selected[k];
         let (camera, file) = (views[index].0, &views[index].1);
@@ -371,13 +381,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             exr_path.display(),
             if previews { " and PNG previews" } else { "" }
         );
-        let header = ExrHeader {
-            world_to_camera: camera.world_to_camera(),
-            world_to_ndc: camera.world_to_ndc(0.01, 1000.0),
-            scene_file: args.scene.display().to_string(),
-            depth_miss: args.depth_miss,
-            camera_attributes: exr_camera_attributes(camera, index),
-        };
+        let header = exr_header(camera, index);
         let preview_stem = file.trim_end_matches(".exr");
         let (exr, pngs) = rayon::join(
             || write_exr_with(frame, &exr_path, &header, args.compression),
@@ -392,30 +396,67 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         exr?;
         let mut written = vec![exr_path];
         written.extend(pngs.context("writing PNG previews")?);
-        for path in &written {
-            eprintln!("wrote {}", path.display());
-        }
-        if frame.not_converged > 0 {
-            eprintln!(
-                "warning: {file}: {} pixel samples had no ray because the lens undistortion did not converge to \
-                 1e-12 px there (strong distortion beyond its invertible region); they hold the miss values",
-                frame.not_converged
-            );
-        }
+        report_written(&written, file, frame.not_converged);
         *write_seconds.lock().unwrap_or_else(std::sync::PoisonError::into_inner) += write_start.elapsed().as_secs_f64();
         Ok(())
     };
     let cpu_before_trace = process_cpu_seconds();
     let exhausted_before = budget_exhaustions();
     let function_before = zeroset_primitives::uncertain_counts();
-    let trace_start = Instant::now();
     let (trace_seconds, rays) = if cameras.len() == 1 {
-        let frame = render_view(&scene, cameras[0], &options);
+        // one view: its files are written while it is traced (crate::stream)
+        let index = selected[0];
+        let (camera, file) = (views[index].0, &views[index].1);
+        let layout = FrameLayout::new(camera, &options);
+        let exr_path = dir.join(file);
+        let exr = ExrStream::create(&exr_path, &layout, &exr_header(camera, index), args.compression)?;
+        let preview_stem = file.trim_end_matches(".exr");
+        let pngs: Vec<PreviewStream> = if previews {
+            PREVIEWS
+                .iter()
+                .filter(|(aov, _)| layout.channel_offset(*aov).is_some())
+                .map(|(aov, name)| {
+                    let path = dir.join(format!("{preview_stem}.{name}.png"));
+                    PreviewStream::create(&path, *aov, &layout, background)
+                })
+                .collect::<Result<_>>()?
+        } else {
+            Vec::new()
+        };
+        eprintln!(
+            "writing {}{} as rows are traced …",
+            exr_path.display(),
+            if previews { " and PNG previews" } else { "" }
+        );
+        let mut sinks: Vec<&dyn BandSink> = vec![&exr];
+        sinks.extend(pngs.iter().map(|p| p as &dyn BandSink));
+        let trace_start = Instant::now();
+        let stats = render_view_to(&scene, camera, &options, &sinks)?;
+        drop(sinks);
         warn_uncertain(uncertain_events_since(exhausted_before, function_before));
-        write_view(0, &frame)?;
-        let rays = u64::from(frame.window.width()) * u64::from(frame.window.height()) * u64::from(frame.spp);
-        (frame.elapsed.as_secs_f64(), rays)
+        let (exr_done, pngs_done) = rayon::join(
+            || exr.finish(),
+            || {
+                pngs.into_par_iter()
+                    .map(|p| {
+                        let path = p.path().to_path_buf();
+                        p.finish().map(|()| path)
+                    })
+                    .collect::<Result<Vec<PathBuf>>>()
+            },
+        );
+        exr_done?;
+        let mut written = vec![exr_path];
+        written.extend(pngs_done.context("writing PNG previews")?);
+        report_written(&written, file, stats.not_converged);
+        // the writing that was not overlapped with the trace
+        *write_seconds.lock().unwrap_or_else(std::sync::PoisonError::into_inner) =
+            trace_start.elapsed().saturating_sub(stats.elapsed).as_secs_f64();
+        let window = layout.window;
+        let rays = u64::from(window.width()) * u64::from(window.height()) * u64::from(stats.spp);
+        (stats.elapsed.as_secs_f64(), rays)
     } else {
+        let trace_start = Instant::now();
         let rays = AtomicU64::new(0);
         render_views(&scene, &cameras, &options, |k, frame| {
             write_view(k, &frame)?;
@@ -438,16 +479,17 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         (Some(a), Some(b)) => format!("; CPU {:.2} s", b - a),
         _ => String::new(),
     };
-    let (what, trace) = if cameras.len() == 1 {
+    // one view writes while it traces: its write time is what was left after the trace
+    let (what, trace, write) = if cameras.len() == 1 {
         let c = cameras[0];
         let w = crop.map_or(c.width, |w| w.width());
         let h = crop.map_or(c.height, |w| w.height());
-        (format!("{w}x{h}"), "trace")
+        (format!("{w}x{h}"), "trace", " after the trace")
     } else {
-        (format!("{} views", cameras.len()), "trace and write")
+        (format!("{} views", cameras.len()), "trace and write", "")
     };
     println!(
-        "rendered {what} at {} spp ({} objects) on {} threads: {trace} {:.3} s ({:.2} Mrays/s), wall {:.3} s (load+BVH {:.3} s, write {:.3} s{cpu})",
+        "rendered {what} at {} spp ({} objects) on {} threads: {trace} {:.3} s ({:.2} Mrays/s), wall {:.3} s (load+BVH {:.3} s, write {:.3} s{write}{cpu})",
         scene.sampling.spp,
         scene.objects.len(),
         rayon::current_num_threads(),
@@ -458,6 +500,19 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         write_seconds,
     );
     Ok(())
+}
+
+/// Prints the files written for view file `file`, and a warning for its samples without a ray.
+fn report_written(written: &[PathBuf], file: &str, not_converged: u64) {
+    for path in written {
+        eprintln!("wrote {}", path.display());
+    }
+    if not_converged > 0 {
+        eprintln!(
+            "warning: {file}: {not_converged} pixel samples had no ray because the lens undistortion did not converge to \
+             1e-12 px there (strong distortion beyond its invertible region); they hold the miss values"
+        );
+    }
 }
 
 /// Uncertain events since the counts taken before tracing: the generic root finder's budget

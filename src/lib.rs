@@ -53,6 +53,7 @@ pub mod sampling;
 pub mod scene;
 pub mod shape_desc;
 pub mod shapes;
+pub mod stream;
 pub mod tracing;
 pub mod views;
 

@@ -20,7 +20,9 @@
 //! converge) sees nothing, like a miss, and is counted in [`Frame`]. [`render`] traces the
 //! scene's camera, [`render_view`] any other (such as one of the scene's `views`).
 //!
-//! Rows are distributed over rayon's threads in bands; every pixel is computed independently from the scene and its own samples (a hash of
+//! Rows are traced on rayon's threads ([`render_view`]: one task per row, into a [`Frame`];
+//! [`crate::stream`]: bands of rows handed in order to the output files as they finish); every
+//! pixel is computed independently from the scene and its own samples (a hash of
 //! seed, pixel and sample index), so the image is bit-identical whatever the thread count. The
 //! loop knows nothing about any particular primitive: it calls [`Scene::intersect`] (or
 //! [`Scene::intersect_at`]) and [`SurfaceHit::complete`].
@@ -139,14 +141,18 @@ impl Frame {
     /// Offset of `aov`'s first channel within a pixel, if it was rendered.
     #[must_use]
     pub fn channel_offset(&self, aov: Aov) -> Option<usize> {
-        let mut offset = 0;
-        for a in &self.aovs {
-            if *a == aov {
-                return Some(offset);
-            }
-            offset += a.channels().len();
+        channel_offset_in(&self.aovs, aov)
+    }
+
+    /// The frame's layout (size, window, AOVs), without the samples.
+    #[must_use]
+    pub fn layout(&self) -> FrameLayout {
+        FrameLayout {
+            width: self.width,
+            height: self.height,
+            window: self.window,
+            aovs: self.aovs.clone(),
         }
-        None
     }
 
     /// The values of `aov` at pixel `(x, y)` of the full image (must lie in the window).
@@ -201,94 +207,221 @@ impl NoRayCounts {
     }
 }
 
+/// What a render of one camera produces, known before any ray is traced: the image size, the
+/// data window and the AOVs in channel order (duplicates dropped). [`Frame`] holds the samples;
+/// [`crate::stream`] hands them to the output files band by band instead.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FrameLayout {
+    /// Full image width (the display window).
+    pub width: u32,
+    /// Full image height.
+    pub height: u32,
+    /// The rendered part (the data window).
+    pub window: Window,
+    /// The AOVs, in channel order.
+    pub aovs: Vec<Aov>,
+}
+
+impl FrameLayout {
+    /// The layout of rendering `camera` as `options` ask: the crop (or the whole image) and the
+    /// requested AOVs without repeats, in the order asked.
+    #[must_use]
+    pub fn new(camera: &Camera, options: &RenderOptions) -> Self {
+        let window = options.crop.unwrap_or(Window {
+            x0: 0,
+            y0: 0,
+            x1: camera.width,
+            y1: camera.height,
+        });
+        let mut aovs = Vec::new();
+        for a in &options.aovs {
+            if !aovs.contains(a) {
+                aovs.push(*a);
+            }
+        }
+        Self {
+            width: camera.width,
+            height: camera.height,
+            window,
+            aovs,
+        }
+    }
+
+    /// Channels per pixel.
+    #[must_use]
+    pub fn channel_count(&self) -> usize {
+        self.aovs.iter().map(|a| a.channels().len()).sum()
+    }
+
+    /// Samples per row of the window (`width × channels`).
+    #[must_use]
+    pub fn row_len(&self) -> usize {
+        self.window.width() as usize * self.channel_count()
+    }
+
+    /// Offset of `aov`'s first channel within a pixel, if it is rendered.
+    #[must_use]
+    pub fn channel_offset(&self, aov: Aov) -> Option<usize> {
+        channel_offset_in(&self.aovs, aov)
+    }
+}
+
+/// Offset of `aov`'s first channel within a pixel of interleaved `aovs`.
+fn channel_offset_in(aovs: &[Aov], aov: Aov) -> Option<usize> {
+    let mut offset = 0;
+    for a in aovs {
+        if *a == aov {
+            return Some(offset);
+        }
+        offset += a.channels().len();
+    }
+    None
+}
+
+/// Facts about a finished trace besides its samples.
+#[derive(Clone, Copy, Debug)]
+pub struct TraceStats {
+    /// Wall time of the trace.
+    pub elapsed: Duration,
+    /// Primary rays per pixel.
+    pub spp: u32,
+    /// Pixel samples outside the camera's field (see [`Frame::outside_field`]).
+    pub outside_field: u64,
+    /// Pixel samples where the undistortion did not converge (see [`Frame::not_converged`]).
+    pub not_converged: u64,
+}
+
+/// One render in progress: what its rows share, the progress bar and the counts of samples
+/// without a ray. Rows may be traced in any order and on any thread; each is computed from the
+/// scene and its own pixels only, so the samples do not depend on the order.
+pub(crate) struct Tracer<'a> {
+    scene: &'a Scene,
+    context: RowContext<'a>,
+    sampled: bool,
+    /// First column of the window.
+    x0: u32,
+    /// Samples per row of the window.
+    row_len: usize,
+    progress: bool,
+    bar: ProgressBar,
+    bar_shown: AtomicBool,
+    start: Instant,
+}
+
+impl<'a> Tracer<'a> {
+    /// Starts the clock of a render of `layout` through `camera`.
+    pub(crate) fn new(scene: &'a Scene, camera: &'a Camera, options: &RenderOptions, layout: &'a FrameLayout) -> Self {
+        let aovs = &layout.aovs;
+        let request = HitRequest {
+            normal: aovs
+                .iter()
+                .any(|a| matches!(a, Aov::Beauty | Aov::Normal | Aov::CameraNormal | Aov::ShadingNormal)),
+            uv: aovs.contains(&Aov::Uv),
+        };
+        let bar = ProgressBar::with_draw_target(Some(u64::from(layout.window.height())), ProgressDrawTarget::hidden());
+        bar.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} rows, {elapsed} elapsed, ~{eta} left")
+                .expect("valid template"),
+        );
+        let context = RowContext {
+            aovs,
+            request,
+            shading: aovs.contains(&Aov::ShadingNormal),
+            beauty: aovs.contains(&Aov::Beauty),
+            channels: layout.channel_count(),
+            world_to_camera: camera.world_to_camera(),
+            depth_miss: options.depth_miss,
+            camera,
+            no_ray: NoRayCounts::default(),
+            uncertain_offset: {
+                let at = aovs.iter().position(|a| *a == Aov::Uncertain);
+                at.map(|k| aovs[..k].iter().map(|a| a.channels().len()).sum())
+            },
+            miss_colour: if options.background {
+                scene.background
+            } else {
+                DVec3::ZERO
+            },
+        };
+        Self {
+            scene,
+            context,
+            sampled: scene.sampling.spp > 1 || scene.has_motion(),
+            x0: layout.window.x0,
+            row_len: layout.row_len(),
+            progress: options.progress,
+            bar,
+            bar_shown: AtomicBool::new(false),
+            start: Instant::now(),
+        }
+    }
+
+    /// Traces the rows from `y0` on (full-image row numbers) into `out`: whole rows of the
+    /// window, interleaved samples.
+    pub(crate) fn rows(&self, y0: u32, out: &mut [f32]) {
+        let mut rows = 0;
+        for (k, row) in out.chunks_exact_mut(self.row_len.max(1)).enumerate() {
+            let y = y0 + k as u32;
+            if self.sampled {
+                render_row_sampled(self.scene, &self.context, self.x0, y, row);
+            } else {
+                render_row(self.scene, &self.context, self.x0, y, row);
+            }
+            rows += 1;
+        }
+        if self.progress {
+            self.bar.inc(rows);
+            if !self.bar_shown.load(Ordering::Relaxed)
+                && self.start.elapsed() > Duration::from_secs(1)
+                && !self.bar_shown.swap(true, Ordering::Relaxed)
+            {
+                self.bar.set_draw_target(ProgressDrawTarget::stderr());
+            }
+        }
+    }
+
+    /// Time since the trace started.
+    pub(crate) fn elapsed(&self) -> Duration {
+        self.start.elapsed()
+    }
+
+    /// Ends the trace (clearing the progress bar) with its facts, `elapsed` being its wall time.
+    pub(crate) fn finish(self, elapsed: Duration) -> TraceStats {
+        self.bar.finish_and_clear();
+        TraceStats {
+            elapsed,
+            spp: self.scene.sampling.spp.max(1),
+            outside_field: self.context.no_ray.outside_field.into_inner(),
+            not_converged: self.context.no_ray.not_converged.into_inner(),
+        }
+    }
+}
+
 /// Renders `scene` through `camera` (one of its views, or any other camera) as `options` ask.
 #[must_use]
 pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> Frame {
-    let window = options.crop.unwrap_or(Window {
-        x0: 0,
-        y0: 0,
-        x1: camera.width,
-        y1: camera.height,
-    });
-    let mut aovs = Vec::new();
-    for a in &options.aovs {
-        if !aovs.contains(a) {
-            aovs.push(*a);
-        }
-    }
-    let request = HitRequest {
-        normal: aovs
-            .iter()
-            .any(|a| matches!(a, Aov::Beauty | Aov::Normal | Aov::CameraNormal | Aov::ShadingNormal)),
-        uv: aovs.contains(&Aov::Uv),
-    };
-    let shading = aovs.contains(&Aov::ShadingNormal);
-    let channels: usize = aovs.iter().map(|a| a.channels().len()).sum();
-    let row_len = window.width() as usize * channels;
-    let mut samples = vec![0.0f32; row_len * window.height() as usize];
-    let world_to_camera = camera.world_to_camera();
-
-    let start = Instant::now();
-    let bar = ProgressBar::with_draw_target(Some(u64::from(window.height())), ProgressDrawTarget::hidden());
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} rows, {elapsed} elapsed, ~{eta} left")
-            .expect("valid template"),
-    );
-    let bar_shown = AtomicBool::new(false);
-    let sampled = scene.sampling.spp > 1 || scene.has_motion();
-    let context = RowContext {
-        aovs: &aovs,
-        request,
-        shading,
-        beauty: aovs.contains(&Aov::Beauty),
-        channels,
-        world_to_camera,
-        depth_miss: options.depth_miss,
-        camera,
-        no_ray: NoRayCounts::default(),
-        uncertain_offset: {
-            let at = aovs.iter().position(|a| *a == Aov::Uncertain);
-            at.map(|k| aovs[..k].iter().map(|a| a.channels().len()).sum())
-        },
-        miss_colour: if options.background {
-            scene.background
-        } else {
-            DVec3::ZERO
-        },
-    };
-
-    samples.par_chunks_mut(row_len).enumerate().for_each(|(row, out)| {
-        let y = window.y0 + row as u32;
-        if sampled {
-            render_row_sampled(scene, &context, window.x0, y, out);
-        } else {
-            render_row(scene, &context, window.x0, y, out);
-        }
-        if options.progress {
-            bar.inc(1);
-            if !bar_shown.load(Ordering::Relaxed)
-                && start.elapsed() > Duration::from_secs(1)
-                && !bar_shown.swap(true, Ordering::Relaxed)
-            {
-                bar.set_draw_target(ProgressDrawTarget::stderr());
-            }
-        }
-    });
-    bar.finish_and_clear();
-    let (outside_field, not_converged) = (
-        context.no_ray.outside_field.into_inner(),
-        context.no_ray.not_converged.into_inner(),
-    );
+    let layout = FrameLayout::new(camera, options);
+    let row_len = layout.row_len();
+    let mut samples = vec![0.0f32; row_len * layout.window.height() as usize];
+    let tracer = Tracer::new(scene, camera, options, &layout);
+    samples
+        .par_chunks_mut(row_len.max(1))
+        .enumerate()
+        .for_each(|(row, out)| {
+            tracer.rows(layout.window.y0 + row as u32, out);
+        });
+    let elapsed = tracer.elapsed();
+    let stats = tracer.finish(elapsed);
     Frame {
-        width: camera.width,
-        height: camera.height,
-        window,
-        aovs,
+        width: layout.width,
+        height: layout.height,
+        window: layout.window,
+        aovs: layout.aovs,
         samples,
-        elapsed: start.elapsed(),
-        spp: scene.sampling.spp.max(1),
-        outside_field,
-        not_converged,
+        elapsed: stats.elapsed,
+        spp: stats.spp,
+        outside_field: stats.outside_field,
+        not_converged: stats.not_converged,
     }
 }
 

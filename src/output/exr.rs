@@ -18,9 +18,14 @@
 //!
 //! **Atomic**: the file is written next to its destination under a temporary name and renamed
 //! into place ([`crate::output::atomic`]).
+//!
+//! `zeroset render` writes the same file band by band while the frame is traced
+//! ([`crate::output::exr_stream`]); this module writes it from a whole [`Frame`] (views, merge,
+//! Python).
 
+use crate::aov::Aov;
 use crate::output::atomic::AtomicFile;
-use crate::render::Frame;
+use crate::render::{Frame, FrameLayout};
 use anyhow::{bail, Context, Result};
 use exr::meta::attribute::{AttributeValue, IntegerBounds, Text};
 use exr::prelude::*;
@@ -107,21 +112,43 @@ pub fn write_exr(frame: &Frame, path: &Path, header: &ExrHeader) -> Result<()> {
 /// Encoding or any file operation fails; `path` is then untouched.
 pub fn write_exr_with(frame: &Frame, path: &Path, header: &ExrHeader, compression: ExrCompression) -> Result<()> {
     // the interleaved frame split into planar channels, one channel per task
-    let names: Vec<(crate::aov::Aov, usize, &str)> = frame
-        .aovs
-        .iter()
-        .flat_map(|aov| aov.channels().iter().enumerate().map(move |(k, name)| (*aov, k, *name)))
-        .collect();
-    let planes: Vec<Vec<f32>> = names
+    let layout = frame.layout();
+    let planes: Vec<Vec<f32>> = frame_channels(&layout)
         .par_iter()
-        .map(|(aov, component, _)| frame.planar_channel(*aov, *component))
+        .map(|(aov, component, _, _)| frame.planar_channel(*aov, *component))
         .collect();
-    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = names
+    write_image_atomically(&flat_image(&layout, planes, header, compression), path)
+}
+
+/// Every channel of a frame of `layout`, in the frame's order: its AOV, its component within the
+/// AOV, its EXR name and its offset within an interleaved pixel.
+pub(crate) fn frame_channels(layout: &FrameLayout) -> Vec<(Aov, usize, &'static str, usize)> {
+    let mut offset = 0;
+    let mut channels = Vec::new();
+    for aov in &layout.aovs {
+        for (component, name) in aov.channels().iter().enumerate() {
+            channels.push((*aov, component, *name, offset));
+            offset += 1;
+        }
+    }
+    channels
+}
+
+/// The EXR image of a frame of `layout`: `planes` are the channels in the order of
+/// [`frame_channels`] (empty vectors describe the file without its pixels, as the streaming
+/// writer needs), `header` its attributes.
+pub(crate) fn flat_image(
+    layout: &FrameLayout,
+    planes: Vec<Vec<f32>>,
+    header: &ExrHeader,
+    compression: ExrCompression,
+) -> FlatImage {
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = frame_channels(layout)
         .iter()
         .zip(planes)
-        .map(|((_, _, name), plane)| AnyChannel::new(*name, FlatSamples::F32(plane)))
+        .map(|((_, _, name, _), plane)| AnyChannel::new(*name, FlatSamples::F32(plane)))
         .collect();
-    let window = frame.window;
+    let window = layout.window;
     let attributes = LayerAttributes {
         layer_position: Vec2(window.x0 as i32, window.y0 as i32),
         world_to_camera: Some(imath_matrix(&header.world_to_camera)),
@@ -141,7 +168,7 @@ pub fn write_exr_with(frame: &Frame, path: &Path, header: &ExrHeader, compressio
     );
     let mut image_attributes = ImageAttributes::new(IntegerBounds::new(
         Vec2(0, 0),
-        Vec2(frame.width as usize, frame.height as usize),
+        Vec2(layout.width as usize, layout.height as usize),
     ));
     let other = &mut image_attributes.other;
     other.insert(
@@ -158,7 +185,7 @@ pub fn write_exr_with(frame: &Frame, path: &Path, header: &ExrHeader, compressio
     for (name, value) in &header.camera_attributes {
         other.insert(Text::from(name.as_str()), value.clone());
     }
-    write_image_atomically(&Image::new(image_attributes, layer), path)
+    Image::new(image_attributes, layer)
 }
 
 /// Writes any single-part flat image atomically, with its header attributes sorted by name.
@@ -180,7 +207,7 @@ pub fn write_image_atomically(image: &FlatImage, path: &Path) -> Result<()> {
 }
 
 /// Sorts the attributes of a single-part EXR header by name, in place (see the module docs).
-fn sort_header_attributes(file: &mut std::fs::File) -> Result<()> {
+pub(crate) fn sort_header_attributes(file: &mut std::fs::File) -> Result<()> {
     const HEADER_START: u64 = 8; // magic number and version field
     let mut magic_and_version = [0u8; 8];
     file.seek(SeekFrom::Start(0))?;

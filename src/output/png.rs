@@ -28,12 +28,12 @@ fn srgb_encode(linear: f32) -> u8 {
 /// least byte `b`, found by bisection on the f32 bit patterns of [0, 1] (which are ordered like
 /// the values), so the lookup equals `srgb_encode` exactly, at eight comparisons instead of a
 /// `powf`.
-struct SrgbTable {
+pub(crate) struct SrgbTable {
     thresholds: [f32; 255],
 }
 
 impl SrgbTable {
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         let mut thresholds = [0.0; 255];
         for (k, t) in thresholds.iter_mut().enumerate() {
             let byte = k as u8 + 1;
@@ -51,7 +51,7 @@ impl SrgbTable {
         Self { thresholds }
     }
 
-    fn encode(&self, linear: f32) -> u8 {
+    pub(crate) fn encode(&self, linear: f32) -> u8 {
         if linear.is_nan() {
             return srgb_encode(linear);
         }
@@ -82,22 +82,88 @@ fn depth_ramp(s: f32) -> Rgb<u8> {
 
 const MISS_GREY: Rgb<u8> = Rgb([40, 40, 40]);
 
-/// Encodes an 8-bit RGB image of the frame's window, made row by row in parallel, as PNG with
-/// the fast deflate setting, written atomically.
-fn save(frame: &Frame, path: &Path, pixel: impl Fn(usize) -> Rgb<u8> + Sync) -> anyhow::Result<()> {
-    let (w, h) = (frame.window.width(), frame.window.height());
+/// The beauty preview's pixel: the premultiplied colour `rgb` over `background`
+/// (`RGB + (1 − A)·background`), sRGB-encoded.
+pub(crate) fn beauty_pixel(table: &SrgbTable, rgb: &[f32], uncovered: f32, background: [f32; 3]) -> [u8; 3] {
+    std::array::from_fn(|k| table.encode(rgb[k] + uncovered * background[k]))
+}
+
+/// The normal preview's pixel: `(n + 1)/2`, black where `n` is zero (a miss).
+pub(crate) fn normal_pixel(n: &[f32]) -> [u8; 3] {
+    if n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0 {
+        [0, 0, 0]
+    } else {
+        [
+            unit_to_byte((n[0] + 1.0) * 0.5),
+            unit_to_byte((n[1] + 1.0) * 0.5),
+            unit_to_byte((n[2] + 1.0) * 0.5),
+        ]
+    }
+}
+
+/// The depth preview's scale from the depths that count (finite and positive, hits or not):
+/// `(ln nearest, ln 98th percentile − ln nearest)`, so a far horizon does not flatten the
+/// foreground (a selection, not a sort: linear time). Reorders `depths`.
+pub(crate) fn depth_scale(depths: &mut [f32]) -> (f32, f32) {
+    let nearest = depths.par_iter().copied().reduce(|| f32::INFINITY, f32::min);
+    let rank = depths.len() * 98 / 100;
+    let percentile = (!depths.is_empty()).then(|| *depths.select_nth_unstable_by(rank, f32::total_cmp).1);
+    depth_scale_of(nearest, percentile)
+}
+
+/// [`depth_scale`] from the nearest counted depth (`+∞` if none) and the 98th percentile (the
+/// element of rank `⌊0.98 n⌋` of the `n` counted depths, `None` if none).
+pub(crate) fn depth_scale_of(nearest: f32, percentile: Option<f32>) -> (f32, f32) {
+    let lo = if nearest.is_finite() { nearest.ln() } else { 0.0 };
+    let hi = percentile.map_or(0.0, f32::ln);
+    (lo, (hi - lo).max(f32::MIN_POSITIVE))
+}
+
+/// The depth preview's pixel for depth `z` with scale `(lo, range)` ([`depth_scale`]): the
+/// ramp for a hit at a finite positive depth, a flat grey otherwise.
+pub(crate) fn depth_pixel(z: f32, hit: bool, scale: (f32, f32)) -> [u8; 3] {
+    depth_pixel_of_log(
+        if hit && z.is_finite() && z > 0.0 {
+            z.ln()
+        } else {
+            f32::NAN
+        },
+        scale,
+    )
+}
+
+/// [`depth_pixel`] from `ln z`, NaN where the pixel is drawn as a miss.
+pub(crate) fn depth_pixel_of_log(log_z: f32, (lo, range): (f32, f32)) -> [u8; 3] {
+    if log_z.is_nan() {
+        MISS_GREY.0
+    } else {
+        depth_ramp((log_z - lo) / range).0
+    }
+}
+
+/// The encoder settings of every preview: 8-bit RGB, the fast deflate setting, the `Sub` filter.
+pub(crate) fn encoder<W: std::io::Write>(out: W) -> PngEncoder<W> {
+    PngEncoder::new_with_quality(out, CompressionType::Fast, FilterType::Sub)
+}
+
+/// Encodes a `w × h` 8-bit RGB image, made row by row in parallel, as PNG (see [`encoder`]),
+/// written atomically.
+pub(crate) fn save(w: u32, h: u32, path: &Path, pixel: impl Fn(usize) -> [u8; 3] + Sync) -> anyhow::Result<()> {
     let mut bytes = vec![0u8; w as usize * h as usize * 3];
     bytes.par_chunks_mut(w as usize * 3).enumerate().for_each(|(row, out)| {
         for (column, rgb) in out.chunks_exact_mut(3).enumerate() {
-            rgb.copy_from_slice(&pixel(row * w as usize + column).0);
+            rgb.copy_from_slice(&pixel(row * w as usize + column));
         }
     });
     write_atomically(path, |file| {
-        PngEncoder::new_with_quality(file, CompressionType::Fast, FilterType::Sub)
+        encoder(file)
             .write_image(&bytes, w, h, ExtendedColorType::Rgb8)
             .with_context(|| format!("encoding {}", path.display()))
     })
 }
+
+/// The previews made for a frame's AOVs: `(AOV, file name suffix)`.
+pub const PREVIEWS: [(Aov, &str); 3] = [(Aov::Beauty, "beauty"), (Aov::Depth, "depth"), (Aov::Normal, "normal")];
 
 /// Writes `<stem>.beauty.png`, `<stem>.depth.png` and `<stem>.normal.png` for the AOVs the frame
 /// has, in parallel; returns the paths written. The beauty preview shows the premultiplied
@@ -106,7 +172,7 @@ fn save(frame: &Frame, path: &Path, pixel: impl Fn(usize) -> Rgb<u8> + Sync) -> 
 /// # Errors
 /// Encoding or writing a file fails (files already written stay).
 pub fn write_previews(frame: &Frame, dir: &Path, stem: &str, background: [f32; 3]) -> anyhow::Result<Vec<PathBuf>> {
-    let jobs: Vec<(Aov, PathBuf)> = [(Aov::Beauty, "beauty"), (Aov::Depth, "depth"), (Aov::Normal, "normal")]
+    let jobs: Vec<(Aov, PathBuf)> = PREVIEWS
         .into_iter()
         .filter(|(aov, _)| frame.channel_offset(*aov).is_some())
         .map(|(aov, name)| (aov, dir.join(format!("{stem}.{name}.png"))))
@@ -121,13 +187,13 @@ fn write_preview(frame: &Frame, aov: Aov, path: &Path, background: [f32; 3]) -> 
     let stride = frame.channel_count();
     let alpha = frame.channel_offset(Aov::Alpha);
     let o = frame.channel_offset(aov).expect("only rendered AOVs are previewed");
+    let (w, h) = (frame.window.width(), frame.window.height());
     match aov {
         Aov::Beauty => {
             let table = SrgbTable::new();
-            save(frame, path, |i| {
-                let s = &frame.samples[i * stride + o..];
+            save(w, h, path, |i| {
                 let uncovered = alpha.map_or(0.0, |a| 1.0 - frame.samples[i * stride + a]);
-                Rgb(std::array::from_fn(|k| table.encode(s[k] + uncovered * background[k])))
+                beauty_pixel(&table, &frame.samples[i * stride + o..], uncovered, background)
             })
         }
         Aov::Depth => {
@@ -139,39 +205,13 @@ fn write_preview(frame: &Frame, aov: Aov, path: &Path, background: [f32; 3]) -> 
                 .copied()
                 .filter(|z| z.is_finite() && *z > 0.0)
                 .collect();
-            // log depth between the nearest hit and the 98th percentile, so a far horizon does
-            // not flatten the foreground (a selection, not a sort: linear time)
-            let lo = depths.par_iter().copied().reduce(|| f32::INFINITY, f32::min);
-            let lo = if lo.is_finite() { lo.ln() } else { 0.0 };
-            let hi = if depths.is_empty() {
-                0.0
-            } else {
-                let rank = depths.len() * 98 / 100;
-                depths.select_nth_unstable_by(rank, f32::total_cmp).1.ln()
-            };
-            let range = (hi - lo).max(f32::MIN_POSITIVE);
-            save(frame, path, |i| {
+            let scale = depth_scale(&mut depths);
+            save(w, h, path, |i| {
                 let hit = alpha.is_none_or(|a| frame.samples[i * stride + a] > 0.0);
-                let z = frame.samples[i * stride + o];
-                if hit && z.is_finite() && z > 0.0 {
-                    depth_ramp((z.ln() - lo) / range)
-                } else {
-                    MISS_GREY
-                }
+                depth_pixel(frame.samples[i * stride + o], hit, scale)
             })
         }
-        _ => save(frame, path, |i| {
-            let n = &frame.samples[i * stride + o..];
-            if n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0 {
-                Rgb([0, 0, 0])
-            } else {
-                Rgb([
-                    unit_to_byte((n[0] + 1.0) * 0.5),
-                    unit_to_byte((n[1] + 1.0) * 0.5),
-                    unit_to_byte((n[2] + 1.0) * 0.5),
-                ])
-            }
-        }),
+        _ => save(w, h, path, |i| normal_pixel(&frame.samples[i * stride + o..])),
     }
 }
 

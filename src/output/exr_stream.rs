@@ -1,0 +1,215 @@
+//! The EXR file of a render written while it is traced ([`crate::stream`]): the same file
+//! [`crate::output::exr::write_exr_with`] writes from a whole [`crate::render::Frame`], byte for
+//! byte, made from bands of rows.
+//!
+//! A single-part scanline EXR is: magic number and version, the header, the offset table (one
+//! `u64` file position per block of scanlines), then the blocks. The header and a zeroed table
+//! are written when the file is created; each band is cut into blocks of the codec's lines per
+//! block (1 uncompressed, RLE and ZIPS; 16 ZIP; 32 PIZ — bands are aligned to them) and
+//! compressed by the thread that traced it ([`BandSink::prepare`]); the blocks are appended in
+//! increasing `y` order ([`BandSink::write`]), their positions noted; [`ExrStream::finish`]
+//! fills the table in, sorts the header's attributes (as the whole-frame writer does) and
+//! renames the file into place ([`crate::output::atomic`]: until then the destination keeps its
+//! old contents, and a file dropped unfinished is deleted).
+//!
+//! The header is the one the `exr` crate infers for the whole-frame image (the same channel
+//! list, sorted by name, the same attributes); blocks are made with the crate's own
+//! `UncompressedBlock::compress_to_chunk` and written with its `Chunk::write`.
+
+use crate::output::atomic::AtomicFile;
+use crate::output::exr::{flat_image, frame_channels, sort_header_attributes, ExrCompression, ExrHeader};
+use crate::render::FrameLayout;
+use crate::stream::BandSink;
+use anyhow::{bail, Context, Result};
+use exr::block::{BlockIndex, UncompressedBlock};
+use exr::meta::header::Header;
+use exr::meta::{magic_number, Headers, MetaData};
+use exr::prelude::*;
+use std::fs::File;
+use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, PoisonError};
+
+/// An EXR file being written band by band; see the module docs.
+pub struct ExrStream {
+    path: PathBuf,
+    headers: Headers,
+    /// For each channel of the file (in the file's order, by name), its offset within an
+    /// interleaved pixel of the bands.
+    sources: Vec<usize>,
+    /// Channels per interleaved pixel.
+    stride: usize,
+    width: usize,
+    window_y0: u32,
+    lines_per_block: usize,
+    block_count: usize,
+    /// File position of the offset table.
+    table_start: u64,
+    state: Mutex<Written>,
+}
+
+/// What has been written so far.
+struct Written {
+    file: AtomicFile,
+    /// A second handle on the temporary file, buffered.
+    out: BufWriter<File>,
+    /// File position after the last byte written.
+    position: u64,
+    /// File position of each block written, in increasing `y`.
+    offsets: Vec<u64>,
+}
+
+impl ExrStream {
+    /// Creates the temporary file beside `path` and writes the header of a frame of `layout`
+    /// and a zeroed offset table.
+    ///
+    /// # Errors
+    /// The header is invalid or the file cannot be created or written.
+    pub fn create(path: &Path, layout: &FrameLayout, header: &ExrHeader, compression: ExrCompression) -> Result<Self> {
+        let channels = frame_channels(layout);
+        let image = flat_image(layout, vec![Vec::new(); channels.len()], header, compression);
+        let headers = image.write().infer_meta_data();
+        let requirements =
+            MetaData::validate(&headers, true).with_context(|| format!("the header of {}", path.display()))?;
+        let sources = headers[0]
+            .channels
+            .list
+            .iter()
+            .map(|c| {
+                channels
+                    .iter()
+                    .find(|(_, _, name, _)| c.name == **name)
+                    .map(|(_, _, _, offset)| *offset)
+                    .expect("the file's channels are the frame's")
+            })
+            .collect();
+        let mut head = Vec::new();
+        magic_number::write(&mut head)?;
+        requirements.write(&mut head)?;
+        Header::write_all(&headers, &mut head, requirements.is_multilayer())?;
+        let table_start = head.len() as u64;
+        let block_count = headers[0].chunk_count;
+        head.resize(head.len() + block_count * 8, 0);
+
+        let mut file = AtomicFile::create(path)?;
+        let handle = file
+            .file()
+            .try_clone()
+            .with_context(|| format!("opening {}", path.display()))?;
+        let mut out = BufWriter::with_capacity(1 << 20, handle);
+        out.write_all(&head)
+            .with_context(|| format!("writing {}", path.display()))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            lines_per_block: compression.codec().scan_lines_per_block(),
+            headers,
+            sources,
+            stride: layout.channel_count(),
+            width: layout.window.width() as usize,
+            window_y0: layout.window.y0,
+            block_count,
+            table_start,
+            state: Mutex::new(Written {
+                file,
+                out,
+                position: head.len() as u64,
+                offsets: Vec::with_capacity(block_count),
+            }),
+        })
+    }
+
+    /// Fills in the offset table, sorts the header's attributes and renames the file into place.
+    ///
+    /// # Errors
+    /// Not every block was written, or a file operation fails (the destination is then
+    /// untouched).
+    pub fn finish(self) -> Result<()> {
+        let Written {
+            mut file,
+            mut out,
+            offsets,
+            ..
+        } = self.state.into_inner().unwrap_or_else(PoisonError::into_inner);
+        if offsets.len() != self.block_count {
+            bail!(
+                "{}: only {} of {} blocks were written",
+                self.path.display(),
+                offsets.len(),
+                self.block_count
+            );
+        }
+        let table: Vec<u8> = offsets.iter().flat_map(|o| o.to_le_bytes()).collect();
+        out.seek(SeekFrom::Start(self.table_start))
+            .and_then(|_| out.write_all(&table))
+            .and_then(|()| out.flush())
+            .with_context(|| format!("writing {}", self.path.display()))?;
+        drop(out);
+        sort_header_attributes(file.file())
+            .with_context(|| format!("writing the header of {}", self.path.display()))?;
+        file.commit()
+    }
+}
+
+impl BandSink for ExrStream {
+    fn row_alignment(&self) -> u32 {
+        self.lines_per_block as u32
+    }
+
+    /// The band's blocks, compressed and encoded as the file stores them (`y`, byte count,
+    /// bytes): per line, each channel's samples along the line.
+    fn prepare(&self, first_row: u32, rows: &[f32]) -> Result<Vec<u8>> {
+        let row_len = self.width * self.stride;
+        let lines = rows.len() / row_len.max(1);
+        let mut encoded = Vec::with_capacity(rows.len() * 4 + 16 * lines);
+        let mut line = 0;
+        while line < lines {
+            let block_lines = self.lines_per_block.min(lines - line);
+            let mut data = vec![0u8; block_lines * row_len * 4];
+            let mut targets = data.chunks_exact_mut(self.width * 4);
+            for row in rows[line * row_len..(line + block_lines) * row_len].chunks_exact(row_len) {
+                for &source in &self.sources {
+                    let target = targets.next().expect("one line per channel and row");
+                    for (bytes, value) in target
+                        .chunks_exact_mut(4)
+                        .zip(row[source..].iter().step_by(self.stride))
+                    {
+                        bytes.copy_from_slice(&value.to_ne_bytes());
+                    }
+                }
+            }
+            let block = UncompressedBlock {
+                index: BlockIndex {
+                    layer: 0,
+                    pixel_position: Vec2(0, (first_row - self.window_y0) as usize + line),
+                    pixel_size: Vec2(self.width, block_lines),
+                    level: Vec2(0, 0),
+                },
+                data,
+            };
+            block
+                .compress_to_chunk(&self.headers)
+                .and_then(|chunk| chunk.write(&mut encoded, 1))
+                .with_context(|| format!("encoding {}", self.path.display()))?;
+            line += block_lines;
+        }
+        Ok(encoded)
+    }
+
+    fn write(&self, _first_row: u32, _rows: &[f32], prepared: Vec<u8>) -> Result<()> {
+        let mut written = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        // each block: y (i32), byte count (i32), bytes
+        let mut at = 0;
+        while at + 8 <= prepared.len() {
+            let position = written.position + at as u64;
+            written.offsets.push(position);
+            let size = i32::from_le_bytes(prepared[at + 4..at + 8].try_into().expect("four bytes"));
+            at += 8 + usize::try_from(size).context("negative block size")?;
+        }
+        written
+            .out
+            .write_all(&prepared)
+            .with_context(|| format!("writing {}", self.path.display()))?;
+        written.position += prepared.len() as u64;
+        Ok(())
+    }
+}
