@@ -501,6 +501,9 @@ def main():
     ap.add_argument("--query-single-flag", action="append", default=[],
                     help="argument(s) that make `zeroset query` take its single-ray path (repeat for several); "
                          "the sorted-batch floor is measured only when given")
+    ap.add_argument("--query-batch-flag", action="append", default=[],
+                    help="argument(s) that make `zeroset query` take its sorted-batch path (repeat for several), "
+                         "e.g. --query-batch-flag=--ray-order=sorted; the default run uses them")
     ap.add_argument("--libllvm", help="libLLVM.so.19.1 for Mitsuba's llvm_ad_rgb")
     ap.add_argument("--shared", default=os.path.join(ROOT, "..", "shared"), help="the shared directory (anchors, bench)")
     ap.add_argument("--skip", nargs="*", default=[], choices=["mitsuba", "embree", "open3d", "query", "mesh-bench"],
@@ -561,7 +564,8 @@ def main():
             load_s = med_of(raw["zeroset"][scene]["load"], "load_s")
             if scene in rays:
                 log(f"zeroset {scene}: query on {a.query_rays} random rays …")
-                q = {"random": summarize_query(zeroset_query(runner, zs, scene, rays[scene], a.threads, a.runs, outdir), load_s)}
+                q = {"random": summarize_query(zeroset_query(runner, zs, scene, rays[scene], a.threads, a.runs, outdir,
+                                                             a.query_batch_flag), load_s)}
                 if a.query_single_flag:
                     q["single"] = summarize_query(zeroset_query(runner, zs, scene, rays[scene], a.threads, a.runs, outdir,
                                                                 a.query_single_flag), load_s)

@@ -11,7 +11,9 @@ use crate::output::exr_stream::ExrStream;
 use crate::output::merge::merge_crops;
 use crate::output::png::{write_previews, PREVIEWS};
 use crate::output::png_stream::PreviewStream;
-use crate::query::{run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS};
+use crate::query::{
+    run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS,
+};
 use crate::query_rays::{scene_magnitude, RangeConvention, RaySetup};
 use crate::render::{Frame, FrameLayout, RenderOptions, Window};
 use crate::resources::{capped_threads, check_memory, process_cpu_seconds, render_memory_estimate};

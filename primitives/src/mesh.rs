@@ -48,7 +48,10 @@ use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect};
-use block::{test_block, TriBlock};
+use block::{test_block, TriBlock, LANES};
+
+/// Largest leaf of a mesh's hierarchy (tested as blocks of [`LANES`]).
+const MAX_LEAF: usize = 6;
 use glam::{DVec2, DVec3, Vec3A};
 use rayon::prelude::*;
 use std::fmt;
@@ -64,8 +67,6 @@ pub struct Mesh {
     file_to_leaf: Vec<u32>,
     in_bvh: usize,
     bvh: QuadBvh,
-    /// One block per BVH leaf, in node order: the leaf's triangles' vertices for the SIMD test.
-    blocks: Vec<TriBlock>,
     bounds: Aabb,
     center: DVec3,
     radius: f64,
@@ -305,7 +306,7 @@ impl Mesh {
                 "every triangle is degenerate (zero area)",
             ));
         }
-        let mut bvh = QuadBvh::build(&mut build, block::LANES, true);
+        let bvh = QuadBvh::build(&mut build, MAX_LEAF, true);
         let in_bvh = build.len();
         let mut leaf_to_file: Vec<u32> = build.iter().map(|b| b.id).collect();
         drop(build);
@@ -321,16 +322,6 @@ impl Mesh {
         }
         let tris: Vec<[u32; 3]> = leaf_to_file.iter().map(|&f| indices[f as usize]).collect();
         drop(indices);
-        let mut blocks = Vec::with_capacity(in_bvh / 2 + 1);
-        bvh.relink_leaves(|first, count| {
-            let corners: Vec<[[f32; 3]; 3]> = tris[first as usize..(first + count) as usize]
-                .iter()
-                .map(|t| t.map(|i| vertices[i as usize]))
-                .collect();
-            blocks.push(TriBlock::new(first, &corners));
-            (blocks.len() - 1) as u32
-        });
-        blocks.shrink_to_fit();
         let bounds = Aabb::new(v64(bvh.root.lo), v64(bvh.root.hi));
         Ok(Self {
             center: bounds.center(),
@@ -342,7 +333,6 @@ impl Mesh {
             file_to_leaf,
             in_bvh,
             bvh,
-            blocks,
             bounds,
         })
     }
@@ -403,7 +393,6 @@ impl Mesh {
             + self.tris.capacity() * 12
             + (self.leaf_to_file.capacity() + self.file_to_leaf.capacity()) * 4
             + self.bvh.memory_bytes()
-            + self.blocks.capacity() * std::mem::size_of::<TriBlock>()
     }
 
     /// Number of BVH nodes (interior and leaves, root included).
@@ -540,34 +529,37 @@ impl Intersect for Mesh {
             let t_max = up(range.max * len);
             let band = t_min + (1e-5 * (this.radius + (ray.origin - this.center).length())) as f32;
             let mut best: Option<(usize, f32, f32, f32)> = None;
-            this.bvh.traverse(&r.slab, t_min, t_max, |block, _count, mut t_far| {
-                let block = &this.blocks[block as usize];
-                let lanes = test_block(r.origin, r.k, r.shear, block, t_min, t_far);
+            this.bvh.traverse(&r.slab, t_min, t_max, |first, count, mut t_far| {
                 let mut found = None;
-                for lane in 0..block.count as usize {
-                    let bit = 1 << lane;
-                    let (t, u, v) = if lanes.hit & bit != 0 {
-                        (lanes.t[lane], lanes.u[lane], lanes.v[lane])
-                    } else if lanes.rescan & bit != 0 {
-                        let [a, b, c] = [0, 1, 2].map(|corner| block.corner(corner, lane));
-                        match r.triangle(a, b, c, t_min, t_far) {
-                            Some(hit) => hit,
-                            None => continue,
+                for start in (first..first + count).step_by(LANES) {
+                    let end = (start + LANES as u32).min(first + count);
+                    let block = TriBlock::gather(start, &this.tris[start as usize..end as usize], &this.vertices);
+                    let lanes = test_block(r.origin, r.k, r.shear, &block, t_min, t_far);
+                    for lane in 0..block.count as usize {
+                        let bit = 1 << lane;
+                        let (t, u, v) = if lanes.hit & bit != 0 {
+                            (lanes.t[lane], lanes.u[lane], lanes.v[lane])
+                        } else if lanes.rescan & bit != 0 {
+                            let [a, b, c] = [0, 1, 2].map(|corner| block.corner(corner, lane));
+                            match r.triangle(a, b, c, t_min, t_far) {
+                                Some(hit) => hit,
+                                None => continue,
+                            }
+                        } else {
+                            continue;
+                        };
+                        // lanes were tested against the range on entry; keep the scalar loop's order
+                        if t > t_far {
+                            continue;
                         }
-                    } else {
-                        continue;
-                    };
-                    // lanes were tested against the range on entry; keep the scalar loop's order
-                    if t > t_far {
-                        continue;
+                        let k = block.first as usize + lane;
+                        if t <= band && !this.plane_t(ray, k).is_some_and(|t| range.contains(t)) {
+                            continue;
+                        }
+                        t_far = t;
+                        found = Some(t);
+                        best = Some((k, t, u, v));
                     }
-                    let k = block.first as usize + lane;
-                    if t <= band && !this.plane_t(ray, k).is_some_and(|t| range.contains(t)) {
-                        continue;
-                    }
-                    t_far = t;
-                    found = Some(t);
-                    best = Some((k, t, u, v));
                 }
                 found
             });

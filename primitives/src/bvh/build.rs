@@ -226,18 +226,6 @@ impl QuadBvh {
         index as u32
     }
 
-    /// Replaces the `first` of every leaf slot of the 4-wide nodes by `relink(first, count)` (the
-    /// mesh points them at its leaf blocks), visiting the leaves in node order.
-    pub fn relink_leaves(&mut self, mut relink: impl FnMut(u32, u32) -> u32) {
-        for quad in &mut self.quads {
-            for slot in 0..quad.len as usize {
-                if quad.count[slot] > 0 {
-                    quad.child[slot] = relink(quad.child[slot], quad.count[slot]);
-                }
-            }
-        }
-    }
-
     /// The 4-wide nodes, root first.
     pub fn quads(&self) -> &[Quad] {
         &self.quads

@@ -1,6 +1,7 @@
-//! Leaf blocks: the triangles of one BVH leaf (at most [`LANES`]) with their vertices copied
-//! into structure-of-arrays form, so that the watertight test runs on all of them in one SIMD
-//! pass instead of one gathered triangle at a time.
+//! Triangle blocks: up to [`LANES`] consecutive triangles of a BVH leaf with their vertices
+//! gathered (through the index triples, on the stack: no memory is added per triangle) into
+//! structure-of-arrays form, so that the watertight test runs on all of them in one SIMD pass
+//! instead of one triangle at a time.
 //!
 //! The lanes compute exactly the operations of the scalar test ([`super::MeshRay::triangle`]),
 //! in the same order and in the same f32 arithmetic (SSE has no fused operations unless asked),
@@ -26,6 +27,7 @@ pub(crate) struct TriBlock {
 impl TriBlock {
     /// The block of `corners` (each triangle's `a, b, c`), `first` the leaf-order index of the
     /// first; at most [`LANES`] triangles, at least one.
+    #[cfg(test)]
     pub fn new(first: u32, corners: &[[[f32; 3]; 3]]) -> Self {
         debug_assert!((1..=LANES).contains(&corners.len()));
         let mut vertex = [[[0f32; LANES]; 3]; 3];
@@ -40,6 +42,27 @@ impl TriBlock {
             vertex,
             first,
             count: corners.len() as u32,
+        }
+    }
+
+    /// The block of triangles `tris` (index triples into `vertices`), `first` the leaf-order
+    /// index of the first; at most [`LANES`] triangles, at least one.
+    #[inline(always)]
+    pub fn gather(first: u32, tris: &[[u32; 3]], vertices: &[[f32; 3]]) -> Self {
+        debug_assert!((1..=LANES).contains(&tris.len()));
+        let mut vertex = [[[0f32; LANES]; 3]; 3];
+        for (lane, tri) in (0..LANES).map(|lane| tris.get(lane).unwrap_or(&tris[0])).enumerate() {
+            for (corner, &index) in tri.iter().enumerate() {
+                let v = vertices[index as usize];
+                vertex[corner][0][lane] = v[0];
+                vertex[corner][1][lane] = v[1];
+                vertex[corner][2][lane] = v[2];
+            }
+        }
+        Self {
+            vertex,
+            first,
+            count: tris.len() as u32,
         }
     }
 
