@@ -1,8 +1,8 @@
 //! The scene's bounding volume hierarchy over its bounded objects, and what every hierarchy
 //! shares: the 4-wide node ([`Quad`]) and its ordered closest-hit walk ([`traverse_quads`]).
 //! One builder (`build`: parallel binned SAH, collapsed into 4-wide nodes) makes both the
-//! scene's hierarchy (leaves of at most two objects) and each mesh's (leaves of at most four
-//! triangles, one SIMD block).
+//! scene's hierarchy (leaves of at most two objects) and each mesh's (leaves of at most six
+//! triangles).
 //!
 //! Traversal of the scene's hierarchy: quads hold their children's f32 bounds (rounded outward
 //! from the objects' f64 bounds) in SoA layout, tested four at a time with SSE, conservative

@@ -40,17 +40,13 @@
 //! [`crate::Transformed`] per instance; the scene BVH holds the instances, each instance's mesh
 //! its own BVH (two levels).
 
-mod block;
-
 use crate::bounds::Aabb;
 use crate::bvh::build::{Bb, BuildItem, Node, QuadBvh, SlabRay};
 use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect};
-use block::{test_block, TriBlock, LANES};
-
-/// Largest leaf of a mesh's hierarchy (tested as blocks of [`LANES`]).
+/// Largest leaf of a mesh's hierarchy.
 const MAX_LEAF: usize = 6;
 use glam::{DVec2, DVec3, Vec3A};
 use rayon::prelude::*;
@@ -531,28 +527,9 @@ impl Intersect for Mesh {
             let mut best: Option<(usize, f32, f32, f32)> = None;
             this.bvh.traverse(&r.slab, t_min, t_max, |first, count, mut t_far| {
                 let mut found = None;
-                for start in (first..first + count).step_by(LANES) {
-                    let end = (start + LANES as u32).min(first + count);
-                    let block = TriBlock::gather(start, &this.tris[start as usize..end as usize], &this.vertices);
-                    let lanes = test_block(r.origin, r.k, r.shear, &block, t_min, t_far);
-                    for lane in 0..block.count as usize {
-                        let bit = 1 << lane;
-                        let (t, u, v) = if lanes.hit & bit != 0 {
-                            (lanes.t[lane], lanes.u[lane], lanes.v[lane])
-                        } else if lanes.rescan & bit != 0 {
-                            let [a, b, c] = [0, 1, 2].map(|corner| block.corner(corner, lane));
-                            match r.triangle(a, b, c, t_min, t_far) {
-                                Some(hit) => hit,
-                                None => continue,
-                            }
-                        } else {
-                            continue;
-                        };
-                        // lanes were tested against the range on entry; keep the scalar loop's order
-                        if t > t_far {
-                            continue;
-                        }
-                        let k = block.first as usize + lane;
+                for k in first as usize..(first + count) as usize {
+                    let [a, b, c] = this.tris[k].map(|i| this.vertices[i as usize]);
+                    if let Some((t, u, v)) = r.triangle(a, b, c, t_min, t_far) {
                         if t <= band && !this.plane_t(ray, k).is_some_and(|t| range.contains(t)) {
                             continue;
                         }

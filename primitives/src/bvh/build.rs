@@ -10,7 +10,8 @@
 //! `pairs[first]`. The root is kept apart. Pairs are laid out depth-first, so a pair's first
 //! child's subtree follows it.
 //!
-//! Build. Triangle boxes and centroids in f32; each split bins centroids into 32 bins per axis
+//! Build. Item boxes and centroids in f32; each split bins centroids into 32 bins per axis (8
+//! for nodes of at most 64 items)
 //! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 1, triangle
 //! cost 1), and partitions in place. Subtrees of more than [`PARALLEL_MIN`] triangles are built with
 //! `rayon::join`. A node becomes a leaf when SAH prefers it and it holds at most the caller's `max_leaf`
@@ -29,8 +30,13 @@ use rayon::prelude::*;
 
 /// SAH cost of a traversal step (testing a pair of child boxes) relative to one triangle test.
 const TRAVERSAL_COST: f32 = 1.0;
-/// Centroid bins per axis.
+/// Centroid bins per axis for large nodes.
 const BINS: usize = 32;
+/// Centroid bins per axis for nodes of at most [`FEW_ITEMS`] items (fewer bins to clear and
+/// sweep where there are few centroids to tell apart).
+const FEW_BINS: usize = 8;
+/// Nodes up to this many items bin into [`FEW_BINS`].
+const FEW_ITEMS: usize = 64;
 /// Subtrees with more triangles than this are built in parallel.
 pub(crate) const PARALLEL_MIN: usize = 4096;
 /// Nodes with more triangles than this bin in parallel.
@@ -126,22 +132,22 @@ pub(crate) struct QuadBvh {
 }
 
 #[derive(Clone, Copy)]
-struct Bins {
-    bounds: [[Bb; BINS]; 3],
-    counts: [[u32; BINS]; 3],
+struct Bins<const N: usize> {
+    bounds: [[Bb; N]; 3],
+    counts: [[u32; N]; 3],
 }
 
-impl Bins {
+impl<const N: usize> Bins<N> {
     fn empty() -> Self {
         Self {
-            bounds: [[Bb::EMPTY; BINS]; 3],
-            counts: [[0; BINS]; 3],
+            bounds: [[Bb::EMPTY; N]; 3],
+            counts: [[0; N]; 3],
         }
     }
 
     fn add(&mut self, tris: &[BuildItem], lo: Vec3A, scale: Vec3A) {
         for t in tris {
-            let b = ((t.centroid - lo) * scale).min(Vec3A::splat((BINS - 1) as f32));
+            let b = ((t.centroid - lo) * scale).min(Vec3A::splat((N - 1) as f32));
             for axis in 0..3 {
                 let i = b[axis] as usize;
                 self.counts[axis][i] += 1;
@@ -152,7 +158,7 @@ impl Bins {
 
     fn merge(mut self, o: Self) -> Self {
         for axis in 0..3 {
-            for i in 0..BINS {
+            for i in 0..N {
                 self.counts[axis][i] += o.counts[axis][i];
                 self.bounds[axis][i] = self.bounds[axis][i].union(o.bounds[axis][i]);
             }
@@ -418,24 +424,38 @@ enum Split {
 }
 
 fn sah_split(tris: &mut [BuildItem], bounds: Bb, centroids: Bb, max_leaf: usize) -> Option<Split> {
+    if tris.len() <= FEW_ITEMS {
+        sah_split_binned::<FEW_BINS>(tris, bounds, centroids, max_leaf)
+    } else {
+        sah_split_binned::<BINS>(tris, bounds, centroids, max_leaf)
+    }
+}
+
+/// The SAH split over `N` centroid bins per axis (see the module docs).
+fn sah_split_binned<const N: usize>(
+    tris: &mut [BuildItem],
+    bounds: Bb,
+    centroids: Bb,
+    max_leaf: usize,
+) -> Option<Split> {
     let n = tris.len();
     let extent = centroids.hi - centroids.lo;
     // axes with zero extent get scale 0: everything in bin 0, never a valid split there
     let scale = Vec3A::select(
         extent.cmpgt(Vec3A::ZERO),
-        Vec3A::splat(BINS as f32 * (1.0 - 1e-6)) / extent,
+        Vec3A::splat(N as f32 * (1.0 - 1e-6)) / extent,
         Vec3A::ZERO,
     );
     let bins = if n > PARALLEL_BINNING_MIN {
         tris.par_chunks(16384)
             .map(|c| {
-                let mut b = Bins::empty();
+                let mut b = Bins::<N>::empty();
                 b.add(c, centroids.lo, scale);
                 b
             })
-            .reduce(Bins::empty, Bins::merge)
+            .reduce(Bins::<N>::empty, Bins::merge)
     } else {
-        let mut b = Bins::empty();
+        let mut b = Bins::<N>::empty();
         b.add(tris, centroids.lo, scale);
         b
     };
@@ -445,17 +465,17 @@ fn sah_split(tris: &mut [BuildItem], bounds: Bb, centroids: Bb, max_leaf: usize)
         if scale[axis] == 0.0 {
             continue;
         }
-        let mut right_area = [0f32; BINS];
-        let mut right_count = [0u32; BINS];
+        let mut right_area = [0f32; N];
+        let mut right_count = [0u32; N];
         let (mut acc, mut count) = (Bb::EMPTY, 0);
-        for i in (1..BINS).rev() {
+        for i in (1..N).rev() {
             acc = acc.union(bins.bounds[axis][i]);
             count += bins.counts[axis][i];
             right_area[i] = acc.half_area();
             right_count[i] = count;
         }
         let (mut acc, mut count) = (Bb::EMPTY, 0);
-        for split in 1..BINS {
+        for split in 1..N {
             acc = acc.union(bins.bounds[axis][split - 1]);
             count += bins.counts[axis][split - 1];
             if count == 0 || right_count[split] == 0 {
@@ -473,7 +493,7 @@ fn sah_split(tris: &mut [BuildItem], bounds: Bb, centroids: Bb, max_leaf: usize)
         return Some(Split::Leaf);
     }
     let (lo, s) = (centroids.lo[axis], scale[axis]);
-    let bin_of = |t: &BuildItem| (((t.centroid[axis] - lo) * s) as usize).min(BINS - 1);
+    let bin_of = |t: &BuildItem| (((t.centroid[axis] - lo) * s) as usize).min(N - 1);
     let mut mid = 0;
     for i in 0..n {
         if bin_of(&tris[i]) < split {
