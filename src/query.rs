@@ -737,18 +737,20 @@ impl<W: Write> NpyHits<W> {
     fn write_rows(&mut self, hits: &[QueryHit]) -> std::io::Result<()> {
         self.start()?;
         let columns = self.columns;
-        let bytes: Vec<u8> = hits
-            .par_iter()
+        // each row's bytes written in place, in parallel (a collected byte iterator costs a third
+        // of a whole `query` run)
+        let mut bytes = vec![0u8; hits.len() * columns * 8];
+        bytes
+            .par_chunks_mut(columns * 8)
+            .zip(hits.par_iter())
             .with_min_len(1024)
-            .flat_map_iter(|hit| {
+            .for_each(|(row, hit)| {
                 let flag = f64::from(u8::from(hit.uncertain));
-                npy_row(hit)
-                    .into_iter()
-                    .chain(std::iter::once(flag))
-                    .take(columns)
-                    .flat_map(f64::to_le_bytes)
-            })
-            .collect();
+                let values = npy_row(hit).into_iter().chain(std::iter::once(flag));
+                for (field, value) in row.chunks_exact_mut(8).zip(values) {
+                    field.copy_from_slice(&value.to_le_bytes());
+                }
+            });
         self.writer.write_all(&bytes)?;
         self.rows += hits.len() as u64;
         Ok(())
