@@ -17,7 +17,9 @@ use build::{Bb, BuildItem, QuadBvh};
 use glam::{Vec3A, Vec4};
 use std::mem::MaybeUninit;
 
-fn round_down(x: f64) -> f32 {
+/// Rounds an f64 to the nearest f32 not above it (boxes and ray ranges rounded outward).
+#[inline]
+pub(crate) fn round_down(x: f64) -> f32 {
     let y = x as f32;
     if f64::from(y) > x {
         y.next_down()
@@ -26,7 +28,9 @@ fn round_down(x: f64) -> f32 {
     }
 }
 
-fn round_up(x: f64) -> f32 {
+/// Rounds an f64 to the nearest f32 not below it.
+#[inline]
+pub(crate) fn round_up(x: f64) -> f32 {
     let y = x as f32;
     if f64::from(y) < x {
         y.next_up()
@@ -236,12 +240,6 @@ impl Bvh {
             tree,
             items: work.iter().map(|w| w.id).collect(),
         }
-    }
-
-    /// Bytes held by the traversal's nodes and item list.
-    #[must_use]
-    pub fn memory_bytes(&self) -> usize {
-        self.tree.memory_bytes() + self.items.capacity() * 4
     }
 
     /// Number of 4-wide nodes.

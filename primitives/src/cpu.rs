@@ -23,21 +23,6 @@ pub fn has_avx2_fma() -> bool {
     }
 }
 
-/// The SIMD level [`with_fma!`] uses on this CPU, for reports: `"avx2+fma"` or `"baseline"`.
-#[must_use]
-pub fn simd_level() -> &'static str {
-    if cfg!(all(
-        target_arch = "x86_64",
-        target_feature = "avx2",
-        target_feature = "fma"
-    )) || has_avx2_fma()
-    {
-        "avx2+fma"
-    } else {
-        "baseline"
-    }
-}
-
 /// Calls the `#[inline(always)]` function `$f` with the given arguments, through a copy
 /// compiled with AVX2 and FMA where the CPU has them (see the module docs): the argument list
 /// names each parameter with its type and value, `with_fma!(test(x: f64 = 1.0) -> f64)`. Expands

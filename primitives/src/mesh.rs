@@ -42,6 +42,7 @@
 
 use crate::bounds::Aabb;
 use crate::bvh::build::{Bb, BuildItem, Node, QuadBvh, SlabRay};
+use crate::bvh::{round_down, round_up};
 use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
@@ -153,37 +154,6 @@ impl MeshRay {
             return None;
         }
         Some((t, e1 / det, e2 / det))
-    }
-}
-
-/// The next f32 towards −∞ from a finite `y` (`f32::next_down`, stable only since Rust 1.86).
-fn step_down(y: f32) -> f32 {
-    if y == 0.0 {
-        -f32::from_bits(1)
-    } else if y > 0.0 {
-        f32::from_bits(y.to_bits() - 1)
-    } else {
-        f32::from_bits(y.to_bits() + 1)
-    }
-}
-
-/// Rounds an f64 to an f32 not above it.
-fn down(x: f64) -> f32 {
-    let y = x as f32;
-    if f64::from(y) > x {
-        step_down(y)
-    } else {
-        y
-    }
-}
-
-/// Rounds an f64 to an f32 not below it.
-fn up(x: f64) -> f32 {
-    let y = x as f32;
-    if f64::from(y) < x {
-        -step_down(-y)
-    } else {
-        y
     }
 }
 
@@ -521,8 +491,8 @@ impl Intersect for Mesh {
             let dir = (ray.dir / len).as_vec3a();
             let r = MeshRay::new(ray.origin.as_vec3a(), dir);
             // t along the unit f32 direction
-            let t_min = down(range.min * len).clamp(0.0, f32::MAX);
-            let t_max = up(range.max * len);
+            let t_min = round_down(range.min * len).clamp(0.0, f32::MAX);
+            let t_max = round_up(range.max * len);
             let band = t_min + (1e-5 * (this.radius + (ray.origin - this.center).length())) as f32;
             let mut best: Option<(usize, f32, f32, f32)> = None;
             this.bvh.traverse(&r.slab, t_min, t_max, |first, count, mut t_far| {

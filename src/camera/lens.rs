@@ -67,19 +67,7 @@ pub fn concentric_disk(u: f64, v: f64) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::DVec3;
-
-    fn camera() -> Camera {
-        Camera::new(
-            DVec3::new(0.0, 3.0, -9.0),
-            DVec3::new(0.0, -2.2, 9.0),
-            DVec3::Y,
-            40.0,
-            1280,
-            720,
-        )
-        .unwrap()
-    }
+    use crate::camera::tests::camera;
 
     #[test]
     fn zero_aperture_lens_rays_are_the_pinhole_rays_bit_for_bit() {

@@ -457,7 +457,8 @@ impl Camera {
 mod tests {
     use super::*;
 
-    fn camera() -> Camera {
+    /// The benchmark scenes' camera (shared with the other camera modules' tests).
+    pub(super) fn camera() -> Camera {
         Camera::new(
             DVec3::new(0.0, 3.0, -9.0),
             DVec3::new(0.0, -2.2, 9.0),
