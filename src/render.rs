@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 use zeroset_primitives::root::thread_uncertain_events;
-use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
+use zeroset_primitives::{HitRequest, Interval, RawHit, Ray, SurfaceHit};
 
 /// A pixel rectangle `[x0, x1) × [y0, y1)` of the full image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -426,37 +426,80 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
 }
 
 /// Renders row `y` of pixel centres from column `x0` on (one ray per pixel) into `out`, the
-/// row's interleaved AOV samples.
+/// row's interleaved AOV samples. Neighbouring pixels are traced together in packets
+/// ([`Scene::intersect_packet`], the same hits as one by one), except when the `Uncertain` AOV
+/// needs each pixel's root-finder events on their own.
 fn render_row(scene: &Scene, context: &RowContext, x0: u32, y: u32, out: &mut [f32]) {
-    let (camera, request, shading, channels) = (context.camera, context.request, context.shading, context.channels);
-    for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
-        let x = x0 + column as u32;
-        let exhausted_before = thread_uncertain_events();
-        let ray = match camera.pixel_ray(x, y) {
-            Ok(ray) => ray,
-            Err(reason) => {
-                context.no_ray.add(reason);
-                write_miss(pixel, scene, context);
-                flag_uncertain(pixel, context, exhausted_before);
-                continue;
-            }
-        };
-        let hit = scene.intersect(&ray, Interval::POSITIVE).map(|(object, raw)| {
-            let primitive = &*scene.objects[object as usize].primitive;
-            let hit = SurfaceHit::complete(primitive, &ray, &raw, request);
-            let shading_normal = if shading {
-                primitive.shading_normal_at(&ray, &raw).or(hit.normal)
-            } else {
-                None
-            };
-            (object, hit, shading_normal)
-        });
-        let mut rest = &mut pixel[..];
-        for aov in context.aovs {
-            let n = write_aov(rest, scene, *aov, &ray, hit.as_ref(), context);
-            rest = &mut rest[n..];
+    const N: usize = zeroset_primitives::PACKET;
+    let channels = context.channels;
+    if context.uncertain_offset.is_some() {
+        for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
+            render_pixel(scene, context, x0 + column as u32, y, pixel);
         }
-        flag_uncertain(pixel, context, exhausted_before);
+        return;
+    }
+    let camera = context.camera;
+    for (group, pixels) in out.chunks_mut(channels * N).enumerate() {
+        let x_first = x0 + (group * N) as u32;
+        // the pixels with a ray, packed, and where each pixel's ray is
+        let mut rays = [Ray::new(camera.eye, camera.forward); N];
+        let mut lane = [usize::MAX; N];
+        let mut n = 0;
+        for (column, slot) in lane.iter_mut().enumerate().take(pixels.len() / channels) {
+            match camera.pixel_ray(x_first + column as u32, y) {
+                Ok(ray) => {
+                    rays[n] = ray;
+                    *slot = n;
+                    n += 1;
+                }
+                Err(reason) => context.no_ray.add(reason),
+            }
+        }
+        let mut hits = [None; N];
+        scene.intersect_packet(&rays[..n], Interval::POSITIVE, &mut hits[..n]);
+        for (pixel, &lane) in pixels.chunks_exact_mut(channels).zip(&lane) {
+            if lane == usize::MAX {
+                write_miss(pixel, scene, context);
+            } else {
+                write_pixel(pixel, scene, context, &rays[lane], hits[lane]);
+            }
+        }
+    }
+}
+
+/// Traces and writes one pixel (the one-ray-at-a-time path of [`render_row`]).
+fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut [f32]) {
+    let exhausted_before = thread_uncertain_events();
+    match context.camera.pixel_ray(x, y) {
+        Ok(ray) => {
+            let hit = scene.intersect(&ray, Interval::POSITIVE);
+            write_pixel(pixel, scene, context, &ray, hit);
+        }
+        Err(reason) => {
+            context.no_ray.add(reason);
+            write_miss(pixel, scene, context);
+        }
+    }
+    flag_uncertain(pixel, context, exhausted_before);
+}
+
+/// Completes the closest hit (if any) of a pixel's `ray` and writes every AOV of `context`.
+#[inline(always)]
+fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray, hit: Option<(u32, RawHit)>) {
+    let hit = hit.map(|(object, raw)| {
+        let primitive = &*scene.objects[object as usize].primitive;
+        let hit = SurfaceHit::complete(primitive, ray, &raw, context.request);
+        let shading_normal = if context.shading {
+            primitive.shading_normal_at(ray, &raw).or(hit.normal)
+        } else {
+            None
+        };
+        (object, hit, shading_normal)
+    });
+    let mut rest = &mut pixel[..];
+    for aov in context.aovs {
+        let n = write_aov(rest, scene, *aov, ray, hit.as_ref(), context);
+        rest = &mut rest[n..];
     }
 }
 

@@ -130,6 +130,54 @@ impl Scene {
         }
     }
 
+    /// The closest hits of several rays (coherent ones, such as neighbouring pixels) with `t`
+    /// in `range`: `out[i]` is exactly [`Scene::intersect`]`(&rays[i], range)`. Objects that
+    /// trace packets faster ([`zeroset_primitives::Intersect::intersect_packet`], meshes) take
+    /// up to [`zeroset_primitives::PACKET`] rays at a time.
+    pub fn intersect_packet(&self, rays: &[Ray], range: Interval, out: &mut [Option<(u32, RawHit)>]) {
+        const N: usize = zeroset_primitives::PACKET;
+        for (rays, out) in rays.chunks(N).zip(out.chunks_mut(N)) {
+            let plain = rays.iter().all(|ray| {
+                let size = ray.dir.abs().max_element();
+                (DIR_SCALE_MIN..=DIR_SCALE_MAX).contains(&size) || !(size > 0.0 && size.is_finite())
+            });
+            if !plain {
+                for (ray, out) in rays.iter().zip(out.iter_mut()) {
+                    *out = self.intersect(ray, range);
+                }
+                continue;
+            }
+            let n = rays.len();
+            let mut ranges = [range; N];
+            out.fill(None);
+            for &object in &self.hierarchy.unbounded {
+                let mut raw = [None; N];
+                self.objects[object as usize]
+                    .primitive
+                    .intersect_packet(rays, &mut ranges[..n], &mut raw[..n]);
+                for (out, raw) in out.iter_mut().zip(raw) {
+                    if let Some(hit) = raw {
+                        *out = Some((object, hit));
+                    }
+                }
+            }
+            if self.hierarchy.bvh.node_count() == 0 {
+                continue;
+            }
+            for ((ray, range), out) in rays.iter().zip(ranges).zip(out.iter_mut()) {
+                let mut raw = None;
+                let object = self.hierarchy.bvh.closest(ray, range, |id, r| {
+                    let hit = self.objects[id as usize].primitive.intersect(ray, r)?;
+                    raw = Some(hit);
+                    Some(hit.t)
+                });
+                if let (Some(object), Some(raw)) = (object, raw) {
+                    *out = Some((object, raw));
+                }
+            }
+        }
+    }
+
     /// Whether anything blocks `ray` within `range` (shadow rays).
     #[must_use]
     pub fn occluded(&self, ray: &Ray, range: Interval) -> bool {

@@ -64,7 +64,7 @@ pub(crate) struct Quad {
 
 /// Traversal stack capacity: at most 3 entries left per level over at most 128 levels (both
 /// hierarchies split at the median below a fixed depth, which bounds theirs under 128), plus 4.
-const QUAD_STACK: usize = 3 * 128 + 4;
+pub(crate) const QUAD_STACK: usize = 3 * 128 + 4;
 
 /// Ordered closest-hit walk over 4-wide nodes, starting at `quads[0]`: `entry4(quad, t_max)`
 /// gives a bit per child slot the ray enters before `t_max` and the entry distances. The nearest
@@ -75,6 +75,18 @@ const QUAD_STACK: usize = 3 * 128 + 4;
 #[inline(always)]
 pub(crate) fn traverse_quads(
     quads: &[Quad],
+    t_max: f32,
+    entry4: impl Fn(&Quad, f32) -> (u32, [f32; 4]),
+    leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
+) {
+    traverse_quads_from(quads, 0, t_max, entry4, leaf);
+}
+
+/// [`traverse_quads`] of the subtree under `quads[root]`.
+#[inline(always)]
+pub(crate) fn traverse_quads_from(
+    quads: &[Quad],
+    root: usize,
     mut t_max: f32,
     entry4: impl Fn(&Quad, f32) -> (u32, [f32; 4]),
     mut leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
@@ -85,7 +97,7 @@ pub(crate) fn traverse_quads(
     // uninitialised: only entries below `top`, written before, are ever read
     let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; QUAD_STACK];
     let mut top = 0usize;
-    let mut quad = 0usize;
+    let mut quad = root;
     'nodes: loop {
         let q = &quads[quad];
         let (hits, near) = entry4(q, t_max);

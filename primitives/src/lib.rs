@@ -83,6 +83,9 @@ pub use root::{first_root, RootOptions, RootReport};
 pub use traits::{Implicit, Intersect, Parametric, Primitive, UvDomain};
 pub use transformed::Transformed;
 
+/// Most rays in one [`Intersect::intersect_packet`] call: one per lane of a 256-bit f32 vector.
+pub const PACKET: usize = 8;
+
 pub use cone::Cone;
 pub use cuboid::Cuboid;
 pub use cylinder::Cylinder;

@@ -53,6 +53,8 @@ use glam::{DVec2, DVec3, Vec3A};
 use rayon::prelude::*;
 use std::fmt;
 
+mod packet;
+
 /// A triangle mesh (see the module docs for its conventions).
 #[derive(Clone)]
 pub struct Mesh {
@@ -479,49 +481,112 @@ impl Implicit for Mesh {
     }
 }
 
+/// One ray's set-up for the mesh tests: the f32 ray with unit direction, its range along that
+/// direction, and the band near `t_min` where hits are re-decided in f64 (see the module docs).
+struct MeshQuery {
+    ray: MeshRay,
+    /// Length of the f64 direction (`t` along the unit f32 direction is `len` times the ray's).
+    len: f64,
+    t_min: f32,
+    t_max: f32,
+    band: f32,
+}
+
+/// The closest candidate so far: leaf position, f32 `t` along the unit direction, barycentrics.
+type Candidate = (usize, f32, f32, f32);
+
+impl Mesh {
+    /// The set-up of `ray` over `range`, or `None` where nothing can be hit (a zero, infinite or
+    /// NaN direction, a non-finite origin, an empty range).
+    #[inline(always)]
+    fn query(&self, ray: &Ray, range: Interval) -> Option<MeshQuery> {
+        let len = ray.dir.length();
+        if !(len > 0.0 && len.is_finite() && ray.origin.is_finite()) || range.is_empty() {
+            return None;
+        }
+        let dir = (ray.dir / len).as_vec3a();
+        let t_min = round_down(range.min * len).clamp(0.0, f32::MAX);
+        Some(MeshQuery {
+            ray: MeshRay::new(ray.origin.as_vec3a(), dir),
+            len,
+            t_min,
+            t_max: round_up(range.max * len),
+            band: t_min + (1e-5 * (self.radius + (ray.origin - self.center).length())) as f32,
+        })
+    }
+
+    /// Whether a hit at f32 `t` on the triangle at leaf position `k` counts: outside the band
+    /// near `t_min` always, inside it only if the f64 `t` on the triangle's plane is in `range`.
+    #[inline(always)]
+    fn counts(&self, ray: &Ray, range: Interval, query: &MeshQuery, k: usize, t: f32) -> bool {
+        t > query.band || self.plane_t(ray, k).is_some_and(|t| range.contains(t))
+    }
+
+    /// Whether a candidate at `(k, t)` replaces `best`, whose `t` is `t_far`: a nearer `t`, or the
+    /// same `t` on a triangle earlier in leaf order. The closest hit is thus the smallest
+    /// `(t, k)`, whatever order the leaves are visited in (single rays and packets agree).
+    #[inline(always)]
+    fn beats(best: Option<&Candidate>, k: usize, t: f32, t_far: f32) -> bool {
+        t < t_far || best.is_none_or(|b| k < b.0)
+    }
+
+    /// The raw hit of the closest candidate: `t` recomputed in f64 on the triangle's plane.
+    #[inline(always)]
+    fn finish(&self, ray: &Ray, range: Interval, query: &MeshQuery, best: Option<Candidate>) -> Option<RawHit> {
+        let (k, t32, u, v) = best?;
+        let t = self
+            .plane_t(ray, k)
+            .unwrap_or(f64::from(t32) / query.len)
+            .max(range.min);
+        if t > range.max {
+            return None;
+        }
+        Some(RawHit {
+            t,
+            feature: self.leaf_to_file[k],
+            local: DVec2::new(f64::from(u), f64::from(v)),
+        })
+    }
+}
+
 impl Intersect for Mesh {
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
         // the whole test inlined into the AVX2+FMA copy where the CPU has them
         #[inline(always)]
         fn test(this: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
-            let len = ray.dir.length();
-            if !(len > 0.0 && len.is_finite() && ray.origin.is_finite()) || range.is_empty() {
-                return None;
-            }
-            let dir = (ray.dir / len).as_vec3a();
-            let r = MeshRay::new(ray.origin.as_vec3a(), dir);
-            // t along the unit f32 direction
-            let t_min = round_down(range.min * len).clamp(0.0, f32::MAX);
-            let t_max = round_up(range.max * len);
-            let band = t_min + (1e-5 * (this.radius + (ray.origin - this.center).length())) as f32;
-            let mut best: Option<(usize, f32, f32, f32)> = None;
-            this.bvh.traverse(&r.slab, t_min, t_max, |first, count, mut t_far| {
-                let mut found = None;
-                for k in first as usize..(first + count) as usize {
-                    let [a, b, c] = this.tris[k].map(|i| this.vertices[i as usize]);
-                    if let Some((t, u, v)) = r.triangle(a, b, c, t_min, t_far) {
-                        if t <= band && !this.plane_t(ray, k).is_some_and(|t| range.contains(t)) {
-                            continue;
+            let q = this.query(ray, range)?;
+            let mut best: Option<Candidate> = None;
+            this.bvh
+                .traverse(&q.ray.slab, q.t_min, q.t_max, |first, count, mut t_far| {
+                    let mut found = None;
+                    for k in first as usize..(first + count) as usize {
+                        let [a, b, c] = this.tris[k].map(|i| this.vertices[i as usize]);
+                        if let Some((t, u, v)) = q.ray.triangle(a, b, c, q.t_min, t_far) {
+                            if !Mesh::beats(best.as_ref(), k, t, t_far) || !this.counts(ray, range, &q, k, t) {
+                                continue;
+                            }
+                            t_far = t;
+                            found = Some(t);
+                            best = Some((k, t, u, v));
                         }
-                        t_far = t;
-                        found = Some(t);
-                        best = Some((k, t, u, v));
                     }
-                }
-                found
-            });
-            let (k, t32, u, v) = best?;
-            let t = this.plane_t(ray, k).unwrap_or(f64::from(t32) / len).max(range.min);
-            if t > range.max {
-                return None;
-            }
-            Some(RawHit {
-                t,
-                feature: this.leaf_to_file[k],
-                local: DVec2::new(f64::from(u), f64::from(v)),
-            })
+                    found
+                });
+            this.finish(ray, range, &q, best)
         }
         crate::with_fma!(test(this: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
+    }
+
+    /// Walks the hierarchy once for the whole packet (see `mesh/packet.rs`); the same answers
+    /// as [`Mesh::intersect`] lane by lane.
+    fn intersect_packet(&self, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) {
+        for ((rays, ranges), hits) in rays
+            .chunks(crate::PACKET)
+            .zip(ranges.chunks_mut(crate::PACKET))
+            .zip(hits.chunks_mut(crate::PACKET))
+        {
+            packet::intersect(self, rays, ranges, hits);
+        }
     }
 
     /// The hit triangle's geometric normal, `(b − a) × (c − a)` normalised.

@@ -137,6 +137,24 @@ pub trait Intersect: Implicit {
         root::first_root(self, ray, range, &self.root_options()).hit
     }
 
+    /// Closest hits of several rays at once (a packet of at most [`crate::PACKET`] coherent
+    /// rays, such as neighbouring pixels): for each lane `i`, exactly
+    /// [`Intersect::intersect`]`(&rays[i], ranges[i])`; where that is a hit, `hits[i]` is set to
+    /// it and `ranges[i].max` to its `t`, and other lanes are left as they were (so a scene calls
+    /// it object after object). The three slices have the same length.
+    ///
+    /// The default traces lane after lane; a type with a faster way overrides it (a mesh walks
+    /// its hierarchy once for the whole packet, with the rays in SIMD lanes), giving the same
+    /// answers.
+    fn intersect_packet(&self, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) {
+        for ((ray, range), hit) in rays.iter().zip(ranges.iter_mut()).zip(hits.iter_mut()) {
+            if let Some(found) = self.intersect(ray, *range) {
+                range.max = found.t;
+                *hit = Some(found);
+            }
+        }
+    }
+
     /// Tolerances of the generic root finder for this type.
     fn root_options(&self) -> RootOptions {
         RootOptions::default()
@@ -201,6 +219,7 @@ macro_rules! forward_through_pointer {
         }
         impl<P: Intersect + ?Sized> Intersect for $($ptr)::+<P> {
             fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> { (**self).intersect(ray, range) }
+            fn intersect_packet(&self, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) { (**self).intersect_packet(rays, ranges, hits) }
             fn root_options(&self) -> RootOptions { (**self).root_options() }
             fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 { (**self).normal_at(ray, raw) }
             fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> { (**self).uv_at(ray, raw) }

@@ -138,6 +138,21 @@ impl<P: Intersect> Intersect for Transformed<P> {
         self.inner.intersect(&self.local_ray(ray), range)
     }
 
+    /// The inner packet test on the local rays (the same `t`), [`crate::PACKET`] rays at a time.
+    fn intersect_packet(&self, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) {
+        let mut local = [Ray::new(glam::DVec3::ZERO, glam::DVec3::Z); crate::PACKET];
+        for ((rays, ranges), hits) in rays
+            .chunks(crate::PACKET)
+            .zip(ranges.chunks_mut(crate::PACKET))
+            .zip(hits.chunks_mut(crate::PACKET))
+        {
+            for (l, ray) in local.iter_mut().zip(rays) {
+                *l = self.local_ray(ray);
+            }
+            self.inner.intersect_packet(&local[..rays.len()], ranges, hits);
+        }
+    }
+
     fn root_options(&self) -> RootOptions {
         self.inner.root_options()
     }

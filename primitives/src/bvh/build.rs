@@ -45,7 +45,7 @@ const PARALLEL_BINNING_MIN: usize = 65536;
 const MEDIAN_DEPTH: usize = 64;
 
 /// `1 + 2γ₃` in f32 (γₙ = nε/(1 − nε), ε = 2⁻²⁴).
-const EXIT_PAD: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+pub(crate) const EXIT_PAD: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
 /// A node (see the module docs).
 #[derive(Clone, Copy, Debug, Default)]
@@ -315,7 +315,7 @@ impl SlabRay {
     /// Entry distances into the four boxes of `quad` within `[t0, t1]` (per axis `(lo − o)·inv` and
     /// `(hi − o)·inv`, nearest exit enlarged by `1 + 2γ₃`; four boxes per SSE operation).
     #[inline(always)]
-    fn entry4(&self, quad: &Quad, t0: f32, t1: f32) -> (u32, [f32; 4]) {
+    pub(crate) fn entry4(&self, quad: &Quad, t0: f32, t1: f32) -> (u32, [f32; 4]) {
         let mut near = Vec4::splat(t0);
         let mut far = Vec4::splat(f32::INFINITY);
         for axis in 0..3 {
