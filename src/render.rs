@@ -360,14 +360,24 @@ impl<'a> Tracer<'a> {
     /// window, interleaved samples.
     pub(crate) fn rows(&self, y0: u32, out: &mut [f32]) {
         let mut rows = 0;
-        for (k, row) in out.chunks_exact_mut(self.row_len.max(1)).enumerate() {
-            let y = y0 + k as u32;
-            if self.sampled {
-                render_row_sampled(self.scene, &self.context, self.x0, y, row);
-            } else {
-                render_row(self.scene, &self.context, self.x0, y, row);
+        if self.sampled {
+            for (k, row) in out.chunks_exact_mut(self.row_len.max(1)).enumerate() {
+                render_row_sampled(self.scene, &self.context, self.x0, y0 + k as u32, row);
+                rows += 1;
             }
-            rows += 1;
+        } else {
+            // pairs of rows, traced in packets of 4 × 2 pixels
+            for (k, pair) in out.chunks_mut(2 * self.row_len.max(1)).enumerate() {
+                render_rows(
+                    self.scene,
+                    &self.context,
+                    self.x0,
+                    y0 + 2 * k as u32,
+                    self.row_len,
+                    pair,
+                );
+                rows += (pair.len() / self.row_len.max(1)) as u64;
+            }
         }
         if self.progress {
             self.bar.inc(rows);
@@ -425,49 +435,61 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
     }
 }
 
-/// Renders row `y` of pixel centres from column `x0` on (one ray per pixel) into `out`, the
-/// row's interleaved AOV samples. Neighbouring pixels are traced together in packets
-/// ([`Scene::intersect_packet`], the same hits as one by one), except when the `Uncertain` AOV
-/// needs each pixel's root-finder events on their own.
-fn render_row(scene: &Scene, context: &RowContext, x0: u32, y: u32, out: &mut [f32]) {
+/// Renders the one or two rows in `out` (interleaved AOV samples, whole rows of `row_len`
+/// samples) from row `y` and column `x0` on, one ray per pixel centre. Neighbouring pixels are traced
+/// together in packets ([`Scene::intersect_packet`], the same hits as one by one) of 4 × 2
+/// pixels (8 × 1 for a single row), except when the `Uncertain` AOV needs each pixel's
+/// root-finder events on their own.
+fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: usize, out: &mut [f32]) {
     const N: usize = zeroset_primitives::PACKET;
     let channels = context.channels;
+    let height = out.len() / row_len.max(1);
+    let width = row_len / channels;
     if context.uncertain_offset.is_some() {
-        for (column, pixel) in out.chunks_exact_mut(channels).enumerate() {
-            render_pixel(scene, context, x0 + column as u32, y, pixel);
+        for (k, row) in out.chunks_exact_mut(row_len.max(1)).enumerate() {
+            for (column, pixel) in row.chunks_exact_mut(channels).enumerate() {
+                render_pixel(scene, context, x0 + column as u32, y + k as u32, pixel);
+            }
         }
         return;
     }
     let camera = context.camera;
-    for (group, pixels) in out.chunks_mut(channels * N).enumerate() {
-        let x_first = x0 + (group * N) as u32;
-        // the pixels with a ray, packed, and where each pixel's ray is
+    let group = N / height;
+    for first in (0..width).step_by(group) {
+        let columns = group.min(width - first);
+        // the pixels with a ray, packed; `lane[row][column]` is where each pixel's ray is
         let mut rays = [Ray::new(camera.eye, camera.forward); N];
-        let mut lane = [usize::MAX; N];
+        let mut lane = [[usize::MAX; N]; 2];
         let mut n = 0;
-        for (column, slot) in lane.iter_mut().enumerate().take(pixels.len() / channels) {
-            match camera.pixel_ray(x_first + column as u32, y) {
-                Ok(ray) => {
-                    rays[n] = ray;
-                    *slot = n;
-                    n += 1;
+        for (row, lanes) in lane.iter_mut().enumerate().take(height) {
+            for (column, slot) in lanes.iter_mut().enumerate().take(columns) {
+                match camera.pixel_ray(x0 + (first + column) as u32, y + row as u32) {
+                    Ok(ray) => {
+                        rays[n] = ray;
+                        *slot = n;
+                        n += 1;
+                    }
+                    Err(reason) => context.no_ray.add(reason),
                 }
-                Err(reason) => context.no_ray.add(reason),
             }
         }
         let mut hits = [None; N];
         scene.intersect_packet(&rays[..n], Interval::POSITIVE, &mut hits[..n]);
-        for (pixel, &lane) in pixels.chunks_exact_mut(channels).zip(&lane) {
-            if lane == usize::MAX {
-                write_miss(pixel, scene, context);
-            } else {
-                write_pixel(pixel, scene, context, &rays[lane], hits[lane]);
+        for (row, lanes) in lane.iter().enumerate().take(height) {
+            for (column, &lane) in lanes.iter().enumerate().take(columns) {
+                let at = row * row_len + (first + column) * channels;
+                let pixel = &mut out[at..at + channels];
+                if lane == usize::MAX {
+                    write_miss(pixel, scene, context);
+                } else {
+                    write_pixel(pixel, scene, context, &rays[lane], hits[lane]);
+                }
             }
         }
     }
 }
 
-/// Traces and writes one pixel (the one-ray-at-a-time path of [`render_row`]).
+/// Traces and writes one pixel (the one-ray-at-a-time path of [`render_rows`]).
 fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut [f32]) {
     let exhausted_before = thread_uncertain_events();
     match context.camera.pixel_ray(x, y) {

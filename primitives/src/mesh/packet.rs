@@ -17,6 +17,11 @@
 //! the direction's largest component; a packet whose lanes disagree on it (rays on both sides of
 //! a diagonal) is traced lane by lane instead.
 
+#![allow(
+    clippy::needless_range_loop,
+    reason = "lane loops index several per-lane arrays by the lane; the form the compiler vectorises"
+)]
+
 use super::{Candidate, Mesh, MeshQuery};
 use crate::bvh::build::EXIT_PAD;
 use crate::bvh::{traverse_quads_from, Quad, QUAD_STACK};
@@ -86,8 +91,11 @@ pub(super) fn intersect(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits
 #[inline(always)]
 fn trace(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) {
     let n = rays.len().min(PACKET);
-    let queries: [Option<MeshQuery>; PACKET] =
-        std::array::from_fn(|l| (l < n).then(|| mesh.query(&rays[l], ranges[l])).flatten());
+    // a loop rather than `array::from_fn`, whose closure would not be inlined into the AVX2 copy
+    let mut queries: [Option<MeshQuery>; PACKET] = [const { None }; PACKET];
+    for l in 0..n {
+        queries[l] = mesh.query(&rays[l], ranges[l]);
+    }
     let Some(first) = queries.iter().flatten().next() else {
         return;
     };
@@ -150,7 +158,7 @@ fn trace(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<
 #[inline(always)]
 fn entry(packet: &Packet, quad: &Quad, slot: usize, t1: &Lanes) -> (u32, Lanes) {
     let mut near = [0.0; PACKET];
-    let mut inside = [false; PACKET];
+    let mut inside = [0i32; PACKET];
     for l in 0..PACKET {
         let mut n = packet.t_min[l];
         let mut f = f32::INFINITY;
@@ -164,24 +172,50 @@ fn entry(packet: &Packet, quad: &Quad, slot: usize, t1: &Lanes) -> (u32, Lanes) 
         }
         let f = min(f * EXIT_PAD, t1[l]);
         near[l] = n;
-        inside[l] = n <= f;
+        inside[l] = flag(n <= f);
     }
     (bitmask(&inside), near)
 }
 
-/// Bit `l` set where `flags[l]`.
+/// A lane's flag as a full-width mask: all ones for `true`, zero for `false`.
 #[inline(always)]
-fn bitmask(flags: &[bool; PACKET]) -> u32 {
-    let mut mask = 0;
-    for (l, &f) in flags.iter().enumerate() {
-        mask |= u32::from(f) << l;
+fn flag(b: bool) -> i32 {
+    -i32::from(b)
+}
+
+/// Bit `l` set where `flags[l]` (a [`flag`]) is set: two `movmskps` on x86-64 (a bit loop
+/// otherwise, which the compiler turns into a chain of shuffles).
+#[inline(always)]
+fn bitmask(flags: &[i32; PACKET]) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_castsi128_ps, _mm_loadu_si128, _mm_movemask_ps};
+        let halves = flags.as_ptr().cast::<std::arch::x86_64::__m128i>();
+        // SAFETY: SSE2 is in every x86-64 CPU; the two 16-byte loads stay inside `flags`
+        // (32 bytes; `PACKET` is 8, checked below)
+        const _: () = assert!(PACKET == 8);
+        unsafe {
+            let lo = _mm_movemask_ps(_mm_castsi128_ps(_mm_loadu_si128(halves)));
+            let hi = _mm_movemask_ps(_mm_castsi128_ps(_mm_loadu_si128(halves.add(1))));
+            (lo | (hi << 4)) as u32
+        }
     }
-    mask
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let mut mask = 0;
+        for (l, &f) in flags.iter().enumerate() {
+            mask |= u32::from(f != 0) << l;
+        }
+        mask
+    }
 }
 
 /// Below this many lanes, a leaf's triangles are tested lane by lane (the SIMD test costs the
 /// same for one lane as for eight).
 const FEW_LANES: u32 = 2;
+
+/// A node entered by at most this many lanes is walked by each of them alone.
+const ALONE_LANES: u32 = 2;
 
 /// What the walk reads about each lane: its ray and range as given and its set-up.
 struct PacketQuery<'a> {
@@ -193,8 +227,8 @@ struct PacketQuery<'a> {
 
 impl PacketQuery<'_> {
     /// Walks the hierarchy for the lanes of `active`, testing each leaf that some lanes enter
-    /// before their closest hit so far. A node entered by one lane only is walked for that lane
-    /// alone, as a single ray would.
+    /// before their closest hit so far. A node entered by at most [`ALONE_LANES`] lanes is walked by
+    /// each alone, as a single ray would.
     #[inline(always)]
     fn walk(&self, packet: &mut Packet, best: &mut [Option<Candidate>; PACKET], active: u32) {
         let quads = self.mesh.bvh.quads();
@@ -214,9 +248,9 @@ impl PacketQuery<'_> {
             top -= 1;
             // SAFETY: `stack[top]` was written by the push that raised `top` above it
             let pending = unsafe { stack[top].assume_init() };
-            let mut still = [false; PACKET];
+            let mut still = [0i32; PACKET];
             for l in 0..PACKET {
-                still[l] = pending.entry[l] <= packet.t_max[l];
+                still[l] = flag(pending.entry[l] <= packet.t_max[l]);
             }
             let lanes = pending.lanes & bitmask(&still);
             if lanes == 0 {
@@ -226,8 +260,13 @@ impl PacketQuery<'_> {
                 self.leaf(packet, best, pending.child, pending.count, lanes);
                 continue;
             }
-            if lanes.count_ones() == 1 {
-                self.walk_lane(packet, best, lanes.trailing_zeros() as usize, pending.child as usize);
+            if lanes.count_ones() <= ALONE_LANES {
+                let mut rest = lanes;
+                while rest != 0 {
+                    let l = rest.trailing_zeros() as usize;
+                    rest &= rest - 1;
+                    self.walk_lane(packet, best, l, pending.child as usize);
+                }
                 continue;
             }
             let quad = &quads[pending.child as usize];
@@ -333,8 +372,8 @@ impl PacketQuery<'_> {
             let mut t = [0.0f32; PACKET];
             let mut e = [[0.0f32; PACKET]; 2];
             let mut det = [0.0f32; PACKET];
-            let mut zero = [false; PACKET];
-            let mut pass = [false; PACKET];
+            let mut zero = [0i32; PACKET];
+            let mut pass = [0i32; PACKET];
             for l in 0..PACKET {
                 let [ox, oy, oz] = [packet.origin[kx][l], packet.origin[ky][l], packet.origin[kz][l]];
                 let [sx, sy, sz] = [packet.shear[0][l], packet.shear[1][l], packet.shear[2][l]];
@@ -348,11 +387,11 @@ impl PacketQuery<'_> {
                 let e0 = cx * by - cy * bx;
                 let e1 = ax * cy - ay * cx;
                 let e2 = bx * ay - by * ax;
-                zero[l] = e0 == 0.0 || e1 == 0.0 || e2 == 0.0;
+                zero[l] = flag(e0 == 0.0 || e1 == 0.0 || e2 == 0.0);
                 let d = e0 + e1 + e2;
                 let tl = (e0 * (sz * az) + e1 * (sz * bz) + e2 * (sz * cz)) / d;
                 let mixed = (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0);
-                pass[l] = !mixed && d != 0.0 && tl >= packet.t_min[l] && tl <= packet.t_max[l];
+                pass[l] = flag(!mixed && d != 0.0 && tl >= packet.t_min[l] && tl <= packet.t_max[l]);
                 t[l] = tl;
                 e[0][l] = e1;
                 e[1][l] = e2;
