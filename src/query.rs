@@ -44,7 +44,7 @@ use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::io::{BufRead, Read, Seek, SeekFrom, Write};
 use zeroset_primitives::root::thread_uncertain_events;
-use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
+use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit, PACKET};
 
 /// Rays read, traced and written per step of the batch loop.
 pub const CHUNK_RAYS: usize = 1 << 16;
@@ -97,16 +97,17 @@ pub fn trace_batch(scene: &Scene, rays: &[QueryRay]) -> Vec<QueryHit> {
     trace_batch_in(scene, rays, RayOrder::Input)
 }
 
-/// The order in which a batch's rays are traced. The answers are the same whatever the order
-/// (every ray is traced alone); only the speed differs. On 10⁶ uniformly random rays sorting
-/// did not pay (README, "Throughput"), so the default is the input order; `Sorted` is for
-/// batches with coherence to recover (rays from many cameras, shuffled).
+/// The order in which a batch's rays are traced. The answers are the same whatever the order;
+/// only the speed differs. `Input` traces each ray alone, as given; `Sorted` sorts the batch
+/// for coherence and traces it in packets of [`PACKET`] neighbouring rays
+/// ([`Scene::intersect_packet`]), which pays where the batch has coherence to recover (rays from
+/// many cameras, shuffled); see the README's "Throughput" for what it gives on random rays.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum RayOrder {
     /// As given.
     Input,
-    /// Sorted for coherence ([`coherent_order`]): neighbouring rays in the trace start near each
-    /// other and point alike, so they walk the same nodes while those are in cache.
+    /// Sorted for coherence ([`coherent_order`]) and traced in packets: neighbouring rays in the
+    /// trace start near each other and point alike, so they walk the same nodes together.
     Sorted,
 }
 
@@ -122,9 +123,9 @@ pub fn trace_batch_in(scene: &Scene, rays: &[QueryRay], order: RayOrder) -> Vec<
     }
     let permutation = coherent_order(rays);
     let traced: Vec<QueryHit> = permutation
-        .par_iter()
-        .with_min_len(256)
-        .map(|&i| trace_one(scene, &rays[i as usize]))
+        .par_chunks(PACKET)
+        .with_min_len(32)
+        .flat_map_iter(|packet| trace_packet(scene, rays, packet))
         .collect();
     // position in the traced order of each input ray
     let mut rank = vec![0u32; rays.len()];
@@ -132,6 +133,42 @@ pub fn trace_batch_in(scene: &Scene, rays: &[QueryRay], order: RayOrder) -> Vec<
         rank[i as usize] = k as u32;
     }
     rank.par_iter().map(|&k| traced[k as usize]).collect()
+}
+
+/// The first hits of `rays[i]` for the (at most [`PACKET`]) indices `packet`, traced together
+/// ([`Scene::intersect_packet`]), in `packet`'s order. If a root finder ran out of budget while
+/// they were traced, they are traced again one by one ([`trace_one`]) to tell which.
+fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> impl Iterator<Item = QueryHit> {
+    let n = packet.len().min(PACKET);
+    let mut lanes = [Ray::new(DVec3::ZERO, DVec3::Z); PACKET];
+    let mut ranges = [Interval::POSITIVE; PACKET];
+    for (l, &i) in packet[..n].iter().enumerate() {
+        lanes[l] = rays[i as usize].ray;
+        ranges[l] = rays[i as usize].range;
+    }
+    let exhausted_before = thread_uncertain_events();
+    let mut found = [None; PACKET];
+    scene.intersect_packet(&lanes[..n], &ranges[..n], &mut found[..n]);
+    let mut out = [QueryHit {
+        hit: None,
+        uncertain: false,
+    }; PACKET];
+    if thread_uncertain_events() == exhausted_before {
+        for l in 0..n {
+            out[l].hit = found[l].map(|(object, raw)| {
+                let primitive = &*scene.objects[object as usize].primitive;
+                (
+                    object,
+                    SurfaceHit::complete(primitive, &lanes[l], &raw, HitRequest::ALL),
+                )
+            });
+        }
+    } else {
+        for (l, &i) in packet[..n].iter().enumerate() {
+            out[l] = trace_one(scene, &rays[i as usize]);
+        }
+    }
+    out.into_iter().take(n)
 }
 
 /// One ray's first hit, with normal and uv, and whether its answer is uncertain.

@@ -474,7 +474,7 @@ fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: us
             }
         }
         let mut hits = [None; N];
-        scene.intersect_packet(&rays[..n], Interval::POSITIVE, &mut hits[..n]);
+        scene.intersect_packet(&rays[..n], &[Interval::POSITIVE; N][..n], &mut hits[..n]);
         for (row, lanes) in lane.iter().enumerate().take(height) {
             for (column, &lane) in lanes.iter().enumerate().take(columns) {
                 let at = row * row_len + (first + column) * channels;

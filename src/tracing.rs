@@ -117,38 +117,43 @@ impl Scene {
                 best = Some((i, hit));
             }
         }
-        let mut raw = None;
+        let mut raw: Option<(u32, RawHit)> = None;
         let object = self.hierarchy.bvh.closest(ray, range, |id, r| {
             let hit = test(id, r)?;
-            raw = Some(hit);
+            if !settles_tie(raw.as_ref(), id, hit.t, r) {
+                return None;
+            }
+            raw = Some((id, hit));
             Some(hit.t)
         });
         // `raw` holds the last hit reported, which is the closest one
         match (object, raw) {
-            (Some(object), Some(raw)) => Some((object, raw)),
+            (Some(_), Some(raw)) => Some(raw),
             _ => best,
         }
     }
 
     /// The closest hits of several rays (coherent ones, such as neighbouring pixels) with `t`
-    /// in `range`: `out[i]` is exactly [`Scene::intersect`]`(&rays[i], range)`. Objects that
-    /// trace packets faster ([`zeroset_primitives::Intersect::intersect_packet`], meshes) take
-    /// up to [`zeroset_primitives::PACKET`] rays at a time.
-    pub fn intersect_packet(&self, rays: &[Ray], range: Interval, out: &mut [Option<(u32, RawHit)>]) {
+    /// in their `ranges`: `out[i]` is exactly [`Scene::intersect`]`(&rays[i], ranges[i])`. They
+    /// walk the scene's hierarchy together, and objects that trace packets faster
+    /// ([`zeroset_primitives::Intersect::intersect_packet`], meshes) take up to
+    /// [`zeroset_primitives::PACKET`] rays at a time. The three slices have the same length.
+    pub fn intersect_packet(&self, rays: &[Ray], ranges: &[Interval], out: &mut [Option<(u32, RawHit)>]) {
         const N: usize = zeroset_primitives::PACKET;
-        for (rays, out) in rays.chunks(N).zip(out.chunks_mut(N)) {
+        for ((rays, given), out) in rays.chunks(N).zip(ranges.chunks(N)).zip(out.chunks_mut(N)) {
             let plain = rays.iter().all(|ray| {
                 let size = ray.dir.abs().max_element();
                 (DIR_SCALE_MIN..=DIR_SCALE_MAX).contains(&size) || !(size > 0.0 && size.is_finite())
             });
             if !plain {
-                for (ray, out) in rays.iter().zip(out.iter_mut()) {
-                    *out = self.intersect(ray, range);
+                for ((ray, range), out) in rays.iter().zip(given).zip(out.iter_mut()) {
+                    *out = self.intersect(ray, *range);
                 }
                 continue;
             }
             let n = rays.len();
-            let mut ranges = [range; N];
+            let mut ranges = [Interval::POSITIVE; N];
+            ranges[..n].copy_from_slice(given);
             out.fill(None);
             for &object in &self.hierarchy.unbounded {
                 let mut raw = [None; N];
@@ -164,15 +169,18 @@ impl Scene {
             if self.hierarchy.bvh.node_count() == 0 {
                 continue;
             }
-            for ((ray, range), out) in rays.iter().zip(ranges).zip(out.iter_mut()) {
-                let mut raw = None;
-                let object = self.hierarchy.bvh.closest(ray, range, |id, r| {
-                    let hit = self.objects[id as usize].primitive.intersect(ray, r)?;
-                    raw = Some(hit);
-                    Some(hit.t)
-                });
-                if let (Some(object), Some(raw)) = (object, raw) {
-                    *out = Some((object, raw));
+            let mut raw: [Option<(u32, RawHit)>; N] = [None; N];
+            let objects = self.hierarchy.bvh.closest_packet(rays, &ranges[..n], |lane, id, r| {
+                let hit = self.objects[id as usize].primitive.intersect(&rays[lane], r)?;
+                if !settles_tie(raw[lane].as_ref(), id, hit.t, r) {
+                    return None;
+                }
+                raw[lane] = Some((id, hit));
+                Some(hit.t)
+            });
+            for ((out, object), raw) in out.iter_mut().zip(objects).zip(raw) {
+                if let (Some(_), Some(raw)) = (object, raw) {
+                    *out = Some(raw);
                 }
             }
         }
@@ -183,4 +191,13 @@ impl Scene {
     pub fn occluded(&self, ray: &Ray, range: Interval) -> bool {
         self.intersect(ray, range).is_some()
     }
+}
+
+/// Whether object `id`'s hit at `t` (within `range`, whose `max` is the closest hit so far)
+/// replaces `closest`: a nearer hit does; one at exactly `range.max` only if `id` is smaller
+/// than the object holding it. The hierarchy's closest hit is thus the smallest `(t, id)`,
+/// whatever order its leaves are visited in (single rays and packets agree).
+#[inline(always)]
+fn settles_tie(closest: Option<&(u32, RawHit)>, id: u32, t: f64, range: Interval) -> bool {
+    t < range.max || closest.is_none_or(|(holder, _)| id < *holder)
 }

@@ -12,6 +12,7 @@
 
 pub(crate) mod build;
 
+use crate::PACKET;
 use crate::{Aabb, Interval, Ray};
 use build::{Bb, BuildItem, QuadBvh};
 use glam::{Vec3A, Vec4};
@@ -305,6 +306,350 @@ impl Bvh {
             },
         );
         best
+    }
+}
+
+/// A packet's rays for the scene hierarchy's slab tests, in SoA layout (see [`SlabRay`]).
+struct SlabPacket {
+    origin: [[f32; PACKET]; 3],
+    inv: [[f32; PACKET]; 3],
+    pad: [[f32; PACKET]; 3],
+    t_min: [f32; PACKET],
+}
+
+impl SlabPacket {
+    /// Entry distances of every lane into child `slot` of `quad` and the lanes entering it
+    /// before their `t1`: [`SlabRay::entry4`]'s arithmetic, lane by lane.
+    #[inline(always)]
+    fn entry(&self, quad: &Quad, slot: usize, t1: &[f32; PACKET]) -> (u32, [f32; PACKET]) {
+        let mut near = [0.0; PACKET];
+        let mut inside = [0i32; PACKET];
+        for l in 0..PACKET {
+            let mut n = self.t_min[l];
+            let mut f = t1[l];
+            for axis in 0..3 {
+                let o = self.origin[axis][l];
+                let inv = self.inv[axis][l];
+                let pad = self.pad[axis][l];
+                let a = (quad.lo[axis][slot] - o) * inv;
+                let b = (quad.hi[axis][slot] - o) * inv;
+                n = max_f32(n, min_f32(a, b) - pad);
+                f = min_f32(f, max_f32(a, b) * EXIT_PAD + pad);
+            }
+            near[l] = n;
+            inside[l] = -i32::from(n <= f);
+        }
+        (lane_mask(&inside), near)
+    }
+}
+
+/// `max` that compiles to one `maxps`.
+#[inline(always)]
+pub(crate) fn max_f32(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// `min` that compiles to one `minps`.
+#[inline(always)]
+pub(crate) fn min_f32(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// Bit `l` set where `flags[l]` is `-1` (all ones) rather than `0`: two `movmskps` on x86-64
+/// (a bit loop otherwise, which the compiler turns into a chain of shuffles).
+#[inline(always)]
+pub(crate) fn lane_mask(flags: &[i32; PACKET]) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__m128i, _mm_castsi128_ps, _mm_loadu_si128, _mm_movemask_ps};
+        const _: () = assert!(PACKET == 8);
+        let halves = flags.as_ptr().cast::<__m128i>();
+        // SAFETY: SSE2 is in every x86-64 CPU; the two 16-byte loads stay inside `flags`
+        // (32 bytes: `PACKET` is 8, checked above)
+        unsafe {
+            let lo = _mm_movemask_ps(_mm_castsi128_ps(_mm_loadu_si128(halves)));
+            let hi = _mm_movemask_ps(_mm_castsi128_ps(_mm_loadu_si128(halves.add(1))));
+            (lo | (hi << 4)) as u32
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let mut mask = 0;
+        for (l, &f) in flags.iter().enumerate() {
+            mask |= u32::from(f != 0) << l;
+        }
+        mask
+    }
+}
+
+/// A child waiting on a packet walk's stack: node or leaf (`count > 0`), the lanes entering it
+/// and their entry distances.
+#[derive(Clone, Copy)]
+pub(crate) struct PendingChild {
+    pub child: u32,
+    pub count: u32,
+    pub lanes: u32,
+    pub entry: [f32; PACKET],
+}
+
+/// What a packet walk ([`walk_packet`]) asks of the hierarchy's user.
+pub(crate) trait PacketVisitor {
+    /// The lanes entering child `slot` of `quad` before their `t1`, and their entry distances.
+    fn entry(&self, quad: &Quad, slot: usize, t1: &[f32; PACKET]) -> (u32, [f32; PACKET]);
+    /// Tests the leaf `first..first + count` for `lanes`, lowering their `t_max`.
+    fn leaf(&mut self, first: u32, count: u32, lanes: u32, t_max: &mut [f32; PACKET]);
+    /// Walks the subtree under `quads[root]` for each of `lanes` alone, lowering their `t_max`.
+    fn alone(&mut self, root: usize, lanes: u32, t_max: &mut [f32; PACKET]);
+}
+
+/// Ordered walk of a packet over 4-wide nodes from `quads[0]` for the lanes of `active` (see
+/// [`PacketVisitor`]): children are visited by the lanes entering them, nearest first by their
+/// nearest lane's entry; a lane whose `t_max` fell below its entry drops out when the child is
+/// popped; a node entered by at most `alone_lanes` lanes is handed to [`PacketVisitor::alone`].
+#[inline(always)]
+pub(crate) fn walk_packet(
+    quads: &[Quad],
+    active: u32,
+    t_min: [f32; PACKET],
+    t_max: &mut [f32; PACKET],
+    alone_lanes: u32,
+    visitor: &mut impl PacketVisitor,
+) {
+    if quads.is_empty() || active == 0 {
+        return;
+    }
+    // uninitialised: only entries below `top`, written before, are ever read
+    let mut stack = [const { MaybeUninit::<PendingChild>::uninit() }; QUAD_STACK];
+    stack[0].write(PendingChild {
+        child: 0,
+        count: 0,
+        lanes: active,
+        entry: t_min,
+    });
+    let mut top = 1usize;
+    while top > 0 {
+        top -= 1;
+        // SAFETY: `stack[top]` was written by the push that raised `top` above it
+        let pending = unsafe { stack[top].assume_init() };
+        let mut still = [0i32; PACKET];
+        for l in 0..PACKET {
+            still[l] = -i32::from(pending.entry[l] <= t_max[l]);
+        }
+        let lanes = pending.lanes & lane_mask(&still);
+        if lanes == 0 {
+            continue;
+        }
+        if pending.count > 0 {
+            visitor.leaf(pending.child, pending.count, lanes, t_max);
+            continue;
+        }
+        if lanes.count_ones() <= alone_lanes {
+            visitor.alone(pending.child as usize, lanes, t_max);
+            continue;
+        }
+        let quad = &quads[pending.child as usize];
+        let mut t1 = [f32::NEG_INFINITY; PACKET];
+        for l in 0..PACKET {
+            if (lanes >> l) & 1 != 0 {
+                t1[l] = t_max[l];
+            }
+        }
+        // the entered children, sorted farthest first by their nearest lane's entry
+        let mut order: [(f32, PendingChild); 4] = [(0.0, pending); 4];
+        let mut entered = 0;
+        for slot in 0..quad.len as usize {
+            let (inside, near) = visitor.entry(quad, slot, &t1);
+            if inside == 0 {
+                continue;
+            }
+            let mut nearest = f32::INFINITY;
+            for (l, &t) in near.iter().enumerate() {
+                if (inside >> l) & 1 != 0 {
+                    nearest = min_f32(nearest, t);
+                }
+            }
+            let child = PendingChild {
+                child: quad.child[slot],
+                count: quad.count[slot],
+                lanes: inside,
+                entry: near,
+            };
+            let mut k = entered;
+            while k > 0 && order[k - 1].0 < nearest {
+                order[k] = order[k - 1];
+                k -= 1;
+            }
+            order[k] = (nearest, child);
+            entered += 1;
+        }
+        for (_, child) in &order[..entered] {
+            stack[top].write(*child);
+            top += 1;
+        }
+    }
+}
+
+/// Bits of `lanes`, lowest first.
+#[inline(always)]
+pub(crate) fn lanes_of(lanes: u32) -> impl Iterator<Item = usize> {
+    let mut rest = lanes;
+    std::iter::from_fn(move || {
+        (rest != 0).then(|| {
+            let l = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            l
+        })
+    })
+}
+
+/// A node of the scene's hierarchy entered by at most this many lanes is walked by each alone.
+const SCENE_ALONE_LANES: u32 = 1;
+
+/// The scene hierarchy's packet walk: lanes' slab rays, ranges and closest ids so far.
+struct ScenePacket<'a, T> {
+    bvh: &'a Bvh,
+    slabs: &'a [Option<SlabRay>; PACKET],
+    packet: SlabPacket,
+    ranges: [Interval; PACKET],
+    best: [Option<u32>; PACKET],
+    test: T,
+}
+
+impl<T: FnMut(usize, u32, Interval) -> Option<f64>> ScenePacket<'_, T> {
+    /// Lane `l`'s items `first..first + count`: [`Bvh::closest`]'s leaf test. Returns the new
+    /// `t_max` if one was hit.
+    #[inline(always)]
+    fn leaf_lane(&mut self, l: usize, first: u32, count: u32) -> Option<f32> {
+        let mut found = None;
+        for &id in &self.bvh.items[first as usize..(first + count) as usize] {
+            if let Some(t) = (self.test)(l, id, self.ranges[l]) {
+                self.ranges[l].max = t;
+                self.best[l] = Some(id);
+                found = Some(round_up(t));
+            }
+        }
+        found
+    }
+}
+
+impl<T: FnMut(usize, u32, Interval) -> Option<f64>> PacketVisitor for ScenePacket<'_, T> {
+    #[inline(always)]
+    fn entry(&self, quad: &Quad, slot: usize, t1: &[f32; PACKET]) -> (u32, [f32; PACKET]) {
+        self.packet.entry(quad, slot, t1)
+    }
+
+    #[inline(always)]
+    fn leaf(&mut self, first: u32, count: u32, lanes: u32, t_max: &mut [f32; PACKET]) {
+        for l in lanes_of(lanes) {
+            if let Some(t) = self.leaf_lane(l, first, count) {
+                t_max[l] = t;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn alone(&mut self, root: usize, lanes: u32, t_max: &mut [f32; PACKET]) {
+        for l in lanes_of(lanes) {
+            let Some(slab) = &self.slabs[l] else { continue };
+            let t0 = self.packet.t_min[l];
+            let mut lane_max = t_max[l];
+            let quads = self.bvh.tree.quads();
+            traverse_quads_from(
+                quads,
+                root,
+                lane_max,
+                |q, t1| slab.entry4(q, t0, t1),
+                |first, count, _| {
+                    let t = self.leaf_lane(l, first, count)?;
+                    lane_max = t;
+                    Some(t)
+                },
+            );
+            t_max[l] = lane_max;
+        }
+    }
+}
+
+impl Bvh {
+    /// [`Bvh::closest`] for a packet of at most [`PACKET`] rays at once: `test(lane, id, range)`
+    /// as there, per lane; returns each lane's id that set its final `range.max`. The rays walk
+    /// the 4-wide nodes together (see [`walk_packet`]). Where `test` settles exact ties of `t`
+    /// by id (rejects a hit at exactly `range.max` from an id above the one holding it), every
+    /// lane gets [`Bvh::closest`]'s answer whatever order the leaves are visited in.
+    pub fn closest_packet(
+        &self,
+        rays: &[Ray],
+        ranges: &[Interval],
+        mut test: impl FnMut(usize, u32, Interval) -> Option<f64>,
+    ) -> [Option<u32>; PACKET] {
+        let n = rays.len().min(PACKET);
+        if n == 0 {
+            return [None; PACKET];
+        }
+        let slabs: [Option<SlabRay>; PACKET] = std::array::from_fn(|l| (l < n).then(|| SlabRay::new(&rays[l])));
+        if slabs[..n].iter().flatten().any(|s| !s.is_representable()) || self.tree.quads().is_empty() {
+            let mut best = [None; PACKET];
+            for l in 0..n {
+                best[l] = self.closest(&rays[l], ranges[l], |id, r| test(l, id, r));
+            }
+            return best;
+        }
+        let mut packet = SlabPacket {
+            origin: [[0.0; PACKET]; 3],
+            inv: [[0.0; PACKET]; 3],
+            pad: [[0.0; PACKET]; 3],
+            t_min: [0.0; PACKET],
+        };
+        let mut t_max = [f32::NEG_INFINITY; PACKET];
+        let mut lane_ranges = [Interval::POSITIVE; PACKET];
+        let mut active = 0;
+        for l in 0..PACKET {
+            // a lane without a ray repeats the first with an empty range
+            let (slab, range) = match &slabs[l] {
+                Some(slab) => (slab, ranges[l]),
+                None => (
+                    slabs[0].as_ref().expect("a packet has a first ray"),
+                    Interval::new(1.0, 0.0),
+                ),
+            };
+            for axis in 0..3 {
+                packet.origin[axis][l] = slab.origin[axis];
+                packet.inv[axis][l] = slab.inv[axis];
+                packet.pad[axis][l] = slab.pad[axis];
+            }
+            packet.t_min[l] = round_down(range.min);
+            lane_ranges[l] = range;
+            if l < n && !range.is_empty() {
+                t_max[l] = round_up(range.max);
+                active |= 1 << l;
+            }
+        }
+        let t_min = packet.t_min;
+        let mut walk = ScenePacket {
+            bvh: self,
+            slabs: &slabs,
+            packet,
+            ranges: lane_ranges,
+            best: [None; PACKET],
+            test,
+        };
+        walk_packet(
+            self.tree.quads(),
+            active,
+            t_min,
+            &mut t_max,
+            SCENE_ALONE_LANES,
+            &mut walk,
+        );
+        walk.best
     }
 }
 

@@ -10,12 +10,11 @@
 //! results. The closest hit is the smallest `(t, leaf position)` in both paths, so the order in
 //! which a packet visits the leaves does not change any lane's answer.
 //!
-//! Traversal: a node's four children are tested for all lanes at once; a child is visited by
-//! the lanes that enter it (its lane mask), nearest child first by its smallest entry over
-//! those lanes; the stack keeps each child's per-lane entries, so a lane whose closest hit moved
-//! nearer than its entry drops out when the child is popped. The watertight test permutes axes by
-//! the direction's largest component; a packet whose lanes disagree on it (rays on both sides of
-//! a diagonal) is traced lane by lane instead.
+//! Traversal is the shared packet walk (`bvh::walk_packet`): a child is visited by the lanes that
+//! enter it, nearest first; a node entered by at most [`ALONE_LANES`] lanes is walked by each
+//! alone (the single-ray walk), and a leaf entered by at most [`FEW_LANES`] lanes is tested lane
+//! by lane. The watertight test permutes axes by the direction's largest component; a packet
+//! whose lanes disagree on it (rays on both sides of a diagonal) is traced lane by lane instead.
 
 #![allow(
     clippy::needless_range_loop,
@@ -24,35 +23,21 @@
 
 use super::{Candidate, Mesh, MeshQuery};
 use crate::bvh::build::EXIT_PAD;
-use crate::bvh::{traverse_quads_from, Quad, QUAD_STACK};
+use crate::bvh::{lane_mask, lanes_of, max_f32, min_f32, traverse_quads_from, walk_packet, PacketVisitor, Quad};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::Intersect;
 use crate::PACKET;
-use std::mem::MaybeUninit;
 
 /// One f32 per lane.
 type Lanes = [f32; PACKET];
 
-/// `max` that compiles to one `maxps` (no NaN reaches it: see the slab tests' module docs).
-#[inline(always)]
-fn max(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
+/// Below this many lanes, a leaf's triangles are tested lane by lane (the SIMD test costs the
+/// same for one lane as for eight).
+const FEW_LANES: u32 = 2;
 
-/// `min` that compiles to one `minps`.
-#[inline(always)]
-fn min(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
+/// A node entered by at most this many lanes is walked by each of them alone.
+const ALONE_LANES: u32 = 2;
 
 /// The lanes' rays in SoA layout for the slab and triangle tests.
 struct Packet {
@@ -65,18 +50,6 @@ struct Packet {
     /// The axis permutation `(kx, ky, kz)` every lane shares.
     k: [usize; 3],
     t_min: Lanes,
-    /// Each lane's closest hit so far (`−∞` for a lane that takes no part).
-    t_max: Lanes,
-}
-
-/// A child waiting on the stack: node or leaf (`count > 0`), the lanes entering it and their
-/// entry distances.
-#[derive(Clone, Copy)]
-struct Pending {
-    child: u32,
-    count: u32,
-    lanes: u32,
-    entry: Lanes,
 }
 
 /// Traces `rays` (at most [`PACKET`]) as [`Intersect::intersect_packet`] says.
@@ -115,8 +88,8 @@ fn trace(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<
         shear: [[0.0; PACKET]; 3],
         k,
         t_min: [0.0; PACKET],
-        t_max: [f32::NEG_INFINITY; PACKET],
     };
+    let mut t_max = [f32::NEG_INFINITY; PACKET];
     let mut active = 0u32;
     for l in 0..PACKET {
         // a lane without a ray repeats the first lane's ray with an empty range
@@ -131,18 +104,21 @@ fn trace(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<
         }
         packet.t_min[l] = q.t_min;
         if on {
-            packet.t_max[l] = q.t_max;
+            t_max[l] = q.t_max;
             active |= 1 << l;
         }
     }
-    let mut best: [Option<Candidate>; PACKET] = [None; PACKET];
-    let lanes = PacketQuery {
+    let t_min = packet.t_min;
+    let mut walk = PacketQuery {
         mesh,
         queries: &queries,
         rays,
         ranges,
+        packet,
+        best: [None; PACKET],
     };
-    lanes.walk(&mut packet, &mut best, active);
+    walk_packet(mesh.bvh.quads(), active, t_min, &mut t_max, ALONE_LANES, &mut walk);
+    let best = walk.best;
     for l in 0..n {
         if let Some(q) = &queries[l] {
             if let Some(hit) = mesh.finish(&rays[l], ranges[l], q, best[l]) {
@@ -153,219 +129,105 @@ fn trace(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<
     }
 }
 
-/// Entry distances of every lane into child `slot` of `quad`, and the lanes that enter it before
-/// their `t1`: the single-ray slab test (`SlabRay::entry4`), lane by lane.
-#[inline(always)]
-fn entry(packet: &Packet, quad: &Quad, slot: usize, t1: &Lanes) -> (u32, Lanes) {
-    let mut near = [0.0; PACKET];
-    let mut inside = [0i32; PACKET];
-    for l in 0..PACKET {
-        let mut n = packet.t_min[l];
-        let mut f = f32::INFINITY;
-        for axis in 0..3 {
-            let o = packet.origin[axis][l];
-            let inv = packet.inv[axis][l];
-            let a = (quad.lo[axis][slot] - o) * inv;
-            let b = (quad.hi[axis][slot] - o) * inv;
-            n = max(n, min(a, b));
-            f = min(f, max(a, b));
-        }
-        let f = min(f * EXIT_PAD, t1[l]);
-        near[l] = n;
-        inside[l] = flag(n <= f);
-    }
-    (bitmask(&inside), near)
-}
-
-/// A lane's flag as a full-width mask: all ones for `true`, zero for `false`.
-#[inline(always)]
-fn flag(b: bool) -> i32 {
-    -i32::from(b)
-}
-
-/// Bit `l` set where `flags[l]` (a [`flag`]) is set: two `movmskps` on x86-64 (a bit loop
-/// otherwise, which the compiler turns into a chain of shuffles).
-#[inline(always)]
-fn bitmask(flags: &[i32; PACKET]) -> u32 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_castsi128_ps, _mm_loadu_si128, _mm_movemask_ps};
-        let halves = flags.as_ptr().cast::<std::arch::x86_64::__m128i>();
-        // SAFETY: SSE2 is in every x86-64 CPU; the two 16-byte loads stay inside `flags`
-        // (32 bytes; `PACKET` is 8, checked below)
-        const _: () = assert!(PACKET == 8);
-        unsafe {
-            let lo = _mm_movemask_ps(_mm_castsi128_ps(_mm_loadu_si128(halves)));
-            let hi = _mm_movemask_ps(_mm_castsi128_ps(_mm_loadu_si128(halves.add(1))));
-            (lo | (hi << 4)) as u32
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        let mut mask = 0;
-        for (l, &f) in flags.iter().enumerate() {
-            mask |= u32::from(f != 0) << l;
-        }
-        mask
-    }
-}
-
-/// Below this many lanes, a leaf's triangles are tested lane by lane (the SIMD test costs the
-/// same for one lane as for eight).
-const FEW_LANES: u32 = 2;
-
-/// A node entered by at most this many lanes is walked by each of them alone.
-const ALONE_LANES: u32 = 2;
-
-/// What the walk reads about each lane: its ray and range as given and its set-up.
+/// The packet walk over a mesh: each lane's ray and range as given, its set-up, the SoA
+/// packet and the closest candidates so far.
 struct PacketQuery<'a> {
     mesh: &'a Mesh,
     queries: &'a [Option<MeshQuery>; PACKET],
     rays: &'a [Ray],
     ranges: &'a [Interval],
+    packet: Packet,
+    best: [Option<Candidate>; PACKET],
+}
+
+impl PacketVisitor for PacketQuery<'_> {
+    /// The single-ray slab test (`SlabRay::entry4`), lane by lane.
+    #[inline(always)]
+    fn entry(&self, quad: &Quad, slot: usize, t1: &Lanes) -> (u32, Lanes) {
+        let packet = &self.packet;
+        let mut near = [0.0; PACKET];
+        let mut inside = [0i32; PACKET];
+        for l in 0..PACKET {
+            let mut n = packet.t_min[l];
+            let mut f = f32::INFINITY;
+            for axis in 0..3 {
+                let o = packet.origin[axis][l];
+                let inv = packet.inv[axis][l];
+                let a = (quad.lo[axis][slot] - o) * inv;
+                let b = (quad.hi[axis][slot] - o) * inv;
+                n = max_f32(n, min_f32(a, b));
+                f = min_f32(f, max_f32(a, b));
+            }
+            let f = min_f32(f * EXIT_PAD, t1[l]);
+            near[l] = n;
+            inside[l] = -i32::from(n <= f);
+        }
+        (lane_mask(&inside), near)
+    }
+
+    #[inline(always)]
+    fn leaf(&mut self, first: u32, count: u32, lanes: u32, t_max: &mut Lanes) {
+        if lanes.count_ones() <= FEW_LANES {
+            for l in lanes_of(lanes) {
+                t_max[l] = self.leaf_lane(l, first, count, t_max[l]);
+            }
+        } else {
+            self.leaf_packet(first, count, lanes, t_max);
+        }
+    }
+
+    /// The single-ray walk of each lane through the subtree under `quads[root]`.
+    #[inline(always)]
+    fn alone(&mut self, root: usize, lanes: u32, t_max: &mut Lanes) {
+        for l in lanes_of(lanes) {
+            let Some(q) = &self.queries[l] else { continue };
+            let mut lane_max = t_max[l];
+            traverse_quads_from(
+                self.mesh.bvh.quads(),
+                root,
+                lane_max,
+                |quad, t1| q.ray.slab.entry4(quad, q.t_min, t1),
+                |first, count, t_far| {
+                    let t = self.leaf_lane(l, first, count, t_far);
+                    // a hit at exactly `t_far` (an earlier triangle at the same `t`) keeps it
+                    (t < t_far).then(|| {
+                        lane_max = t;
+                        t
+                    })
+                },
+            );
+            t_max[l] = lane_max;
+        }
+    }
 }
 
 impl PacketQuery<'_> {
-    /// Walks the hierarchy for the lanes of `active`, testing each leaf that some lanes enter
-    /// before their closest hit so far. A node entered by at most [`ALONE_LANES`] lanes is walked by
-    /// each alone, as a single ray would.
-    #[inline(always)]
-    fn walk(&self, packet: &mut Packet, best: &mut [Option<Candidate>; PACKET], active: u32) {
-        let quads = self.mesh.bvh.quads();
-        if quads.is_empty() || active == 0 {
-            return;
-        }
-        // uninitialised: only entries below `top`, written before, are ever read
-        let mut stack = [const { MaybeUninit::<Pending>::uninit() }; QUAD_STACK];
-        stack[0].write(Pending {
-            child: 0,
-            count: 0,
-            lanes: active,
-            entry: packet.t_min,
-        });
-        let mut top = 1usize;
-        while top > 0 {
-            top -= 1;
-            // SAFETY: `stack[top]` was written by the push that raised `top` above it
-            let pending = unsafe { stack[top].assume_init() };
-            let mut still = [0i32; PACKET];
-            for l in 0..PACKET {
-                still[l] = flag(pending.entry[l] <= packet.t_max[l]);
-            }
-            let lanes = pending.lanes & bitmask(&still);
-            if lanes == 0 {
-                continue;
-            }
-            if pending.count > 0 {
-                self.leaf(packet, best, pending.child, pending.count, lanes);
-                continue;
-            }
-            if lanes.count_ones() <= ALONE_LANES {
-                let mut rest = lanes;
-                while rest != 0 {
-                    let l = rest.trailing_zeros() as usize;
-                    rest &= rest - 1;
-                    self.walk_lane(packet, best, l, pending.child as usize);
-                }
-                continue;
-            }
-            let quad = &quads[pending.child as usize];
-            let mut t1 = [f32::NEG_INFINITY; PACKET];
-            for (l, t) in t1.iter_mut().enumerate() {
-                if lanes & (1 << l) != 0 {
-                    *t = packet.t_max[l];
-                }
-            }
-            // the entered children, sorted farthest first by their nearest lane's entry
-            let mut order: [(f32, Pending); 4] = [(0.0, pending); 4];
-            let mut entered = 0;
-            for slot in 0..quad.len as usize {
-                let (inside, near) = entry(packet, quad, slot, &t1);
-                if inside == 0 {
-                    continue;
-                }
-                let mut nearest = f32::INFINITY;
-                for (l, &t) in near.iter().enumerate() {
-                    if inside & (1 << l) != 0 {
-                        nearest = min(nearest, t);
-                    }
-                }
-                let child = Pending {
-                    child: quad.child[slot],
-                    count: quad.count[slot],
-                    lanes: inside,
-                    entry: near,
-                };
-                let mut k = entered;
-                while k > 0 && order[k - 1].0 < nearest {
-                    order[k] = order[k - 1];
-                    k -= 1;
-                }
-                order[k] = (nearest, child);
-                entered += 1;
-            }
-            for (_, child) in &order[..entered] {
-                stack[top].write(*child);
-                top += 1;
-            }
-        }
-    }
-
-    /// Lane `l` alone through the subtree under `quads[root]`: the single-ray walk.
-    #[inline(always)]
-    fn walk_lane(&self, packet: &mut Packet, best: &mut [Option<Candidate>; PACKET], l: usize, root: usize) {
-        let Some(q) = &self.queries[l] else { return };
-        let mut t_max = packet.t_max[l];
-        traverse_quads_from(
-            self.mesh.bvh.quads(),
-            root,
-            t_max,
-            |quad, t1| q.ray.slab.entry4(quad, q.t_min, t1),
-            |first, count, t_far| {
-                let t = self.leaf_lane(&mut best[l], l, first, count, t_far);
-                (t < t_far).then(|| {
-                    t_max = t;
-                    t
-                })
-            },
-        );
-        // a hit at exactly `t_far` (an earlier triangle at the same `t`) leaves it unchanged
-        packet.t_max[l] = t_max;
-    }
-
     /// The leaf's triangles for lane `l` alone, its closest hit so far at `t_far`: the single-ray
     /// leaf test. Returns the new `t_far`.
     #[inline(always)]
-    fn leaf_lane(&self, best: &mut Option<Candidate>, l: usize, first: u32, count: u32, mut t_far: f32) -> f32 {
+    fn leaf_lane(&mut self, l: usize, first: u32, count: u32, mut t_far: f32) -> f32 {
         let Some(q) = &self.queries[l] else { return t_far };
         let mesh = self.mesh;
         for k in first as usize..(first + count) as usize {
             let [a, b, c] = mesh.tris[k].map(|i| mesh.vertices[i as usize]);
             if let Some((t, u, v)) = q.ray.triangle(a, b, c, q.t_min, t_far) {
-                if !Mesh::beats(best.as_ref(), k, t, t_far) || !mesh.counts(&self.rays[l], self.ranges[l], q, k, t) {
+                if !Mesh::beats(self.best[l].as_ref(), k, t, t_far)
+                    || !mesh.counts(&self.rays[l], self.ranges[l], q, k, t)
+                {
                     continue;
                 }
                 t_far = t;
-                *best = Some((k, t, u, v));
+                self.best[l] = Some((k, t, u, v));
             }
         }
         t_far
     }
 
-    /// Tests the leaf's triangles `first..first + count` for the lanes of `lanes`, updating each
-    /// lane's closest candidate and `t_max`.
+    /// The leaf's triangles for the lanes of `lanes`, eight lanes per SIMD operation.
     #[inline(always)]
-    fn leaf(&self, packet: &mut Packet, best: &mut [Option<Candidate>; PACKET], first: u32, count: u32, lanes: u32) {
-        if lanes.count_ones() <= FEW_LANES {
-            let mut rest = lanes;
-            while rest != 0 {
-                let l = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
-                packet.t_max[l] = self.leaf_lane(&mut best[l], l, first, count, packet.t_max[l]);
-            }
-            return;
-        }
+    fn leaf_packet(&mut self, first: u32, count: u32, lanes: u32, t_max: &mut Lanes) {
         let mesh = self.mesh;
+        let packet = &self.packet;
         let [kx, ky, kz] = packet.k;
         for k in first as usize..(first + count) as usize {
             let [a, b, c] = mesh.tris[k].map(|i| mesh.vertices[i as usize]);
@@ -387,48 +249,37 @@ impl PacketQuery<'_> {
                 let e0 = cx * by - cy * bx;
                 let e1 = ax * cy - ay * cx;
                 let e2 = bx * ay - by * ax;
-                zero[l] = flag(e0 == 0.0 || e1 == 0.0 || e2 == 0.0);
+                zero[l] = -i32::from(e0 == 0.0 || e1 == 0.0 || e2 == 0.0);
                 let d = e0 + e1 + e2;
                 let tl = (e0 * (sz * az) + e1 * (sz * bz) + e2 * (sz * cz)) / d;
                 let mixed = (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0);
-                pass[l] = flag(!mixed && d != 0.0 && tl >= packet.t_min[l] && tl <= packet.t_max[l]);
+                pass[l] = -i32::from(!mixed && d != 0.0 && tl >= packet.t_min[l] && tl <= t_max[l]);
                 t[l] = tl;
                 e[0][l] = e1;
                 e[1][l] = e2;
                 det[l] = d;
             }
-            let zero = bitmask(&zero) & lanes;
-            let mut found = bitmask(&pass) & lanes & !zero;
+            let zero = lane_mask(&zero) & lanes;
+            let found = lane_mask(&pass) & lanes & !zero;
             // lanes with an edge function of exactly zero: the single-ray test, f64
             // recomputation included
-            let mut exact = [(0.0f32, 0.0f32, 0.0f32); PACKET];
-            let mut rest = zero;
-            while rest != 0 {
-                let l = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
-                if let Some(q) = &self.queries[l] {
-                    if let Some(hit) = q.ray.triangle(a, b, c, q.t_min, packet.t_max[l]) {
-                        exact[l] = hit;
-                        found |= 1 << l;
-                    }
-                }
-            }
-            while found != 0 {
-                let l = found.trailing_zeros() as usize;
-                found &= found - 1;
+            for l in lanes_of(zero | found) {
                 let Some(q) = &self.queries[l] else { continue };
                 let hit = if zero & (1 << l) != 0 {
-                    exact[l]
+                    match q.ray.triangle(a, b, c, q.t_min, t_max[l]) {
+                        Some(hit) => hit,
+                        None => continue,
+                    }
                 } else {
                     (t[l], e[0][l] / det[l], e[1][l] / det[l])
                 };
-                if !Mesh::beats(best[l].as_ref(), k, hit.0, packet.t_max[l])
+                if !Mesh::beats(self.best[l].as_ref(), k, hit.0, t_max[l])
                     || !mesh.counts(&self.rays[l], self.ranges[l], q, k, hit.0)
                 {
                     continue;
                 }
-                packet.t_max[l] = hit.0;
-                best[l] = Some((k, hit.0, hit.1, hit.2));
+                t_max[l] = hit.0;
+                self.best[l] = Some((k, hit.0, hit.1, hit.2));
             }
         }
     }
