@@ -69,10 +69,19 @@ pub struct QueryRay {
     pub range: Interval,
 }
 
+/// What a query answers about a hit: normal and uv (the point comes with every hit); not the
+/// point's error bound, which nothing downstream of a query uses.
+const ANSWER: HitRequest = HitRequest {
+    normal: true,
+    uv: true,
+    error: false,
+};
+
 /// The answer for one query ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct QueryHit {
-    /// The first hit: the object index and its completed hit record.
+    /// The first hit: the object index and its completed hit record (normal and uv; its
+    /// `error` is not computed, `+∞`).
     pub hit: Option<(u32, SurfaceHit)>,
     /// Whether the root finder ran out of its evaluation budget on this ray: the answer (a miss,
     /// or a hit beyond a surface it could not resolve) may be wrong.
@@ -157,10 +166,7 @@ fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> impl Iterat
         for l in 0..n {
             out[l].hit = found[l].map(|(object, raw)| {
                 let primitive = &*scene.objects[object as usize].primitive;
-                (
-                    object,
-                    SurfaceHit::complete(primitive, &lanes[l], &raw, HitRequest::ALL),
-                )
+                (object, SurfaceHit::complete(primitive, &lanes[l], &raw, ANSWER))
             });
         }
     } else {
@@ -178,12 +184,7 @@ fn trace_one(scene: &Scene, q: &QueryRay) -> QueryHit {
     let hit = scene.intersect(&q.ray, q.range).map(|(object, raw)| {
         (
             object,
-            SurfaceHit::complete(
-                &*scene.objects[object as usize].primitive,
-                &q.ray,
-                &raw,
-                HitRequest::ALL,
-            ),
+            SurfaceHit::complete(&*scene.objects[object as usize].primitive, &q.ray, &raw, ANSWER),
         )
     });
     QueryHit {

@@ -317,6 +317,8 @@ impl<'a> Tracer<'a> {
                 .iter()
                 .any(|a| matches!(a, Aov::Beauty | Aov::Normal | Aov::CameraNormal | Aov::ShadingNormal)),
             uv: aovs.contains(&Aov::Uv),
+            // shadow rays start from beauty's hits
+            error: aovs.contains(&Aov::Beauty),
         };
         let bar = ProgressBar::with_draw_target(Some(u64::from(layout.window.height())), ProgressDrawTarget::hidden());
         bar.set_style(

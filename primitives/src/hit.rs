@@ -61,15 +61,23 @@ pub struct HitRequest {
     pub normal: bool,
     /// Compute surface parameters `(u, v)` where the primitive has them.
     pub uv: bool,
+    /// Compute the bound on the hit point's error ([`SurfaceHit::error`]), which starting a
+    /// secondary ray needs.
+    pub error: bool,
 }
 
 impl HitRequest {
     /// Everything.
-    pub const ALL: Self = Self { normal: true, uv: true };
+    pub const ALL: Self = Self {
+        normal: true,
+        uv: true,
+        error: true,
+    };
     /// Only `t` and the point.
     pub const NONE: Self = Self {
         normal: false,
         uv: false,
+        error: false,
     };
 }
 
@@ -88,7 +96,8 @@ pub struct SurfaceHit {
     pub feature: u32,
     /// Bound on the distance between `point` and the exact surface
     /// ([`Intersect::hit_error`]); pass it to [`crate::offset::offset_origin`] to start
-    /// secondary rays.
+    /// secondary rays. `+∞` (a valid but useless bound) where the request did not ask for it
+    /// ([`HitRequest::error`]): no secondary ray may start from such a record.
     pub error: f64,
 }
 
@@ -102,7 +111,11 @@ impl SurfaceHit {
             normal: request.normal.then(|| surface.normal_at(ray, raw)),
             uv: if request.uv { surface.uv_at(ray, raw) } else { None },
             feature: raw.feature,
-            error: surface.hit_error(ray, raw),
+            error: if request.error {
+                surface.hit_error(ray, raw)
+            } else {
+                f64::INFINITY
+            },
         }
     }
 
