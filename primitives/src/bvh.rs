@@ -632,24 +632,39 @@ impl Bvh {
                 active |= 1 << l;
             }
         }
-        let t_min = packet.t_min;
-        let mut walk = ScenePacket {
-            bvh: self,
-            slabs: &slabs,
-            packet,
-            ranges: lane_ranges,
-            best: [None; PACKET],
-            test,
-        };
-        walk_packet(
-            self.tree.quads(),
-            active,
-            t_min,
-            &mut t_max,
-            SCENE_ALONE_LANES,
-            &mut walk,
-        );
-        walk.best
+        // the walk runs in the AVX2 copy where the CPU has it (eight lanes per slab operation);
+        // `test` is called through a pointer, as a type without a name cannot cross into it
+        #[inline(always)]
+        fn walk(
+            bvh: &Bvh,
+            slabs: &[Option<SlabRay>; PACKET],
+            packet: SlabPacket,
+            ranges: [Interval; PACKET],
+            active: u32,
+            t_max: &mut [f32; PACKET],
+            test: &mut dyn FnMut(usize, u32, Interval) -> Option<f64>,
+        ) -> [Option<u32>; PACKET] {
+            let t_min = packet.t_min;
+            let mut visitor = ScenePacket {
+                bvh,
+                slabs,
+                packet,
+                ranges,
+                best: [None; PACKET],
+                test,
+            };
+            walk_packet(bvh.tree.quads(), active, t_min, t_max, SCENE_ALONE_LANES, &mut visitor);
+            visitor.best
+        }
+        crate::with_fma!(walk(
+            bvh: &Bvh = self,
+            slabs: &[Option<SlabRay>; PACKET] = &slabs,
+            packet: SlabPacket = packet,
+            ranges: [Interval; PACKET] = lane_ranges,
+            active: u32 = active,
+            t_max: &mut [f32; PACKET] = &mut t_max,
+            test: &mut dyn FnMut(usize, u32, Interval) -> Option<f64> = &mut test,
+        ) -> [Option<u32>; PACKET])
     }
 }
 
