@@ -743,6 +743,89 @@ mod tests {
         closest_hit_equals_brute_force_with(600, 9, -1e39);
     }
 
+    /// Packets of rays (coherent, scattered, partial, with limited ranges) get exactly the
+    /// single-ray walk's answers, exact ties of `t` settled by id in both (boxes sharing faces).
+    #[test]
+    fn packets_equal_single_rays() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(12);
+        // a grid of unit boxes (shared faces give exact ties) plus random ones
+        let mut boxes: Vec<Aabb> = Vec::new();
+        for i in 0..6 {
+            for j in 0..6 {
+                let c = DVec3::new(f64::from(i) - 3.0, f64::from(j) - 3.0, 0.0);
+                boxes.push(Aabb::new(c, c + DVec3::ONE));
+            }
+        }
+        for _ in 0..3000 {
+            let c = DVec3::new(
+                rng.random_range(-10.0..10.0),
+                rng.random_range(-10.0..10.0),
+                rng.random_range(-10.0..10.0),
+            );
+            let h = DVec3::new(
+                rng.random_range(0.01..0.5),
+                rng.random_range(0.01..0.5),
+                rng.random_range(0.01..0.5),
+            );
+            boxes.push(Aabb::new(c - h, c + h));
+        }
+        let items: Vec<(Aabb, u32)> = boxes.iter().enumerate().map(|(i, b)| (*b, i as u32)).collect();
+        let bvh = Bvh::build(&items);
+        let entry = |b: &Aabb, ray: &Ray, range: Interval| b.clip(ray, range).map(|r| r.min);
+        // the closest box, exact ties going to the smaller id
+        let settle = |best: Option<u32>, id: u32, t: f64, range: Interval| t < range.max || best.is_none_or(|b| id < b);
+        for round in 0..3000 {
+            let n = if round % 5 == 0 {
+                rng.random_range(1..=PACKET)
+            } else {
+                PACKET
+            };
+            let eye = DVec3::new(rng.random_range(-12.0..12.0), rng.random_range(-12.0..12.0), -15.0);
+            let spread = if round % 2 == 0 { 0.01 } else { 1.0 };
+            let rays: Vec<Ray> = (0..n)
+                .map(|_| {
+                    let d = DVec3::new(
+                        rng.random_range(-spread..spread),
+                        rng.random_range(-spread..spread),
+                        1.0,
+                    );
+                    Ray::new(eye, d)
+                })
+                .collect();
+            let ranges: Vec<Interval> = (0..n)
+                .map(|_| {
+                    if rng.random_bool(0.2) {
+                        Interval::new(10.0, 16.0)
+                    } else {
+                        Interval::POSITIVE
+                    }
+                })
+                .collect();
+            let single: Vec<Option<u32>> = (0..n)
+                .map(|l| {
+                    let mut best = None;
+                    bvh.closest(&rays[l], ranges[l], |id, r| {
+                        let t = entry(&boxes[id as usize], &rays[l], r)?;
+                        settle(best, id, t, r).then(|| {
+                            best = Some(id);
+                            t
+                        })
+                    })
+                })
+                .collect();
+            let mut best = [None; PACKET];
+            let packet = bvh.closest_packet(&rays, &ranges, |l, id, r| {
+                let t = entry(&boxes[id as usize], &rays[l], r)?;
+                settle(best[l], id, t, r).then(|| {
+                    best[l] = Some(id);
+                    t
+                })
+            });
+            assert_eq!(&packet[..n], &single[..], "rays {rays:?}");
+            assert!(packet[n..].iter().all(Option::is_none));
+        }
+    }
+
     fn closest_hit_equals_brute_force_with(count: usize, seed: u64, origin_z: f64) {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let boxes: Vec<Aabb> = (0..count)
