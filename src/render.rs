@@ -23,8 +23,11 @@
 //! Rows are traced on rayon's threads ([`render_view`]: one task per row, into a [`Frame`];
 //! [`crate::stream`]: bands of rows handed in order to the output files as they finish); every
 //! pixel is computed independently from the scene and its own samples (a hash of
-//! seed, pixel and sample index), so the image is bit-identical whatever the thread count. The
-//! loop knows nothing about any particular primitive: it calls [`Scene::intersect`] (or
+//! seed, pixel and sample index), so the image is bit-identical whatever the thread count. With
+//! one sample per pixel, the pixel centres of 4 × 2 blocks are traced together
+//! ([`Scene::intersect_packet`]: the scene's hierarchy and each mesh's walked once per packet, the
+//! rays in SIMD lanes), each ray getting exactly the hit it gets alone. The loop knows nothing
+//! about any particular primitive: it calls [`Scene::intersect_packet`], [`Scene::intersect`] (or
 //! [`Scene::intersect_at`]) and [`SurfaceHit::complete`].
 
 use crate::aov::Aov;
