@@ -108,12 +108,50 @@ impl Bb {
     }
 }
 
-/// One triangle during the build: its box, its box's centre and its file index.
+/// One item (triangle or object) during the build: its f32 box and its id, in 28 bytes (the
+/// build permutes them in place, so a million scene objects cost 28 MB here). The box's centre,
+/// which the build bins, is computed where it is needed ([`BuildItem::centroid`]).
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub(crate) struct BuildItem {
-    pub bounds: Bb,
-    pub centroid: Vec3A,
+    lo: [f32; 3],
+    /// The caller's id (a triangle's or object's index).
     pub id: u32,
+    hi: [f32; 3],
+}
+
+impl BuildItem {
+    /// The item `id` with box `bounds`.
+    #[inline]
+    pub fn new(bounds: Bb, id: u32) -> Self {
+        Self {
+            lo: bounds.lo.to_array(),
+            id,
+            hi: bounds.hi.to_array(),
+        }
+    }
+
+    /// Its box.
+    #[inline]
+    pub fn bounds(&self) -> Bb {
+        Bb {
+            lo: Vec3A::from_array(self.lo),
+            hi: Vec3A::from_array(self.hi),
+        }
+    }
+
+    /// Its box's centre, `lo/2 + hi/2` (finite for any finite box, where `(lo + hi)/2` may
+    /// overflow).
+    #[inline]
+    pub fn centroid(&self) -> Vec3A {
+        0.5 * Vec3A::from_array(self.lo) + 0.5 * Vec3A::from_array(self.hi)
+    }
+
+    /// Component `axis` of [`BuildItem::centroid`] (the same f32 operations).
+    #[inline]
+    fn centroid_on(&self, axis: usize) -> f32 {
+        0.5 * self.lo[axis] + 0.5 * self.hi[axis]
+    }
 }
 
 enum BuildNode {
@@ -147,11 +185,12 @@ impl<const N: usize> Bins<N> {
 
     fn add(&mut self, tris: &[BuildItem], lo: Vec3A, scale: Vec3A) {
         for t in tris {
-            let b = ((t.centroid - lo) * scale).min(Vec3A::splat((N - 1) as f32));
+            let b = ((t.centroid() - lo) * scale).min(Vec3A::splat((N - 1) as f32));
+            let bounds = t.bounds();
             for axis in 0..3 {
                 let i = b[axis] as usize;
                 self.counts[axis][i] += 1;
-                self.bounds[axis][i] = self.bounds[axis][i].union(t.bounds);
+                self.bounds[axis][i] = self.bounds[axis][i].union(bounds);
             }
         }
     }
@@ -172,7 +211,7 @@ impl QuadBvh {
     /// `max_leaf` items; with `pairs`, also keeps the binary tree for nearest-point queries.
     /// `tris` must not be empty.
     pub fn build(tris: &mut [BuildItem], max_leaf: usize, pairs: bool) -> Self {
-        let bounds = tris.par_iter().map(|t| t.bounds).reduce(|| Bb::EMPTY, Bb::union);
+        let bounds = tris.par_iter().map(BuildItem::bounds).reduce(|| Bb::EMPTY, Bb::union);
         let tree = build_node(tris, 0, bounds, 0, max_leaf);
         let mut bvh = Self {
             root: Node::default(),
@@ -369,10 +408,10 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_
     }
     let centroids = if n > PARALLEL_BINNING_MIN {
         tris.par_chunks(16384)
-            .map(|c| c.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid)))
+            .map(|c| c.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid())))
             .reduce(|| Bb::EMPTY, Bb::union)
     } else {
-        tris.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid))
+        tris.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid()))
     };
     let extent = centroids.hi - centroids.lo;
     let split = if depth >= MEDIAN_DEPTH || extent.max_element() <= 0.0 {
@@ -393,13 +432,13 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_
             // median along the widest centroid axis (any order when all centroids coincide)
             let axis = extent.max_position();
             let mid = n / 2;
-            tris.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+            tris.select_nth_unstable_by(mid, |a, b| a.centroid_on(axis).total_cmp(&b.centroid_on(axis)));
             mid
         }
     };
     let (left, right) = tris.split_at_mut(mid);
-    let lb = left.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds));
-    let rb = right.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds));
+    let lb = left.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds()));
+    let rb = right.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds()));
     let rstart = start + mid as u32;
     let (l, r) = if n > PARALLEL_MIN {
         rayon::join(
@@ -493,7 +532,7 @@ fn sah_split_binned<const N: usize>(
         return Some(Split::Leaf);
     }
     let (lo, s) = (centroids.lo[axis], scale[axis]);
-    let bin_of = |t: &BuildItem| (((t.centroid[axis] - lo) * s) as usize).min(N - 1);
+    let bin_of = |t: &BuildItem| (((t.centroid_on(axis) - lo) * s) as usize).min(N - 1);
     let mut mid = 0;
     for i in 0..n {
         if bin_of(&tris[i]) < split {
@@ -502,4 +541,31 @@ fn sah_split_binned<const N: usize>(
         }
     }
     (mid > 0 && mid < n).then_some(Split::At(mid))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn build_items_are_small_and_keep_box_and_centre() {
+        assert_eq!(std::mem::size_of::<BuildItem>(), 28);
+        let bounds = Bb {
+            lo: Vec3A::new(-f32::MAX, 1.0, -3.5),
+            hi: Vec3A::new(f32::MAX, f32::MAX, 0.25),
+        };
+        let item = BuildItem::new(bounds, 7);
+        assert_eq!(item.id, 7);
+        assert_eq!((item.bounds().lo, item.bounds().hi), (bounds.lo, bounds.hi));
+        // lo/2 + hi/2 in f64 (exact here), where (lo + hi)/2 would overflow to infinity
+        let expected = [0.0, 0.5 + f64::from(f32::MAX) / 2.0, -1.625];
+        for axis in 0..3 {
+            assert_eq!(
+                f64::from(item.centroid()[axis]),
+                expected[axis] as f32 as f64,
+                "axis {axis}"
+            );
+            assert_eq!(item.centroid_on(axis).to_bits(), item.centroid()[axis].to_bits());
+        }
+    }
 }
