@@ -97,15 +97,6 @@ impl Bb {
         let e = (self.hi - self.lo).max(Vec3A::ZERO);
         e.x * e.y + e.y * e.z + e.z * e.x
     }
-
-    fn node(self, first: u32, count: u32) -> Node {
-        Node {
-            lo: self.lo.to_array(),
-            first,
-            hi: self.hi.to_array(),
-            count,
-        }
-    }
 }
 
 /// One item (triangle or object) during the build: its f32 box and its id, in 28 bytes (the
@@ -154,9 +145,54 @@ impl BuildItem {
     }
 }
 
+/// A node of the binary tree during the build: 40 bytes, its box as f32 arrays (not the 16-byte
+/// aligned [`Bb`]), so that an inner node's pair of children is an 80-byte allocation (a million
+/// scene objects: about a million of them).
 enum BuildNode {
-    Leaf { bounds: Bb, start: u32, count: u32 },
-    Inner { bounds: Bb, children: Box<[BuildNode; 2]> },
+    Leaf {
+        bounds: NodeBox,
+        start: u32,
+        count: u32,
+    },
+    Inner {
+        bounds: NodeBox,
+        children: Box<[BuildNode; 2]>,
+    },
+}
+
+/// A box stored in a [`BuildNode`].
+#[derive(Clone, Copy, Debug)]
+struct NodeBox {
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+impl From<Bb> for NodeBox {
+    fn from(b: Bb) -> Self {
+        Self {
+            lo: b.lo.to_array(),
+            hi: b.hi.to_array(),
+        }
+    }
+}
+
+impl NodeBox {
+    fn node(self, first: u32, count: u32) -> Node {
+        Node {
+            lo: self.lo,
+            first,
+            hi: self.hi,
+            count,
+        }
+    }
+
+    fn half_area(self) -> f32 {
+        Bb {
+            lo: Vec3A::from_array(self.lo),
+            hi: Vec3A::from_array(self.hi),
+        }
+        .half_area()
+    }
 }
 
 /// The hierarchy; triangles are referred to by their position in leaf order. Closest-hit
@@ -401,7 +437,7 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_
     let n = tris.len();
     if n == 1 {
         return BuildNode::Leaf {
-            bounds,
+            bounds: bounds.into(),
             start,
             count: 1,
         };
@@ -422,7 +458,7 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_
     let mid = match split {
         Some(Split::Leaf) => {
             return BuildNode::Leaf {
-                bounds,
+                bounds: bounds.into(),
                 start,
                 count: n as u32,
             }
@@ -452,7 +488,7 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_
         )
     };
     BuildNode::Inner {
-        bounds,
+        bounds: bounds.into(),
         children: Box::new([l, r]),
     }
 }
@@ -550,6 +586,7 @@ mod tests {
     #[test]
     fn build_items_are_small_and_keep_box_and_centre() {
         assert_eq!(std::mem::size_of::<BuildItem>(), 28);
+        assert_eq!(std::mem::size_of::<BuildNode>(), 40);
         let bounds = Bb {
             lo: Vec3A::new(-f32::MAX, 1.0, -3.5),
             hi: Vec3A::new(f32::MAX, f32::MAX, 0.25),
