@@ -596,12 +596,8 @@ mod tests {
         assert_eq!((item.bounds().lo, item.bounds().hi), (bounds.lo, bounds.hi));
         // lo/2 + hi/2 in f64 (exact here), where (lo + hi)/2 would overflow to infinity
         let expected = [0.0, 0.5 + f64::from(f32::MAX) / 2.0, -1.625];
-        for axis in 0..3 {
-            assert_eq!(
-                f64::from(item.centroid()[axis]),
-                expected[axis] as f32 as f64,
-                "axis {axis}"
-            );
+        for (axis, expected) in expected.into_iter().enumerate() {
+            assert_eq!(f64::from(item.centroid()[axis]), expected as f32 as f64, "axis {axis}");
             assert_eq!(item.centroid_on(axis).to_bits(), item.centroid()[axis].to_bits());
         }
     }
