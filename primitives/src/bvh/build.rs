@@ -254,7 +254,8 @@ impl QuadBvh {
             pairs: Vec::with_capacity(if pairs { tris.len() / 2 + 1 } else { 0 }),
             quads: Vec::with_capacity(tris.len() / 4 + 1),
         };
-        bvh.flatten_quad(&collapse(&tree));
+        let (top, len) = collapse(&tree);
+        bvh.flatten_quad(&top[..len]);
         bvh.root = match &tree {
             BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
             BuildNode::Inner { bounds, children } if pairs => {
@@ -278,7 +279,10 @@ impl QuadBvh {
         for (slot, child) in children.iter().enumerate() {
             let (bounds, first, count) = match child {
                 BuildNode::Leaf { bounds, start, count } => (bounds, *start, *count),
-                BuildNode::Inner { bounds, .. } => (bounds, self.flatten_quad(&collapse(child)), 0),
+                BuildNode::Inner { bounds, .. } => {
+                    let (nodes, len) = collapse(child);
+                    (bounds, self.flatten_quad(&nodes[..len]), 0)
+                }
             };
             for axis in 0..3 {
                 quad.lo[axis][slot] = bounds.lo[axis];
@@ -409,13 +413,15 @@ impl SlabRay {
 /// Up to four nodes standing for `node` in a 4-wide tree: its children, with the inner one of
 /// largest surface area replaced by its own two children while fewer than four (a leaf root is
 /// its own single child).
-fn collapse(node: &BuildNode) -> Vec<&BuildNode> {
-    let mut out: Vec<&BuildNode> = match node {
-        BuildNode::Leaf { .. } => return vec![node],
-        BuildNode::Inner { children, .. } => children.iter().collect(),
+fn collapse(node: &BuildNode) -> ([&BuildNode; 4], usize) {
+    let BuildNode::Inner { children, .. } = node else {
+        return ([node; 4], 1);
     };
-    while out.len() < 4 {
-        let widest = out
+    // `out[..len]` are the nodes; the rest is filler
+    let mut out = [&children[0], &children[1], node, node];
+    let mut len = 2;
+    while len < 4 {
+        let widest = out[..len]
             .iter()
             .enumerate()
             .filter_map(|(i, n)| match n {
@@ -428,9 +434,10 @@ fn collapse(node: &BuildNode) -> Vec<&BuildNode> {
             unreachable!("chosen among inner nodes")
         };
         out[i] = &children[0];
-        out.push(&children[1]);
+        out[len] = &children[1];
+        len += 1;
     }
-    out
+    (out, len)
 }
 
 fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_leaf: usize) -> BuildNode {
