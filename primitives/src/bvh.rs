@@ -225,7 +225,7 @@ impl Bvh {
     /// them (48 B each) during the build.
     #[must_use]
     pub fn build_from(items: impl IntoIterator<Item = (Aabb, u32)>) -> Self {
-        let mut work: Vec<BuildItem> = items
+        let work: Vec<BuildItem> = items
             .into_iter()
             .map(|(b, id)| {
                 let bounds = Bb {
@@ -238,11 +238,8 @@ impl Bvh {
         if work.is_empty() {
             return Self::default();
         }
-        let tree = QuadBvh::build(&mut work, MAX_LEAF, false);
-        Self {
-            tree,
-            items: work.iter().map(|w| w.id).collect(),
-        }
+        let (tree, items) = QuadBvh::build_ids(work, MAX_LEAF);
+        Self { tree, items }
     }
 
     /// Number of 4-wide nodes.

@@ -247,18 +247,32 @@ impl QuadBvh {
     /// `max_leaf` items; with `pairs`, also keeps the binary tree for nearest-point queries.
     /// `tris` must not be empty.
     pub fn build(tris: &mut [BuildItem], max_leaf: usize, pairs: bool) -> Self {
-        let bounds = tris.par_iter().map(BuildItem::bounds).reduce(|| Bb::EMPTY, Bb::union);
-        let tree = build_node(tris, 0, bounds, 0, max_leaf);
+        let tree = build_tree(tris, max_leaf);
+        Self::flatten_tree(&tree, pairs)
+    }
+
+    /// [`QuadBvh::build`] without `pairs`, taking the items and giving their ids in leaf order:
+    /// the items are dropped as soon as the binary tree is built, before the 4-wide nodes are
+    /// written (a million scene objects: 28 MB less at the peak).
+    pub fn build_ids(mut tris: Vec<BuildItem>, max_leaf: usize) -> (Self, Vec<u32>) {
+        let tree = build_tree(&mut tris, max_leaf);
+        let ids = tris.iter().map(|t| t.id).collect();
+        drop(tris);
+        (Self::flatten_tree(&tree, false), ids)
+    }
+
+    /// The nodes of `tree`, with `pairs` also the binary ones.
+    fn flatten_tree(tree: &BuildNode, pairs: bool) -> Self {
         // exact capacities: a node array is never grown or shrunk, which would copy it (their
         // 64-byte alignment rules out an in-place `realloc`): 120 MB at the peak for 10⁶ objects
-        let (top, len) = collapse(&tree);
+        let (top, len) = collapse(tree);
         let mut bvh = Self {
             root: Node::default(),
-            pairs: Vec::with_capacity(if pairs { inner_count(&tree) } else { 0 }),
+            pairs: Vec::with_capacity(if pairs { inner_count(tree) } else { 0 }),
             quads: Vec::with_capacity(quad_count(&top[..len])),
         };
         bvh.flatten_quad(&top[..len]);
-        bvh.root = match &tree {
+        bvh.root = match tree {
             BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
             BuildNode::Inner { bounds, children } if pairs => {
                 let first = bvh.flatten(children);
@@ -461,6 +475,12 @@ fn collapse(node: &BuildNode) -> ([&BuildNode; 4], usize) {
         len += 1;
     }
     (out, len)
+}
+
+/// The binary tree over `tris` (reordered in place into leaf order); `tris` must not be empty.
+fn build_tree(tris: &mut [BuildItem], max_leaf: usize) -> BuildNode {
+    let bounds = tris.par_iter().map(BuildItem::bounds).reduce(|| Bb::EMPTY, Bb::union);
+    build_node(tris, 0, bounds, 0, max_leaf)
 }
 
 fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_leaf: usize) -> BuildNode {
