@@ -19,8 +19,9 @@
 //!    [`combinators`] and [`mesh_io`], then [`registry`], which maps RON names to their parsers
 //!    (and parses a [`ShapeDesc`] by its name).
 //! 4. **Built scene**: [`objects`] (an object description built into a placed primitive),
-//!    `parallel_parse` and `load_stream` (large `objects` lists parsed on worker threads), [`scene`]
-//!    (loading, validation, the [`scene::Scene`]), [`tracing`] (its hierarchy and ray queries).
+//!    `parallel_parse`, `load_stream` and `fast_sphere` (large `objects` lists parsed on worker
+//!    threads, plain spheres without serde), [`scene`] (loading, validation, the
+//!    [`scene::Scene`]), [`tracing`] (its hierarchy and ray queries).
 //! 5. **Render**: [`render`], [`views`], [`query_rays`], [`query`], [`pixels`], [`diagnostics`].
 //! 6. **Output and command line**: [`output`], [`resources`] (the command's up-front checks of
 //!    memory, disk and threads), [`cli`].
@@ -37,6 +38,7 @@ pub mod cli;
 pub mod combinators;
 pub mod desc;
 pub mod diagnostics;
+mod fast_sphere;
 mod load_stream;
 pub mod mesh_io;
 pub mod motion;

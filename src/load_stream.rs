@@ -14,6 +14,7 @@
 //! that does not parse, an object that does not build, text that is not UTF-8, a read error.
 
 use crate::desc::{ron_options, ObjectDesc, SceneDesc, PARSE_STACK_BYTES};
+use crate::fast_sphere::parse_sphere_object;
 use crate::objects::{BuiltObjects, ObjectBuilder};
 use crate::parallel_parse::{objects_list_start, scan_elements, ListScan, PARALLEL_OBJECTS};
 use crate::shape_desc::BuildContext;
@@ -71,8 +72,9 @@ impl<R: Read> Blocks<R> {
     }
 }
 
-/// A batch of elements to parse: its sequence number, its text as a RON list, its element count.
-type Job = (usize, String, usize);
+/// A batch of elements to parse: its sequence number, its text as a RON list, the byte ranges of
+/// its elements in that text.
+type Job = (usize, String, Vec<Range<usize>>);
 
 fn stream(source: impl Read, context: &BuildContext, block_bytes: usize) -> Option<BuiltObjects> {
     let mut blocks = Blocks { source, eof: false };
@@ -94,6 +96,7 @@ fn stream(source: impl Read, context: &BuildContext, block_bytes: usize) -> Opti
     let mut pending = buf.split_off(list_start);
     let prefix = buf;
     let workers = rayon::current_num_threads().clamp(1, 64);
+    let sphere_is_builtin = crate::registry::is_builtin("Sphere");
     let (jobs, job_queue) = mpsc::sync_channel::<Job>(workers * AHEAD_PER_WORKER);
     let job_queue = Mutex::new(job_queue);
     std::thread::scope(|scope| {
@@ -106,14 +109,10 @@ fn stream(source: impl Read, context: &BuildContext, block_bytes: usize) -> Opti
                 .name("scene parser".into())
                 .stack_size(PARSE_STACK_BYTES)
                 .spawn_scoped(scope, move || loop {
-                    let Ok((seq, text, expected)) = lock(job_queue).recv() else {
+                    let Ok((seq, text, elements)) = lock(job_queue).recv() else {
                         return;
                     };
-                    // a panic is a batch that did not parse: the load in one piece meets it again
-                    let objects = std::panic::catch_unwind(|| ron_options().from_str::<Vec<ObjectDesc>>(&text))
-                        .ok()
-                        .and_then(Result::ok)
-                        .filter(|objects| objects.len() == expected);
+                    let objects = parse_batch(&text, &elements, sphere_is_builtin);
                     if done.send((seq, objects)).is_err() {
                         return;
                     }
@@ -151,8 +150,11 @@ fn stream(source: impl Read, context: &BuildContext, block_bytes: usize) -> Opti
             for batch in batches(&elements) {
                 let text = std::str::from_utf8(&pending[batch.start..batch.end]).ok()?;
                 let source = format!("[{text}\n]");
+                // element ranges in `source` (after its `[`)
+                let shift = |e: &Range<usize>| e.start - batch.start + 1..e.end - batch.start + 1;
+                let ranges = elements[batch.elements].iter().map(shift).collect();
                 build.wait_until_below(workers * AHEAD_PER_WORKER)?;
-                jobs.send((build.sent, source, batch.count)).ok()?;
+                jobs.send((build.sent, source, ranges)).ok()?;
                 build.sent += 1;
                 build.take_ready()?;
             }
@@ -192,27 +194,52 @@ fn stream(source: impl Read, context: &BuildContext, block_bytes: usize) -> Opti
     })
 }
 
-/// Elements `start..end` of the text (byte range from the first's start to the last's end),
-/// `count` of them.
+/// Consecutive elements: the byte range from the first's start to the last's end, and their
+/// indices in the scanned elements.
 struct Batch {
     start: usize,
     end: usize,
-    count: usize,
+    elements: Range<usize>,
+}
+
+/// The descriptions of a batch's elements (`text` a RON list, `elements` the byte ranges of its
+/// elements), or `None` if it does not parse or gives another number of elements. Plain spheres
+/// are read by [`parse_sphere_object`]; if any element is not one, the whole list is parsed by
+/// RON.
+fn parse_batch(text: &str, elements: &[Range<usize>], sphere_is_builtin: bool) -> Option<Vec<ObjectDesc>> {
+    // one comma between elements (as the list scan guarantees), else RON says what is wrong
+    let one_comma = elements
+        .windows(2)
+        .all(|pair| text[pair[0].end..pair[1].start].trim_ascii() == ",");
+    if one_comma {
+        let fast: Option<Vec<ObjectDesc>> = elements
+            .iter()
+            .map(|e| parse_sphere_object(&text[e.clone()], sphere_is_builtin))
+            .collect();
+        if fast.is_some() {
+            return fast;
+        }
+    }
+    // a panic is a batch that did not parse: the load in one piece meets it again
+    std::panic::catch_unwind(|| ron_options().from_str::<Vec<ObjectDesc>>(text))
+        .ok()
+        .and_then(Result::ok)
+        .filter(|objects| objects.len() == elements.len())
 }
 
 /// `elements` grouped into consecutive batches of about [`BATCH_BYTES`] of text.
 fn batches(elements: &[Range<usize>]) -> Vec<Batch> {
     let mut out: Vec<Batch> = Vec::new();
-    for e in elements {
+    for (i, e) in elements.iter().enumerate() {
         match out.last_mut() {
             Some(b) if e.end - b.start <= BATCH_BYTES => {
                 b.end = e.end;
-                b.count += 1;
+                b.elements.end = i + 1;
             }
             _ => out.push(Batch {
                 start: e.start,
                 end: e.end,
-                count: 1,
+                elements: i..i + 1,
             }),
         }
     }
@@ -315,6 +342,56 @@ mod tests {
         assert!(load_streamed(bad_rest.as_bytes(), &context).is_none());
         let unclosed = &text[..text.len() - 40];
         assert!(load_streamed(unclosed.as_bytes(), &context).is_none());
+        // errors in plain spheres (which the fast path would read) are the load in one piece's
+        let bad_number = text.replacen("radius: 0.5", "radius: 0.5e", 1);
+        assert!(load_streamed(bad_number.as_bytes(), &context).is_none());
+        let bad_field = text.replacen("radius: 0.5", "radius: 0.5, colour: (1, 1, 1)", 1);
+        assert!(load_streamed(bad_field.as_bytes(), &context).is_none());
+        let two_commas = text.replacen("0.5)), /*", "0.5)),, /*", 1);
+        assert!(load_streamed(two_commas.as_bytes(), &context).is_none());
+        let mut plain = String::from("Scene(camera: (), objects: [\n");
+        for i in 0..PARALLEL_OBJECTS {
+            plain.push_str(&format!("(shape: Sphere(center: ({i}, 0, 0), radius: 0.5)),\n"));
+        }
+        assert!(load_streamed(format!("{plain}])").as_bytes(), &context).is_some());
+        assert!(load_streamed(format!("{plain},])").as_bytes(), &context).is_none());
+        let negative = plain.replacen("radius: 0.5", "radius: -0.5", 1);
+        assert!(load_streamed(format!("{negative}])").as_bytes(), &context).is_none());
         assert!(load_streamed(text.as_bytes(), &context).is_some());
+    }
+
+    /// Plain spheres (read by the fast path) and the same spheres in a batch that RON parses
+    /// (one comment in it) build into the same objects as RON's parse of the whole text.
+    #[test]
+    fn fast_and_ron_parsed_batches_build_the_same_objects() {
+        let n = PARALLEL_OBJECTS + 300;
+        let mut text = String::from("Scene(camera: (), objects: [\n");
+        for i in 0..n {
+            let (x, r) = (f64::from(i as u32) * 0.37 - 1e3, 0.05 + f64::from(i as u32 % 7) / 3.0);
+            if i % 10 == 0 {
+                let c = f64::from(i as u32 % 97) / 97.0;
+                text.push_str(&format!(
+                    "(name: \"ball {i}\", shape: Sphere(center: ({x:?}, {r:e}, -3), radius: {r:?}), material: (color: ({c}, 0.5, 1))),\n"
+                ));
+            } else if i == n - 5 {
+                text.push_str("/* RON for this batch */ (shape: Sphere(radius: 2)),\n");
+            } else {
+                text.push_str(&format!(
+                    "(shape: Sphere(center: ({x:?}, {r:e}, -3), radius: {r:?})),\n"
+                ));
+            }
+        }
+        text.push_str("])\n");
+        let context = BuildContext::default();
+        let streamed = load_streamed(text.as_bytes(), &context).expect("streamed");
+        let desc = ron_options().from_str::<SceneDesc>(&text).expect("RON parse");
+        let mut builder = ObjectBuilder::new(&context, n);
+        for object in desc.objects {
+            builder.push(object).expect("built");
+        }
+        assert_eq!(streamed.objects.len(), n);
+        for (i, (a, b)) in streamed.objects.iter().zip(&builder.objects).enumerate() {
+            assert_eq!(format!("{a:?}"), format!("{b:?}"), "object {i}");
+        }
     }
 }

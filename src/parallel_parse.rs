@@ -145,7 +145,11 @@ pub(crate) fn scan_elements(bytes: &[u8], start: usize, elements: &mut Vec<Range
             }
             b']' => depth -= 1,
             b',' if depth == 0 => {
-                push_trimmed(bytes, element_start..at, elements);
+                // `[,`, `,,` or a comma after nothing but comments: RON refuses these, and the
+                // whole-text parse must say where
+                if !push_trimmed(bytes, element_start..at, elements) {
+                    return ListScan::Unsure;
+                }
                 element_start = at + 1;
             }
             b'r' if at > 0 && (bytes[at - 1].is_ascii_alphanumeric() || bytes[at - 1] == b'_') => {}
@@ -179,12 +183,12 @@ pub(crate) fn scan_elements(bytes: &[u8], start: usize, elements: &mut Vec<Range
 }
 
 /// Pushes `range` of `bytes` trimmed of ASCII whitespace, unless nothing is left but comments
-/// (a trailing comma, a comment after the last element). Comments before an element stay inside
-/// (the parser skips them).
-fn push_trimmed(bytes: &[u8], range: Range<usize>, out: &mut Vec<Range<usize>>) {
+/// (a trailing comma, a comment after the last element); says whether it pushed. Comments before
+/// an element stay inside (the parser skips them).
+fn push_trimmed(bytes: &[u8], range: Range<usize>, out: &mut Vec<Range<usize>>) -> bool {
     let slice = &bytes[range.clone()];
     let Some(first) = slice.iter().position(|c| !c.is_ascii_whitespace()) else {
-        return;
+        return false;
     };
     let last = slice.iter().rposition(|c| !c.is_ascii_whitespace()).unwrap_or(first);
     if slice[first] == b'/' {
@@ -193,10 +197,11 @@ fn push_trimmed(bytes: &[u8], range: Range<usize>, out: &mut Vec<Range<usize>>) 
             at: range.start + first,
         };
         if lexer.token() == Some(Token::End) {
-            return;
+            return false;
         }
     }
     out.push(range.start + first..range.start + last + 1);
+    true
 }
 
 #[derive(Debug, PartialEq, Eq)]
@@ -349,5 +354,18 @@ mod tests {
             ]
         );
         assert!(text[list.end..].trim_start().starts_with("], lights"));
+    }
+
+    #[test]
+    fn empty_elements_leave_the_list_to_the_whole_text_parse() {
+        for list in ["[(a), , (b)]", "[, (a)]", "[(a), /* c */ , (b)]", "[(a),,]"] {
+            let text = format!("Scene(objects: {list})");
+            assert_eq!(objects_list(&text), None, "{list}");
+            // and RON refuses each of them
+            assert!(ron::from_str::<Vec<ron::Value>>(&list.replace("(a)", "1").replace("(b)", "2")).is_err());
+        }
+        let text = "Scene(objects: [(a), (b), /* end */ ])";
+        let (_, elements) = objects_list(text).unwrap();
+        assert_eq!(elements.len(), 2);
     }
 }

@@ -148,6 +148,12 @@ pub fn registered_names() -> Vec<String> {
         .collect()
 }
 
+/// Whether `name` is registered as the built-in primitive of that name (not replaced by a user
+/// type).
+pub(crate) fn is_builtin(name: &str) -> bool {
+    lookup(name).is_some_and(|(_, entry)| entry.typed)
+}
+
 /// The entry of `name`, with the registry's copy of the name.
 fn lookup(name: &str) -> Option<(&'static str, Entry)> {
     REGISTRY

@@ -21,25 +21,34 @@ pub(crate) struct Hierarchy {
 impl Hierarchy {
     /// Builds the hierarchy over `objects`' world bounds (a moving object's over its motion).
     pub(crate) fn build(objects: &[Object]) -> Self {
+        let bounds = |o: &Object| match &o.motion {
+            None => o.primitive.bounds(),
+            Some(m) => m.bounds(),
+        };
         let mut unbounded = Vec::new();
-        let mut boxes = Vec::new();
+        let (mut bounded, mut last_bounded) = (0usize, 0u32);
         for (i, o) in objects.iter().enumerate() {
-            let b = match &o.motion {
-                None => o.primitive.bounds(),
-                Some(m) => m.bounds(),
-            };
-            if b.is_finite() {
-                boxes.push((b, i as u32));
+            if bounds(o).is_finite() {
+                bounded += 1;
+                last_bounded = i as u32;
             } else {
                 unbounded.push(i as u32);
             }
         }
         // a lone bounded object is tested directly: a scene of one primitive pays nothing for the BVH
-        if boxes.len() == 1 {
-            unbounded.push(boxes[0].1);
-            boxes.clear();
+        if bounded == 1 {
+            unbounded.push(last_bounded);
+            return Self {
+                unbounded,
+                bvh: Bvh::default(),
+            };
         }
-        let bvh = Bvh::build(&boxes);
+        // the boxes are computed again as the builder takes them, not held in a list meanwhile
+        let boxes = objects.iter().enumerate().filter_map(|(i, o)| {
+            let b = bounds(o);
+            b.is_finite().then_some((b, i as u32))
+        });
+        let bvh = Bvh::build_from(boxes);
         Self { unbounded, bvh }
     }
 }

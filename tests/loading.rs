@@ -137,3 +137,80 @@ fn a_streamed_load_reports_errors_as_a_load_in_one_piece() {
         assert!(expected.span.start.line > 3_000, "{expected}");
     }
 }
+
+/// A scene of `n` plain spheres, as `scenes/bench/make_spheres.py` writes them (every tenth
+/// named and coloured): the streamed load reads these without serde.
+fn plain_spheres(n: usize) -> String {
+    let mut text = String::from("Scene(\n    camera: (eye: (0, 40, -260), look_at: (0, 0, 0)),\n    objects: [\n");
+    for i in 0..n {
+        let (x, y, r) = (
+            i as f64 * 0.013 - 97.5,
+            -(i as f64).sqrt() / 7.0,
+            0.05 + (i % 11) as f64 * 0.025,
+        );
+        if i % 10 == 0 {
+            text.push_str(&format!(
+                "        (name: \"ball {i}\", shape: Sphere(center: ({x:?}, {y:e}, 3), radius: {r:?}), material: (color: (0.{}, 0.5, 1))),\n",
+                i % 1000
+            ));
+        } else {
+            text.push_str(&format!(
+                "        (shape: Sphere(center: ({x:?}, {y:e}, 3), radius: {r:?})),\n"
+            ));
+        }
+    }
+    text.push_str("    ],\n)\n");
+    text
+}
+
+#[test]
+fn plain_spheres_stream_to_the_objects_and_errors_of_a_load_in_one_piece() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = plain_spheres(30_000);
+    let path = dir.path().join("spheres.ron");
+    std::fs::write(&path, &text).unwrap();
+    let streamed = Scene::load(&path).unwrap();
+    assert_eq!(streamed.objects.len(), 30_000);
+    assert_eq!(contents(&streamed), contents(&built_in_one_piece(&text).unwrap()));
+    // an object that does not build
+    let bad_radius = replace_nth(&text, "radius: 0.05)", "radius: -0.05)", 2_000);
+    let one_piece = built_in_one_piece(&bad_radius).unwrap_err();
+    let path = dir.path().join("bad_radius.ron");
+    std::fs::write(&path, &bad_radius).unwrap();
+    let message = Scene::load(&path).unwrap_err().to_string();
+    assert_eq!(message, format!("{}: {}: {}", path.display(), one_piece.0, one_piece.1));
+    // syntax errors in plain spheres: RON's message, line and column
+    for (name, bad) in [
+        (
+            "bad_number.ron",
+            replace_nth(&text, "radius: 0.05)", "radius: 0.05e)", 2_000),
+        ),
+        (
+            "bad_field.ron",
+            replace_nth(&text, "radius: 0.05)", "radius: 0.05, colour: 1)", 2_000),
+        ),
+        ("two_commas.ron", replace_nth(&text, ")),\n", ")),,\n", 20_000)),
+        ("missing_comma.ron", replace_nth(&text, ")),\n", "))\n", 20_000)),
+        (
+            "two_radii.ron",
+            replace_nth(&text, "radius: 0.05)", "radius: 0.05, radius: 1)", 2_000),
+        ),
+    ] {
+        let expected = sequential(&bad).unwrap_err();
+        let path = dir.path().join(name);
+        std::fs::write(&path, &bad).unwrap();
+        let message = Scene::load(&path).unwrap_err().to_string();
+        assert_eq!(
+            message,
+            format!(
+                "{}:{}:{}: {}",
+                path.display(),
+                expected.span.start.line,
+                expected.span.start.col,
+                expected.code
+            ),
+            "{name}"
+        );
+        assert!(expected.span.start.line > 1_000, "{name}: {expected}");
+    }
+}

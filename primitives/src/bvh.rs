@@ -231,28 +231,28 @@ impl Bvh {
     /// the ids. The tree does not depend on the thread count.
     #[must_use]
     pub fn build(items: &[(Aabb, u32)]) -> Self {
-        let mut work: Vec<BuildItem> = items
-            .iter()
+        Self::build_from(items.iter().copied())
+    }
+
+    /// [`Bvh::build`] over boxes given one at a time, so that the caller need not hold a list of
+    /// them (48 B each) during the build.
+    #[must_use]
+    pub fn build_from(items: impl IntoIterator<Item = (Aabb, u32)>) -> Self {
+        let work: Vec<BuildItem> = items
+            .into_iter()
             .map(|(b, id)| {
                 let bounds = Bb {
                     lo: Vec3A::new(round_down(b.min.x), round_down(b.min.y), round_down(b.min.z)),
                     hi: Vec3A::new(round_up(b.max.x), round_up(b.max.y), round_up(b.max.z)),
                 };
-                BuildItem {
-                    bounds,
-                    centroid: 0.5 * bounds.lo + 0.5 * bounds.hi,
-                    id: *id,
-                }
+                BuildItem::new(bounds, id)
             })
             .collect();
         if work.is_empty() {
             return Self::default();
         }
-        let tree = QuadBvh::build(&mut work, MAX_LEAF, false);
-        Self {
-            tree,
-            items: work.iter().map(|w| w.id).collect(),
-        }
+        let (tree, items) = QuadBvh::build_ids(work, MAX_LEAF);
+        Self { tree, items }
     }
 
     /// Number of 4-wide nodes.

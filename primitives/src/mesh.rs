@@ -260,11 +260,7 @@ impl Mesh {
                     lo: a.min(b).min(c),
                     hi: a.max(b).max(c),
                 };
-                Some(BuildItem {
-                    bounds,
-                    centroid: (bounds.lo + bounds.hi) * 0.5,
-                    id: id as u32,
-                })
+                Some(BuildItem::new(bounds, id as u32))
             })
             .collect();
         if build.is_empty() {

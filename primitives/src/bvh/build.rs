@@ -97,28 +97,102 @@ impl Bb {
         let e = (self.hi - self.lo).max(Vec3A::ZERO);
         e.x * e.y + e.y * e.z + e.z * e.x
     }
+}
 
-    fn node(self, first: u32, count: u32) -> Node {
-        Node {
-            lo: self.lo.to_array(),
-            first,
-            hi: self.hi.to_array(),
-            count,
+/// One item (triangle or object) during the build: its f32 box and its id, in 28 bytes (the
+/// build permutes them in place, so a million scene objects cost 28 MB here). The box's centre,
+/// which the build bins, is computed where it is needed ([`BuildItem::centroid`]).
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+pub(crate) struct BuildItem {
+    lo: [f32; 3],
+    /// The caller's id (a triangle's or object's index).
+    pub id: u32,
+    hi: [f32; 3],
+}
+
+impl BuildItem {
+    /// The item `id` with box `bounds`.
+    #[inline]
+    pub fn new(bounds: Bb, id: u32) -> Self {
+        Self {
+            lo: bounds.lo.to_array(),
+            id,
+            hi: bounds.hi.to_array(),
+        }
+    }
+
+    /// Its box.
+    #[inline]
+    pub fn bounds(&self) -> Bb {
+        Bb {
+            lo: Vec3A::from_array(self.lo),
+            hi: Vec3A::from_array(self.hi),
+        }
+    }
+
+    /// Its box's centre, `lo/2 + hi/2` (finite for any finite box, where `(lo + hi)/2` may
+    /// overflow).
+    #[inline]
+    pub fn centroid(&self) -> Vec3A {
+        0.5 * Vec3A::from_array(self.lo) + 0.5 * Vec3A::from_array(self.hi)
+    }
+
+    /// Component `axis` of [`BuildItem::centroid`] (the same f32 operations).
+    #[inline]
+    fn centroid_on(&self, axis: usize) -> f32 {
+        0.5 * self.lo[axis] + 0.5 * self.hi[axis]
+    }
+}
+
+/// A node of the binary tree during the build: 40 bytes, its box as f32 arrays (not the 16-byte
+/// aligned [`Bb`]), so that an inner node's pair of children is an 80-byte allocation (a million
+/// scene objects: about a million of them).
+enum BuildNode {
+    Leaf {
+        bounds: NodeBox,
+        start: u32,
+        count: u32,
+    },
+    Inner {
+        bounds: NodeBox,
+        children: Box<[BuildNode; 2]>,
+    },
+}
+
+/// A box stored in a [`BuildNode`].
+#[derive(Clone, Copy, Debug)]
+struct NodeBox {
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+impl From<Bb> for NodeBox {
+    fn from(b: Bb) -> Self {
+        Self {
+            lo: b.lo.to_array(),
+            hi: b.hi.to_array(),
         }
     }
 }
 
-/// One triangle during the build: its box, its box's centre and its file index.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct BuildItem {
-    pub bounds: Bb,
-    pub centroid: Vec3A,
-    pub id: u32,
-}
+impl NodeBox {
+    fn node(self, first: u32, count: u32) -> Node {
+        Node {
+            lo: self.lo,
+            first,
+            hi: self.hi,
+            count,
+        }
+    }
 
-enum BuildNode {
-    Leaf { bounds: Bb, start: u32, count: u32 },
-    Inner { bounds: Bb, children: Box<[BuildNode; 2]> },
+    fn half_area(self) -> f32 {
+        Bb {
+            lo: Vec3A::from_array(self.lo),
+            hi: Vec3A::from_array(self.hi),
+        }
+        .half_area()
+    }
 }
 
 /// The hierarchy; triangles are referred to by their position in leaf order. Closest-hit
@@ -147,11 +221,12 @@ impl<const N: usize> Bins<N> {
 
     fn add(&mut self, tris: &[BuildItem], lo: Vec3A, scale: Vec3A) {
         for t in tris {
-            let b = ((t.centroid - lo) * scale).min(Vec3A::splat((N - 1) as f32));
+            let b = ((t.centroid() - lo) * scale).min(Vec3A::splat((N - 1) as f32));
+            let bounds = t.bounds();
             for axis in 0..3 {
                 let i = b[axis] as usize;
                 self.counts[axis][i] += 1;
-                self.bounds[axis][i] = self.bounds[axis][i].union(t.bounds);
+                self.bounds[axis][i] = self.bounds[axis][i].union(bounds);
             }
         }
     }
@@ -172,15 +247,32 @@ impl QuadBvh {
     /// `max_leaf` items; with `pairs`, also keeps the binary tree for nearest-point queries.
     /// `tris` must not be empty.
     pub fn build(tris: &mut [BuildItem], max_leaf: usize, pairs: bool) -> Self {
-        let bounds = tris.par_iter().map(|t| t.bounds).reduce(|| Bb::EMPTY, Bb::union);
-        let tree = build_node(tris, 0, bounds, 0, max_leaf);
+        let tree = build_tree(tris, max_leaf);
+        Self::flatten_tree(&tree, pairs)
+    }
+
+    /// [`QuadBvh::build`] without `pairs`, taking the items and giving their ids in leaf order:
+    /// the items are dropped as soon as the binary tree is built, before the 4-wide nodes are
+    /// written (a million scene objects: 28 MB less at the peak).
+    pub fn build_ids(mut tris: Vec<BuildItem>, max_leaf: usize) -> (Self, Vec<u32>) {
+        let tree = build_tree(&mut tris, max_leaf);
+        let ids = tris.iter().map(|t| t.id).collect();
+        drop(tris);
+        (Self::flatten_tree(&tree, false), ids)
+    }
+
+    /// The nodes of `tree`, with `pairs` also the binary ones.
+    fn flatten_tree(tree: &BuildNode, pairs: bool) -> Self {
+        // exact capacities: a node array is never grown or shrunk, which would copy it (their
+        // 64-byte alignment rules out an in-place `realloc`): 120 MB at the peak for 10⁶ objects
+        let (top, len) = collapse(tree);
         let mut bvh = Self {
             root: Node::default(),
-            pairs: Vec::with_capacity(if pairs { tris.len() / 2 + 1 } else { 0 }),
-            quads: Vec::with_capacity(tris.len() / 4 + 1),
+            pairs: Vec::with_capacity(if pairs { inner_count(tree) } else { 0 }),
+            quads: Vec::with_capacity(quad_count(&top[..len])),
         };
-        bvh.flatten_quad(&collapse(&tree));
-        bvh.root = match &tree {
+        bvh.flatten_quad(&top[..len]);
+        bvh.root = match tree {
             BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
             BuildNode::Inner { bounds, children } if pairs => {
                 let first = bvh.flatten(children);
@@ -188,8 +280,8 @@ impl QuadBvh {
             }
             BuildNode::Inner { bounds, .. } => bounds.node(0, 0),
         };
-        bvh.pairs.shrink_to_fit();
-        bvh.quads.shrink_to_fit();
+        debug_assert_eq!(bvh.quads.len(), bvh.quads.capacity());
+        debug_assert_eq!(bvh.pairs.len(), bvh.pairs.capacity());
         bvh
     }
 
@@ -203,7 +295,10 @@ impl QuadBvh {
         for (slot, child) in children.iter().enumerate() {
             let (bounds, first, count) = match child {
                 BuildNode::Leaf { bounds, start, count } => (bounds, *start, *count),
-                BuildNode::Inner { bounds, .. } => (bounds, self.flatten_quad(&collapse(child)), 0),
+                BuildNode::Inner { bounds, .. } => {
+                    let (nodes, len) = collapse(child);
+                    (bounds, self.flatten_quad(&nodes[..len]), 0)
+                }
             };
             for axis in 0..3 {
                 quad.lo[axis][slot] = bounds.lo[axis];
@@ -334,13 +429,36 @@ impl SlabRay {
 /// Up to four nodes standing for `node` in a 4-wide tree: its children, with the inner one of
 /// largest surface area replaced by its own two children while fewer than four (a leaf root is
 /// its own single child).
-fn collapse(node: &BuildNode) -> Vec<&BuildNode> {
-    let mut out: Vec<&BuildNode> = match node {
-        BuildNode::Leaf { .. } => return vec![node],
-        BuildNode::Inner { children, .. } => children.iter().collect(),
+/// The number of quads [`QuadBvh::flatten_quad`] writes for a quad of `children`.
+fn quad_count(children: &[&BuildNode]) -> usize {
+    1 + children
+        .iter()
+        .filter(|child| matches!(child, BuildNode::Inner { .. }))
+        .map(|child| {
+            let (nodes, len) = collapse(child);
+            quad_count(&nodes[..len])
+        })
+        .sum::<usize>()
+}
+
+/// The number of inner nodes in the tree under `node`, `node` included: the pairs
+/// [`QuadBvh::flatten`] writes for it (one per inner node).
+fn inner_count(node: &BuildNode) -> usize {
+    match node {
+        BuildNode::Leaf { .. } => 0,
+        BuildNode::Inner { children, .. } => 1 + inner_count(&children[0]) + inner_count(&children[1]),
+    }
+}
+
+fn collapse(node: &BuildNode) -> ([&BuildNode; 4], usize) {
+    let BuildNode::Inner { children, .. } = node else {
+        return ([node; 4], 1);
     };
-    while out.len() < 4 {
-        let widest = out
+    // `out[..len]` are the nodes; the rest is filler
+    let mut out = [&children[0], &children[1], node, node];
+    let mut len = 2;
+    while len < 4 {
+        let widest = out[..len]
             .iter()
             .enumerate()
             .filter_map(|(i, n)| match n {
@@ -353,26 +471,33 @@ fn collapse(node: &BuildNode) -> Vec<&BuildNode> {
             unreachable!("chosen among inner nodes")
         };
         out[i] = &children[0];
-        out.push(&children[1]);
+        out[len] = &children[1];
+        len += 1;
     }
-    out
+    (out, len)
+}
+
+/// The binary tree over `tris` (reordered in place into leaf order); `tris` must not be empty.
+fn build_tree(tris: &mut [BuildItem], max_leaf: usize) -> BuildNode {
+    let bounds = tris.par_iter().map(BuildItem::bounds).reduce(|| Bb::EMPTY, Bb::union);
+    build_node(tris, 0, bounds, 0, max_leaf)
 }
 
 fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_leaf: usize) -> BuildNode {
     let n = tris.len();
     if n == 1 {
         return BuildNode::Leaf {
-            bounds,
+            bounds: bounds.into(),
             start,
             count: 1,
         };
     }
     let centroids = if n > PARALLEL_BINNING_MIN {
         tris.par_chunks(16384)
-            .map(|c| c.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid)))
+            .map(|c| c.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid())))
             .reduce(|| Bb::EMPTY, Bb::union)
     } else {
-        tris.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid))
+        tris.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid()))
     };
     let extent = centroids.hi - centroids.lo;
     let split = if depth >= MEDIAN_DEPTH || extent.max_element() <= 0.0 {
@@ -383,7 +508,7 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_
     let mid = match split {
         Some(Split::Leaf) => {
             return BuildNode::Leaf {
-                bounds,
+                bounds: bounds.into(),
                 start,
                 count: n as u32,
             }
@@ -393,13 +518,13 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_
             // median along the widest centroid axis (any order when all centroids coincide)
             let axis = extent.max_position();
             let mid = n / 2;
-            tris.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+            tris.select_nth_unstable_by(mid, |a, b| a.centroid_on(axis).total_cmp(&b.centroid_on(axis)));
             mid
         }
     };
     let (left, right) = tris.split_at_mut(mid);
-    let lb = left.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds));
-    let rb = right.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds));
+    let lb = left.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds()));
+    let rb = right.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds()));
     let rstart = start + mid as u32;
     let (l, r) = if n > PARALLEL_MIN {
         rayon::join(
@@ -413,7 +538,7 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_
         )
     };
     BuildNode::Inner {
-        bounds,
+        bounds: bounds.into(),
         children: Box::new([l, r]),
     }
 }
@@ -493,7 +618,7 @@ fn sah_split_binned<const N: usize>(
         return Some(Split::Leaf);
     }
     let (lo, s) = (centroids.lo[axis], scale[axis]);
-    let bin_of = |t: &BuildItem| (((t.centroid[axis] - lo) * s) as usize).min(N - 1);
+    let bin_of = |t: &BuildItem| (((t.centroid_on(axis) - lo) * s) as usize).min(N - 1);
     let mut mid = 0;
     for i in 0..n {
         if bin_of(&tris[i]) < split {
@@ -502,4 +627,57 @@ fn sah_split_binned<const N: usize>(
         }
     }
     (mid > 0 && mid < n).then_some(Split::At(mid))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn build_items_are_small_and_keep_box_and_centre() {
+        assert_eq!(std::mem::size_of::<BuildItem>(), 28);
+        assert_eq!(std::mem::size_of::<BuildNode>(), 40);
+        let bounds = Bb {
+            lo: Vec3A::new(-f32::MAX, 1.0, -3.5),
+            hi: Vec3A::new(f32::MAX, f32::MAX, 0.25),
+        };
+        let item = BuildItem::new(bounds, 7);
+        assert_eq!(item.id, 7);
+        assert_eq!((item.bounds().lo, item.bounds().hi), (bounds.lo, bounds.hi));
+        // lo/2 + hi/2 in f64 (exact here), where (lo + hi)/2 would overflow to infinity
+        let expected = [0.0, 0.5 + f64::from(f32::MAX) / 2.0, -1.625];
+        for (axis, expected) in expected.into_iter().enumerate() {
+            assert_eq!(f64::from(item.centroid()[axis]), expected as f32 as f64, "axis {axis}");
+            assert_eq!(item.centroid_on(axis).to_bits(), item.centroid()[axis].to_bits());
+        }
+    }
+
+    /// The node arrays are allocated at their exact final size (never grown or shrunk, which
+    /// copies them), for leaf roots and trees of every shape.
+    #[test]
+    fn node_arrays_are_allocated_exactly() {
+        let mut state = 12345u64;
+        let mut random = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for n in [1, 2, 3, 7, 64, 65, 1000, 5000, 70_000] {
+            let mut items: Vec<BuildItem> = (0..n)
+                .map(|id| {
+                    let lo = Vec3A::new(random(), random(), random()) * 100.0;
+                    let size = Vec3A::new(random(), random(), random());
+                    BuildItem::new(Bb { lo, hi: lo + size }, id)
+                })
+                .collect();
+            for (max_leaf, pairs) in [(2, false), (6, true)] {
+                let bvh = QuadBvh::build(&mut items, max_leaf, pairs);
+                assert_eq!(bvh.quads.len(), bvh.quads.capacity(), "{n} items");
+                assert_eq!(bvh.pairs.len(), bvh.pairs.capacity(), "{n} items");
+                assert!(!bvh.quads.is_empty());
+                assert_eq!(bvh.pairs.is_empty(), !pairs || bvh.root.count > 0, "{n} items");
+            }
+        }
+    }
 }
