@@ -1,20 +1,20 @@
 //! The one hierarchy builder, shared by the scene (over objects) and by meshes (over
 //! triangles): parallel binned-SAH build of a binary tree over f32 item boxes, collapsed into
-//! 4-wide SoA nodes ([`Quad`]) for ordered closest-hit traversal, four child boxes per SSE slab
-//! test; meshes also keep the binary tree as 32-byte f32 nodes in sibling pairs (for
-//! nearest-point queries). Items are referred to by their position in leaf order.
+//! 4-wide SoA nodes ([`Quad`]) for ordered closest-hit traversal (four child boxes per SSE slab
+//! test) and for nearest-point queries. Items are referred to by their position in leaf order.
 //!
-//! Layout. Every interior node refers to a [`Pair`] holding its two children; a node is
-//! `lo[3], first, hi[3], count` (32 bytes): a leaf has `count > 0` triangles starting at `first`
-//! in the leaf-ordered triangle array, an interior node has `count = 0` and its children in
-//! `pairs[first]`. The root is kept apart. Pairs are laid out depth-first, so a pair's first
-//! child's subtree follows it.
+//! Layout. A quad's slot `s` is a leaf when `count[s] > 0` (items `child[s]..child[s] +
+//! count[s]` of the leaf order) and otherwise refers to the quad `child[s]`; quads are laid out
+//! depth first from the root `quads[0]`, and the root's box is kept apart ([`Node`]).
 //!
 //! Build. Item boxes and centroids in f32; each split bins centroids into 32 bins per axis (8
 //! for nodes of at most 64 items)
 //! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 1, triangle
-//! cost 1), and partitions in place. Subtrees of more than [`PARALLEL_MIN`] triangles are built with
-//! `rayon::join`. A node becomes a leaf when SAH prefers it and it holds at most the caller's `max_leaf`
+//! cost 1), and partitions in place; the children's boxes are the unions of their bins' boxes
+//! and their centre boxes are gathered while partitioning, so a node costs two passes over its
+//! items. Subtrees of more than [`PARALLEL_MIN`] triangles are built with `rayon::join`, and the
+//! binary tree is collapsed into quads in parallel (each subtree's quad count is known from the
+//! build, so each writes its own slots). A node becomes a leaf when SAH prefers it and it holds at most the caller's `max_leaf`
 //! items; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split at the
 //! median instead, which bounds the depth to `MEDIAN_DEPTH + 32` and the traversal stack.
 //!
@@ -56,11 +56,6 @@ pub(crate) struct Node {
     pub hi: [f32; 3],
     pub count: u32,
 }
-
-/// The two children of an interior node, in one cache line.
-#[derive(Clone, Copy, Debug, Default)]
-#[repr(C, align(64))]
-pub(crate) struct Pair(pub [Node; 2]);
 
 /// An f32 box.
 #[derive(Clone, Copy, Debug)]
@@ -157,7 +152,20 @@ enum BuildNode {
     Inner {
         bounds: NodeBox,
         children: Box<[BuildNode; 2]>,
+        /// The number of 4-wide nodes this subtree flattens into as a node of its own.
+        quads: u32,
     },
+}
+
+impl BuildNode {
+    /// The 4-wide nodes this node flattens into when it is a child of a 4-wide node: none for
+    /// a leaf (it is stored in its parent).
+    fn quads(&self) -> u32 {
+        match self {
+            BuildNode::Leaf { .. } => 0,
+            BuildNode::Inner { quads, .. } => *quads,
+        }
+    }
 }
 
 /// A box stored in a [`BuildNode`].
@@ -196,12 +204,11 @@ impl NodeBox {
 }
 
 /// The hierarchy; triangles are referred to by their position in leaf order. Closest-hit
-/// traversal uses the 4-wide `quads` (collapsed from the binary tree); nearest-point queries
-/// use the binary `pairs`.
+/// traversal and nearest-point queries both walk the 4-wide `quads` (collapsed from the binary
+/// tree); `root` is the box of everything.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct QuadBvh {
     pub root: Node,
-    pub pairs: Vec<Pair>,
     quads: Vec<Quad>,
 }
 
@@ -221,10 +228,10 @@ impl<const N: usize> Bins<N> {
 
     fn add(&mut self, tris: &[BuildItem], lo: Vec3A, scale: Vec3A) {
         for t in tris {
-            let b = ((t.centroid() - lo) * scale).min(Vec3A::splat((N - 1) as f32));
+            let b = bin_of::<N>(t.centroid(), lo, scale);
             let bounds = t.bounds();
-            for axis in 0..3 {
-                let i = b[axis] as usize;
+            for (axis, &i) in b[..3].iter().enumerate() {
+                let i = i as usize;
                 self.counts[axis][i] += 1;
                 self.bounds[axis][i] = self.bounds[axis][i].union(bounds);
             }
@@ -242,89 +249,72 @@ impl<const N: usize> Bins<N> {
     }
 }
 
+/// The bin of centre `c` on each axis (the fourth lane is filler): `⌊(c − lo)·scale⌋`, at most
+/// `N − 1`. A NaN (from boxes beyond the f32 range, where `c − lo` overflows) lands in the last
+/// bin. Binning and partitioning both call it, so an item is always moved to the side its bin is
+/// on (the sides' boxes are their bins' boxes).
+#[inline(always)]
+fn bin_of<const N: usize>(c: Vec3A, lo: Vec3A, scale: Vec3A) -> [u32; 4] {
+    let x = (c - lo) * scale;
+    let last = (N - 1) as u32;
+    #[cfg(target_arch = "x86_64")]
+    {
+        // four truncations in one instruction; NaN and values past i32 give 0x8000_0000, which
+        // the clamp below sends to the last bin (`x` is never negative: `lo` is the smallest
+        // centre, computed by the same f32 operations)
+        // SAFETY: SSE2 is part of every x86-64 CPU; an `__m128i` is 16 bytes of plain data,
+        // as is `[u32; 4]`
+        let lanes: [u32; 4] = unsafe { std::mem::transmute(std::arch::x86_64::_mm_cvttps_epi32(x.into())) };
+        lanes.map(|i| i.min(last))
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        x.extend(0.0).to_array().map(|v| {
+            if v.is_nan() || v >= 2_147_483_648.0 {
+                last
+            } else {
+                (v as u32).min(last)
+            }
+        })
+    }
+}
+
 impl QuadBvh {
     /// Builds over `tris` (reordered in place into leaf order), with leaves of at most
-    /// `max_leaf` items; with `pairs`, also keeps the binary tree for nearest-point queries.
-    /// `tris` must not be empty.
-    pub fn build(tris: &mut [BuildItem], max_leaf: usize, pairs: bool) -> Self {
+    /// `max_leaf` items. `tris` must not be empty.
+    pub fn build(tris: &mut [BuildItem], max_leaf: usize) -> Self {
         let tree = build_tree(tris, max_leaf);
-        Self::flatten_tree(&tree, pairs)
+        let bvh = Self::flatten_tree(&tree);
+        drop_tree(tree.node);
+        bvh
     }
 
-    /// [`QuadBvh::build`] without `pairs`, taking the items and giving their ids in leaf order:
+    /// [`QuadBvh::build`] taking the items and giving their ids in leaf order:
     /// the items are dropped as soon as the binary tree is built, before the 4-wide nodes are
     /// written (a million scene objects: 28 MB less at the peak).
     pub fn build_ids(mut tris: Vec<BuildItem>, max_leaf: usize) -> (Self, Vec<u32>) {
         let tree = build_tree(&mut tris, max_leaf);
         let ids = tris.iter().map(|t| t.id).collect();
         drop(tris);
-        (Self::flatten_tree(&tree, false), ids)
+        let bvh = Self::flatten_tree(&tree);
+        drop_tree(tree.node);
+        (bvh, ids)
     }
 
-    /// The nodes of `tree`, with `pairs` also the binary ones.
-    fn flatten_tree(tree: &BuildNode, pairs: bool) -> Self {
-        // exact capacities: a node array is never grown or shrunk, which would copy it (their
-        // 64-byte alignment rules out an in-place `realloc`): 120 MB at the peak for 10⁶ objects
+    /// The 4-wide nodes of `tree`.
+    fn flatten_tree(built: &Built) -> Self {
+        // the exact number of quads (counted during the build): a node array is never grown or
+        // shrunk, which would copy it (their 64-byte alignment rules out an in-place `realloc`):
+        // 120 MB at the peak for 10⁶ objects
+        let tree = &built.node;
         let (top, len) = collapse(tree);
-        let mut bvh = Self {
-            root: Node::default(),
-            pairs: Vec::with_capacity(if pairs { inner_count(tree) } else { 0 }),
-            quads: Vec::with_capacity(quad_count(&top[..len])),
-        };
-        bvh.flatten_quad(&top[..len]);
-        bvh.root = match tree {
+        let mut quads = vec![Quad::default(); tree.quads().max(1) as usize];
+        fill_quads(&mut quads, 0, &top[..len]);
+        let root = match tree {
             BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
-            BuildNode::Inner { bounds, children } if pairs => {
-                let first = bvh.flatten(children);
-                bounds.node(first, 0)
-            }
             BuildNode::Inner { bounds, .. } => bounds.node(0, 0),
         };
-        debug_assert_eq!(bvh.quads.len(), bvh.quads.capacity());
-        debug_assert_eq!(bvh.pairs.len(), bvh.pairs.capacity());
-        bvh
-    }
-
-    fn flatten_quad(&mut self, children: &[&BuildNode]) -> u32 {
-        let index = self.quads.len();
-        self.quads.push(Quad::default());
-        let mut quad = Quad {
-            len: children.len() as u32,
-            ..Quad::default()
-        };
-        for (slot, child) in children.iter().enumerate() {
-            let (bounds, first, count) = match child {
-                BuildNode::Leaf { bounds, start, count } => (bounds, *start, *count),
-                BuildNode::Inner { bounds, .. } => {
-                    let (nodes, len) = collapse(child);
-                    (bounds, self.flatten_quad(&nodes[..len]), 0)
-                }
-            };
-            for axis in 0..3 {
-                quad.lo[axis][slot] = bounds.lo[axis];
-                quad.hi[axis][slot] = bounds.hi[axis];
-            }
-            quad.child[slot] = first;
-            quad.count[slot] = count;
-        }
-        self.quads[index] = quad;
-        index as u32
-    }
-
-    fn flatten(&mut self, children: &[BuildNode; 2]) -> u32 {
-        let index = self.pairs.len();
-        self.pairs.push(Pair::default());
-        for (slot, child) in children.iter().enumerate() {
-            let node = match child {
-                BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
-                BuildNode::Inner { bounds, children } => {
-                    let first = self.flatten(children);
-                    bounds.node(first, 0)
-                }
-            };
-            self.pairs[index].0[slot] = node;
-        }
-        index as u32
+        Self { root, quads }
     }
 
     /// The 4-wide nodes, root first.
@@ -339,9 +329,7 @@ impl QuadBvh {
 
     /// Bytes held by the nodes.
     pub fn memory_bytes(&self) -> usize {
-        self.pairs.capacity() * std::mem::size_of::<Pair>()
-            + self.quads.capacity() * std::mem::size_of::<Quad>()
-            + std::mem::size_of::<Node>()
+        self.quads.capacity() * std::mem::size_of::<Quad>() + std::mem::size_of::<Node>()
     }
 
     /// Closest-hit traversal over the 4-wide nodes: `leaf(first, count, t_max)` tests a leaf's
@@ -353,37 +341,53 @@ impl QuadBvh {
         traverse_quads(&self.quads, t_max, |q, t1| ray.entry4(q, t_min, t1), leaf);
     }
 
-    /// Depth-first visit for nearest-point queries: `visit_box(node) -> lower bound` (or `None` to
-    /// prune), `leaf(first, count)`. Children are visited nearer bound first.
+    /// Depth-first visit for nearest-point queries: `lower_bound(node)` gives a lower bound
+    /// of the distance to anything in `node`'s box (or `None` to prune it), `leaf(first,
+    /// count)` visits a leaf's items. The root's box is asked first; a quad's children are
+    /// visited nearer bound first, and each is asked again when popped (the bound may have
+    /// tightened meanwhile).
     pub fn nearest(&self, mut lower_bound: impl FnMut(&Node) -> Option<f64>, mut leaf: impl FnMut(u32, u32)) {
         if lower_bound(&self.root).is_none() {
             return;
         }
-        let mut stack: Vec<(&Node, f64)> = vec![(&self.root, 0.0)];
-        while let Some((node, _)) = stack.pop() {
-            if lower_bound(node).is_none() {
-                continue;
-            }
-            if node.count > 0 {
-                leaf(node.first, node.count);
-                continue;
-            }
-            let pair = &self.pairs[node.first as usize].0;
-            let a = lower_bound(&pair[0]).map(|d| (&pair[0], d));
-            let b = lower_bound(&pair[1]).map(|d| (&pair[1], d));
-            match (a, b) {
-                (Some(a), Some(b)) => {
-                    if a.1 <= b.1 {
-                        stack.push(b);
-                        stack.push(a);
-                    } else {
-                        stack.push(a);
-                        stack.push(b);
-                    }
+        if self.root.count > 0 {
+            leaf(self.root.first, self.root.count);
+            return;
+        }
+        let slot = |quad: &Quad, s: usize| Node {
+            lo: [quad.lo[0][s], quad.lo[1][s], quad.lo[2][s]],
+            first: quad.child[s],
+            hi: [quad.hi[0][s], quad.hi[1][s], quad.hi[2][s]],
+            count: quad.count[s],
+        };
+        let mut stack: Vec<(Node, f64)> = Vec::with_capacity(64);
+        let mut quad = &self.quads[0];
+        loop {
+            let mut children = [(Node::default(), 0.0); 4];
+            let mut len = 0;
+            for s in 0..quad.len as usize {
+                let node = slot(quad, s);
+                if let Some(d) = lower_bound(&node) {
+                    children[len] = (node, d);
+                    len += 1;
                 }
-                (Some(x), None) | (None, Some(x)) => stack.push(x),
-                (None, None) => {}
             }
+            // farthest pushed first, so the nearest is popped next (a stable sort: equal bounds
+            // keep slot order)
+            children[..len].sort_by(|a, b| b.1.total_cmp(&a.1));
+            stack.extend_from_slice(&children[..len]);
+            let next = loop {
+                let Some((node, _)) = stack.pop() else { return };
+                if lower_bound(&node).is_none() {
+                    continue;
+                }
+                if node.count > 0 {
+                    leaf(node.first, node.count);
+                    continue;
+                }
+                break node.first;
+            };
+            quad = &self.quads[next as usize];
         }
     }
 }
@@ -426,30 +430,63 @@ impl SlabRay {
     }
 }
 
-/// Up to four nodes standing for `node` in a 4-wide tree: its children, with the inner one of
-/// largest surface area replaced by its own two children while fewer than four (a leaf root is
-/// its own single child).
-/// The number of quads [`QuadBvh::flatten_quad`] writes for a quad of `children`.
-fn quad_count(children: &[&BuildNode]) -> usize {
-    1 + children
-        .iter()
-        .filter(|child| matches!(child, BuildNode::Inner { .. }))
-        .map(|child| {
-            let (nodes, len) = collapse(child);
-            quad_count(&nodes[..len])
-        })
-        .sum::<usize>()
-}
+/// Subtrees of more 4-wide nodes than this are flattened, and dropped, in parallel.
+const PARALLEL_QUADS: u32 = 1024;
 
-/// The number of inner nodes in the tree under `node`, `node` included: the pairs
-/// [`QuadBvh::flatten`] writes for it (one per inner node).
-fn inner_count(node: &BuildNode) -> usize {
-    match node {
-        BuildNode::Leaf { .. } => 0,
-        BuildNode::Inner { children, .. } => 1 + inner_count(&children[0]) + inner_count(&children[1]),
+/// Writes the 4-wide node of `children` into `slots[0]` (global index `index`) and the nodes of
+/// its inner children's subtrees after it, depth first, each subtree into the slots its
+/// [`BuildNode::quads`] count reserves: the layout a sequential depth-first walk gives.
+fn fill_quads(slots: &mut [Quad], index: u32, children: &[&BuildNode]) {
+    let (head, mut rest) = slots.split_first_mut().expect("a slot for every 4-wide node");
+    let mut quad = Quad {
+        len: children.len() as u32,
+        ..Quad::default()
+    };
+    let mut next = index + 1;
+    let mut subtrees = Vec::with_capacity(4);
+    for (slot, child) in children.iter().enumerate() {
+        let (bounds, first, count) = match child {
+            BuildNode::Leaf { bounds, start, count } => (bounds, *start, *count),
+            BuildNode::Inner { bounds, quads, .. } => {
+                let (own, after) = std::mem::take(&mut rest).split_at_mut(*quads as usize);
+                rest = after;
+                subtrees.push((own, next, collapse(child), *quads));
+                next += quads;
+                (bounds, next - quads, 0)
+            }
+        };
+        for axis in 0..3 {
+            quad.lo[axis][slot] = bounds.lo[axis];
+            quad.hi[axis][slot] = bounds.hi[axis];
+        }
+        quad.child[slot] = first;
+        quad.count[slot] = count;
+    }
+    *head = quad;
+    if next - index > PARALLEL_QUADS {
+        subtrees
+            .into_par_iter()
+            .for_each(|(own, at, (nodes, len), _)| fill_quads(own, at, &nodes[..len]));
+    } else {
+        for (own, at, (nodes, len), _) in subtrees {
+            fill_quads(own, at, &nodes[..len]);
+        }
     }
 }
 
+/// Drops a built tree, its large subtrees in parallel.
+fn drop_tree(node: BuildNode) {
+    if let BuildNode::Inner { children, quads, .. } = node {
+        if quads > PARALLEL_QUADS {
+            let [a, b] = *children;
+            rayon::join(|| drop_tree(a), || drop_tree(b));
+        }
+    }
+}
+
+/// Up to four nodes standing for `node` in a 4-wide tree: its children, with the inner one of
+/// largest surface area replaced by its own two children while fewer than four (a leaf root is
+/// its own single child).
 fn collapse(node: &BuildNode) -> ([&BuildNode; 4], usize) {
     let BuildNode::Inner { children, .. } = node else {
         return ([node; 4], 1);
@@ -478,74 +515,117 @@ fn collapse(node: &BuildNode) -> ([&BuildNode; 4], usize) {
 }
 
 /// The binary tree over `tris` (reordered in place into leaf order); `tris` must not be empty.
-fn build_tree(tris: &mut [BuildItem], max_leaf: usize) -> BuildNode {
-    let bounds = tris.par_iter().map(BuildItem::bounds).reduce(|| Bb::EMPTY, Bb::union);
-    build_node(tris, 0, bounds, 0, max_leaf)
+fn build_tree(tris: &mut [BuildItem], max_leaf: usize) -> Built {
+    let (bounds, centroids) = if tris.len() > PARALLEL_BINNING_MIN {
+        tris.par_chunks(16384)
+            .map(boxes_of)
+            .reduce(|| (Bb::EMPTY, Bb::EMPTY), |a, b| (a.0.union(b.0), a.1.union(b.1)))
+    } else {
+        boxes_of(tris)
+    };
+    build_node(tris, 0, bounds, centroids, 0, max_leaf)
 }
 
-fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, depth: usize, max_leaf: usize) -> BuildNode {
+/// The box of `tris`' boxes and the box of their centres.
+fn boxes_of(tris: &[BuildItem]) -> (Bb, Bb) {
+    tris.iter().fold((Bb::EMPTY, Bb::EMPTY), |(b, c), t| {
+        (b.union(t.bounds()), c.include(t.centroid()))
+    })
+}
+
+/// A subtree as built: its root, the number of its leaves and the number of 4-wide nodes it
+/// flattens into ([`quad_count`], counted bottom-up so the flattening needs no pass of its own).
+struct Built {
+    node: BuildNode,
+    leaves: usize,
+}
+
+/// Builds the subtree over `tris` (items `start..` of the leaf order), whose boxes span `bounds`
+/// and whose centres span `centroids`. Each split takes the children's boxes from its bins and
+/// their centre boxes from its partition pass, so a node costs two passes over its items (bin,
+/// partition) and the tree is exactly the one a fold over the items' boxes would give.
+fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, centroids: Bb, depth: usize, max_leaf: usize) -> Built {
     let n = tris.len();
-    if n == 1 {
-        return BuildNode::Leaf {
+    let leaf = |count: usize| Built {
+        node: BuildNode::Leaf {
             bounds: bounds.into(),
             start,
-            count: 1,
-        };
-    }
-    let centroids = if n > PARALLEL_BINNING_MIN {
-        tris.par_chunks(16384)
-            .map(|c| c.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid())))
-            .reduce(|| Bb::EMPTY, Bb::union)
-    } else {
-        tris.iter().fold(Bb::EMPTY, |b, t| b.include(t.centroid()))
+            count: count as u32,
+        },
+        leaves: 1,
     };
+    if n == 1 {
+        return leaf(1);
+    }
     let extent = centroids.hi - centroids.lo;
     let split = if depth >= MEDIAN_DEPTH || extent.max_element() <= 0.0 {
         None
     } else {
         sah_split(tris, bounds, centroids, max_leaf)
     };
-    let mid = match split {
-        Some(Split::Leaf) => {
-            return BuildNode::Leaf {
-                bounds: bounds.into(),
-                start,
-                count: n as u32,
-            }
-        }
-        Some(Split::At(mid)) => mid,
+    let children = match split {
+        Some(Split::Leaf) => return leaf(n),
+        Some(Split::At(children)) => children,
         None => {
             // median along the widest centroid axis (any order when all centroids coincide)
             let axis = extent.max_position();
             let mid = n / 2;
             tris.select_nth_unstable_by(mid, |a, b| a.centroid_on(axis).total_cmp(&b.centroid_on(axis)));
-            mid
+            let (left, right) = tris.split_at(mid);
+            let ((lb, lc), (rb, rc)) = (boxes_of(left), boxes_of(right));
+            Children {
+                mid,
+                bounds: [lb, rb],
+                centroids: [lc, rc],
+            }
         }
     };
+    let Children {
+        mid,
+        bounds: [lb, rb],
+        centroids: [lc, rc],
+    } = children;
     let (left, right) = tris.split_at_mut(mid);
-    let lb = left.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds()));
-    let rb = right.iter().fold(Bb::EMPTY, |b, t| b.union(t.bounds()));
     let rstart = start + mid as u32;
     let (l, r) = if n > PARALLEL_MIN {
         rayon::join(
-            || build_node(left, start, lb, depth + 1, max_leaf),
-            || build_node(right, rstart, rb, depth + 1, max_leaf),
+            || build_node(left, start, lb, lc, depth + 1, max_leaf),
+            || build_node(right, rstart, rb, rc, depth + 1, max_leaf),
         )
     } else {
         (
-            build_node(left, start, lb, depth + 1, max_leaf),
-            build_node(right, rstart, rb, depth + 1, max_leaf),
+            build_node(left, start, lb, lc, depth + 1, max_leaf),
+            build_node(right, rstart, rb, rc, depth + 1, max_leaf),
         )
     };
-    BuildNode::Inner {
+    let mut node = BuildNode::Inner {
         bounds: bounds.into(),
-        children: Box::new([l, r]),
+        children: Box::new([l.node, r.node]),
+        quads: 0,
+    };
+    let quads = {
+        let (nodes, len) = collapse(&node);
+        1 + nodes[..len].iter().map(|n| n.quads()).sum::<u32>()
+    };
+    if let BuildNode::Inner { quads: q, .. } = &mut node {
+        *q = quads;
+    }
+    Built {
+        node,
+        leaves: l.leaves + r.leaves,
     }
 }
 
 enum Split {
     Leaf,
-    At(usize),
+    At(Children),
+}
+
+/// Where a node's items were split and the two sides' boxes and centre boxes.
+struct Children {
+    mid: usize,
+    bounds: [Bb; 2],
+    centroids: [Bb; 2],
 }
 
 fn sah_split(tris: &mut [BuildItem], bounds: Bb, centroids: Bb, max_leaf: usize) -> Option<Split> {
@@ -571,39 +651,51 @@ fn sah_split_binned<const N: usize>(
         Vec3A::splat(N as f32 * (1.0 - 1e-6)) / extent,
         Vec3A::ZERO,
     );
-    let bins = if n > PARALLEL_BINNING_MIN {
-        tris.par_chunks(16384)
+    // filled in place (the bins of 32 are 3.5 kB: moving them cost more than binning a
+    // small node)
+    let mut bins = Bins::<N>::empty();
+    if n > PARALLEL_BINNING_MIN {
+        bins = tris
+            .par_chunks(16384)
             .map(|c| {
                 let mut b = Bins::<N>::empty();
                 b.add(c, centroids.lo, scale);
                 b
             })
-            .reduce(Bins::<N>::empty, Bins::merge)
+            .reduce(Bins::<N>::empty, Bins::merge);
     } else {
-        let mut b = Bins::<N>::empty();
-        b.add(tris, centroids.lo, scale);
-        b
-    };
+        bins.add(tris, centroids.lo, scale);
+    }
     let parent = bounds.half_area().max(f32::MIN_POSITIVE);
     let mut best: Option<(f32, usize, usize)> = None;
     for axis in 0..3 {
         if scale[axis] == 0.0 {
             continue;
         }
+        // an empty bin changes neither side's box nor count, so the areas and costs at its
+        // edges repeat their neighbours' and are not computed again (small nodes leave most
+        // bins empty)
         let mut right_area = [0f32; N];
         let mut right_count = [0u32; N];
-        let (mut acc, mut count) = (Bb::EMPTY, 0);
+        let (mut acc, mut count, mut area) = (Bb::EMPTY, 0, 0.0);
         for i in (1..N).rev() {
-            acc = acc.union(bins.bounds[axis][i]);
-            count += bins.counts[axis][i];
-            right_area[i] = acc.half_area();
+            if bins.counts[axis][i] > 0 {
+                acc = acc.union(bins.bounds[axis][i]);
+                count += bins.counts[axis][i];
+                area = acc.half_area();
+            }
+            right_area[i] = area;
             right_count[i] = count;
         }
         let (mut acc, mut count) = (Bb::EMPTY, 0);
         for split in 1..N {
+            if bins.counts[axis][split - 1] == 0 {
+                // the same sides, hence the same cost, as the split before (never strictly better)
+                continue;
+            }
             acc = acc.union(bins.bounds[axis][split - 1]);
             count += bins.counts[axis][split - 1];
-            if count == 0 || right_count[split] == 0 {
+            if right_count[split] == 0 {
                 continue;
             }
             let cost = TRAVERSAL_COST
@@ -617,16 +709,31 @@ fn sah_split_binned<const N: usize>(
     if n <= max_leaf && cost >= n as f32 {
         return Some(Split::Leaf);
     }
-    let (lo, s) = (centroids.lo[axis], scale[axis]);
-    let bin_of = |t: &BuildItem| (((t.centroid_on(axis) - lo) * s) as usize).min(N - 1);
+    // the sides' boxes are the unions of their bins' boxes (each bin's box is the union of its
+    // items' boxes); their centre boxes are gathered while partitioning
+    let side = |range: std::ops::Range<usize>| bins.bounds[axis][range].iter().fold(Bb::EMPTY, |b, x| b.union(*x));
+    let (mut lc, mut rc) = (Bb::EMPTY, Bb::EMPTY);
     let mut mid = 0;
     for i in 0..n {
-        if bin_of(&tris[i]) < split {
-            tris.swap(i, mid);
+        let c = tris[i].centroid();
+        // the item goes to the side its bin is on
+        if (bin_of::<N>(c, centroids.lo, scale)[axis] as usize) < split {
+            lc = lc.include(c);
+            if i != mid {
+                tris.swap(i, mid);
+            }
             mid += 1;
+        } else {
+            rc = rc.include(c);
         }
     }
-    (mid > 0 && mid < n).then_some(Split::At(mid))
+    (mid > 0 && mid < n).then(|| {
+        Split::At(Children {
+            mid,
+            bounds: [side(0..split), side(split..N)],
+            centroids: [lc, rc],
+        })
+    })
 }
 
 #[cfg(test)]
@@ -652,8 +759,8 @@ mod tests {
         }
     }
 
-    /// The node arrays are allocated at their exact final size (never grown or shrunk, which
-    /// copies them), for leaf roots and trees of every shape.
+    /// The node array is allocated at its exact final size (never grown or shrunk, which
+    /// copies it), for leaf roots and trees of every shape, and it holds the whole tree.
     #[test]
     fn node_arrays_are_allocated_exactly() {
         let mut state = 12345u64;
@@ -671,12 +778,33 @@ mod tests {
                     BuildItem::new(Bb { lo, hi: lo + size }, id)
                 })
                 .collect();
-            for (max_leaf, pairs) in [(2, false), (6, true)] {
-                let bvh = QuadBvh::build(&mut items, max_leaf, pairs);
+            for max_leaf in [2, 6] {
+                let bvh = QuadBvh::build(&mut items, max_leaf);
                 assert_eq!(bvh.quads.len(), bvh.quads.capacity(), "{n} items");
-                assert_eq!(bvh.pairs.len(), bvh.pairs.capacity(), "{n} items");
                 assert!(!bvh.quads.is_empty());
-                assert_eq!(bvh.pairs.is_empty(), !pairs || bvh.root.count > 0, "{n} items");
+                // every quad reached once, children after their parent (depth first), and
+                // every item in exactly one leaf inside its leaf's box
+                let mut reached = vec![0; bvh.quads.len()];
+                let mut covered = vec![0; n as usize];
+                reached[0] = 1;
+                for (index, quad) in bvh.quads.iter().enumerate() {
+                    for s in 0..quad.len as usize {
+                        let (first, count) = (quad.child[s] as usize, quad.count[s] as usize);
+                        if count == 0 {
+                            assert!(first > index, "{n} items: quad {index} slot {s}");
+                            reached[first] += 1;
+                            continue;
+                        }
+                        for item in &items[first..first + count] {
+                            covered[item.id as usize] += 1;
+                            for axis in 0..3 {
+                                assert!(quad.lo[axis][s] <= item.lo[axis] && item.hi[axis] <= quad.hi[axis][s]);
+                            }
+                        }
+                    }
+                }
+                assert!(reached.iter().all(|&r| r == 1), "{n} items, leaf {max_leaf}");
+                assert!(covered.iter().all(|&c| c == 1), "{n} items, leaf {max_leaf}");
             }
         }
     }
