@@ -52,14 +52,15 @@ pub struct Bvh {
 /// A 4-wide node, shared by the scene's and the meshes' hierarchies: up to four children's f32
 /// boxes in SoA layout, tested in one SSE pass per axis. `count[i] = 0` marks an inner child
 /// (its quad is `child[i]`), `count[i] > 0` a leaf of that many items (or triangles) from
-/// `child[i]`; slots beyond `len` are empty.
+/// `child[i]`; slots beyond `len` are empty. 128 bytes: two cache lines (leaves hold at most
+/// `u16::MAX` items, which the builder checks).
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C, align(64))]
 pub(crate) struct Quad {
     pub lo: [[f32; 4]; 3],
     pub hi: [[f32; 4]; 3],
     pub child: [u32; 4],
-    pub count: [u32; 4],
+    pub count: [u16; 4],
     pub len: u32,
 }
 
@@ -107,7 +108,7 @@ pub(crate) fn traverse_quads_from(
         if hits != 0 {
             if hits & (hits - 1) == 0 {
                 let slot = hits.trailing_zeros() as usize;
-                next = Some((q.child[slot], q.count[slot], near[slot]));
+                next = Some((q.child[slot], u32::from(q.count[slot]), near[slot]));
             } else {
                 // the entered children sorted farthest first (insertion into at most four)
                 let mut order = [(0f32, 0usize); 4];
@@ -125,11 +126,11 @@ pub(crate) fn traverse_quads_from(
                     n += 1;
                 }
                 for &(t, slot) in &order[..n - 1] {
-                    stack[top].write((q.child[slot], q.count[slot], t));
+                    stack[top].write((q.child[slot], u32::from(q.count[slot]), t));
                     top += 1;
                 }
                 let (t, slot) = order[n - 1];
-                next = Some((q.child[slot], q.count[slot], t));
+                next = Some((q.child[slot], u32::from(q.count[slot]), t));
             }
         }
         // visit `next`, else pop, until an inner node to open
@@ -478,7 +479,7 @@ pub(crate) fn walk_packet(
             }
             let child = PendingChild {
                 child: quad.child[slot],
-                count: quad.count[slot],
+                count: u32::from(quad.count[slot]),
                 lanes: inside,
                 entry: near,
             };

@@ -41,6 +41,9 @@ const FEW_ITEMS: usize = 64;
 pub(crate) const PARALLEL_MIN: usize = 4096;
 /// Nodes with more triangles than this bin in parallel.
 const PARALLEL_BINNING_MIN: usize = 65536;
+/// The most items a leaf may hold (a quad stores leaf sizes in 16 bits); leaves below the
+/// caller's `max_leaf` or of one item, so callers keep `max_leaf` at most this.
+pub(crate) const MAX_LEAF_ITEMS: usize = u16::MAX as usize;
 /// From this depth on, nodes are split at the median.
 const MEDIAN_DEPTH: usize = 64;
 
@@ -283,6 +286,7 @@ impl QuadBvh {
     /// Builds over `tris` (reordered in place into leaf order), with leaves of at most
     /// `max_leaf` items. `tris` must not be empty.
     pub fn build(tris: &mut [BuildItem], max_leaf: usize) -> Self {
+        assert!(max_leaf <= MAX_LEAF_ITEMS, "leaves of at most {MAX_LEAF_ITEMS} items");
         let tree = build_tree(tris, max_leaf);
         let bvh = Self::flatten_tree(&tree);
         drop_tree(tree.node);
@@ -293,6 +297,7 @@ impl QuadBvh {
     /// the items are dropped as soon as the binary tree is built, before the 4-wide nodes are
     /// written (a million scene objects: 28 MB less at the peak).
     pub fn build_ids(mut tris: Vec<BuildItem>, max_leaf: usize) -> (Self, Vec<u32>) {
+        assert!(max_leaf <= MAX_LEAF_ITEMS, "leaves of at most {MAX_LEAF_ITEMS} items");
         let tree = build_tree(&mut tris, max_leaf);
         let ids = tris.iter().map(|t| t.id).collect();
         drop(tris);
@@ -358,7 +363,7 @@ impl QuadBvh {
             lo: [quad.lo[0][s], quad.lo[1][s], quad.lo[2][s]],
             first: quad.child[s],
             hi: [quad.hi[0][s], quad.hi[1][s], quad.hi[2][s]],
-            count: quad.count[s],
+            count: u32::from(quad.count[s]),
         };
         let mut stack: Vec<(Node, f64)> = Vec::with_capacity(64);
         let mut quad = &self.quads[0];
@@ -460,7 +465,7 @@ fn fill_quads(slots: &mut [Quad], index: u32, children: &[&BuildNode]) {
             quad.hi[axis][slot] = bounds.hi[axis];
         }
         quad.child[slot] = first;
-        quad.count[slot] = count;
+        quad.count[slot] = u16::try_from(count).expect("leaves hold at most u16::MAX items (checked by the build)");
     }
     *head = quad;
     if next - index > PARALLEL_QUADS {
@@ -744,6 +749,7 @@ mod tests {
     fn build_items_are_small_and_keep_box_and_centre() {
         assert_eq!(std::mem::size_of::<BuildItem>(), 28);
         assert_eq!(std::mem::size_of::<BuildNode>(), 40);
+        assert_eq!(std::mem::size_of::<Quad>(), 128);
         let bounds = Bb {
             lo: Vec3A::new(-f32::MAX, 1.0, -3.5),
             hi: Vec3A::new(f32::MAX, f32::MAX, 0.25),
@@ -789,7 +795,7 @@ mod tests {
                 reached[0] = 1;
                 for (index, quad) in bvh.quads.iter().enumerate() {
                     for s in 0..quad.len as usize {
-                        let (first, count) = (quad.child[s] as usize, quad.count[s] as usize);
+                        let (first, count) = (quad.child[s] as usize, usize::from(quad.count[s]));
                         if count == 0 {
                             assert!(first > index, "{n} items: quad {index} slot {s}");
                             reached[first] += 1;
