@@ -7,11 +7,16 @@
 //! vertex (`tobj`'s `single_index`), all objects of the file merged into one mesh. Per-vertex
 //! normals are read from OBJ `vn` records and from PLY `nx, ny, nz` vertex properties.
 //!
+//! Binary PLY payloads are decoded by the `ply_binary` submodule from one in-memory buffer; ASCII ones go
+//! through ply-rs-bw's per-property reader ([`read_ply_generic`]). Both give the same data.
+//!
 //! Every error names the file, and the element, line or face where the format gives one.
+
+mod ply_binary;
 
 use crate::shape_desc::{BuildContext, SceneShape};
 use ply_rs_bw::parser::Parser;
-use ply_rs_bw::ply::{Property, PropertyAccess};
+use ply_rs_bw::ply::{Encoding, Header, Property, PropertyAccess};
 use serde::Deserialize;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -193,25 +198,69 @@ impl PropertyAccess for Ignored {
 }
 
 /// Reads a PLY file: `vertex` (`x, y, z`, optional `nx, ny, nz`) and `face` (`vertex_indices`)
-/// elements; other elements and properties are skipped.
+/// elements; other elements and properties are skipped. Binary payloads are decoded in memory
+/// (`ply_binary`), ASCII ones by ply-rs-bw.
 pub fn read_ply(path: &Path) -> Result<MeshData, MeshIoError> {
+    let (mut reader, header) = read_ply_header(path)?;
+    if header.encoding == Encoding::Ascii {
+        return read_ply_payload(path, &mut reader, &header);
+    }
+    // an upper bound of the payload's length, to reserve the buffer once
+    let size = reader.get_ref().metadata().map_or(0, |m| m.len());
+    ply_binary::read_payload(&mut reader, size, &header).map_err(|message| error(path, message))
+}
+
+/// Reads a PLY file as [`read_ply`] does, but always through ply-rs-bw's per-property payload
+/// reader (the ASCII path), to check the binary decoder against.
+#[doc(hidden)]
+pub fn read_ply_generic(path: &Path) -> Result<MeshData, MeshIoError> {
+    let (mut reader, header) = read_ply_header(path)?;
+    read_ply_payload(path, &mut reader, &header)
+}
+
+/// Opens a PLY file and reads its header; the reader is left at the payload.
+fn read_ply_header(path: &Path) -> Result<(BufReader<std::fs::File>, Header), MeshIoError> {
     let file = std::fs::File::open(path).map_err(|e| error(path, e.to_string()))?;
     let mut reader = BufReader::with_capacity(1 << 20, file);
     let header = Parser::<Ignored>::new()
         .read_header(&mut reader)
         .map_err(|e| error(path, format!("header: {e}")))?;
+    Ok((reader, header))
+}
+
+/// The message for a vertex whose position is not finite.
+fn vertex_not_finite(i: usize, p: [f32; 3]) -> String {
+    format!("vertex {i}: position {p:?} is not finite (or x, y, z missing)")
+}
+
+/// The message for a face of fewer than 3 vertices.
+fn face_too_few_indices(f: usize, n: usize) -> String {
+    format!("face {f}: {n} vertex indices (at least 3 needed)")
+}
+
+/// The message for a face index outside `0..nv`.
+fn face_index_out_of_range(f: usize, bad: i64, nv: usize) -> String {
+    format!("face {f}: vertex index {bad} out of range ({nv} vertices)")
+}
+
+/// Reads the payload through ply-rs-bw's per-property callbacks ([`PlyVertex`], [`PlyFace`]).
+fn read_ply_payload(
+    path: &Path,
+    reader: &mut BufReader<std::fs::File>,
+    header: &Header,
+) -> Result<MeshData, MeshIoError> {
     let mut vertices: Option<Vec<PlyVertex>> = None;
     let mut faces: Option<Vec<PlyFace>> = None;
     for (name, element) in &header.elements {
         let result = match name.as_str() {
             "vertex" => Parser::<PlyVertex>::new()
-                .read_payload_for_element(&mut reader, element, &header)
+                .read_payload_for_element(reader, element, header)
                 .map(|v| vertices = Some(v)),
             "face" => Parser::<PlyFace>::new()
-                .read_payload_for_element(&mut reader, element, &header)
+                .read_payload_for_element(reader, element, header)
                 .map(|f| faces = Some(f)),
             _ => Parser::<Ignored>::new()
-                .read_payload_for_element(&mut reader, element, &header)
+                .read_payload_for_element(reader, element, header)
                 .map(|_| ()),
         };
         if let Err(e) = result {
@@ -237,10 +286,7 @@ pub fn read_ply(path: &Path) -> Result<MeshData, MeshIoError> {
     };
     for (i, v) in vertices.iter().enumerate() {
         if !v.p.iter().all(|x| x.is_finite()) {
-            return Err(error(
-                path,
-                format!("vertex {i}: position {:?} is not finite (or x, y, z missing)", v.p),
-            ));
+            return Err(error(path, vertex_not_finite(i, v.p)));
         }
         data.vertices.push(v.p);
     }
@@ -249,16 +295,10 @@ pub fn read_ply(path: &Path) -> Result<MeshData, MeshIoError> {
     }
     for (f, face) in faces.iter().enumerate() {
         if face.indices.len() < 3 {
-            return Err(error(
-                path,
-                format!("face {f}: {} vertex indices (at least 3 needed)", face.indices.len()),
-            ));
+            return Err(error(path, face_too_few_indices(f, face.indices.len())));
         }
         if let Some(&bad) = face.indices.iter().find(|&&i| i < 0 || i as usize >= nv) {
-            return Err(error(
-                path,
-                format!("face {f}: vertex index {bad} out of range ({nv} vertices)"),
-            ));
+            return Err(error(path, face_index_out_of_range(f, bad, nv)));
         }
         let idx = |k: usize| face.indices[k] as u32;
         for k in 1..face.indices.len() - 1 {
