@@ -284,7 +284,7 @@ impl Mesh {
         }
         let bvh = QuadBvh::build(&mut build, MAX_LEAF);
         let in_bvh = build.len();
-        let mut leaf_to_file: Vec<u32> = build.iter().map(|b| b.id).collect();
+        let mut leaf_to_file: Vec<u32> = build.par_iter().map(|b| b.id).collect();
         drop(build);
         let mut file_to_leaf = vec![u32::MAX; indices.len()];
         for (leaf, &file) in leaf_to_file.iter().enumerate() {
@@ -296,7 +296,7 @@ impl Mesh {
                 leaf_to_file.push(file as u32);
             }
         }
-        let tris: Vec<[u32; 3]> = leaf_to_file.iter().map(|&f| indices[f as usize]).collect();
+        let tris: Vec<[u32; 3]> = leaf_to_file.par_iter().map(|&f| indices[f as usize]).collect();
         drop(indices);
         let bounds = Aabb::new(v64(bvh.root.lo), v64(bvh.root.hi));
         Ok(Self {
