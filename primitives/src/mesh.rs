@@ -631,6 +631,8 @@ mod tests {
     /// triangles (many leaves and levels) and points around, above and below it.
     #[test]
     fn phi_is_the_distance_to_the_nearest_triangle() {
+        use rand::rngs::StdRng;
+        use rand::{Rng, SeedableRng};
         let n = 25usize;
         let height = |i: usize, j: usize| ((i * 7 + j * 13) % 11) as f32 * 0.05;
         let vertices: Vec<[f32; 3]> = (0..n * n)
@@ -646,15 +648,13 @@ mod tests {
         }
         let m = Mesh::new(vertices, indices, None).unwrap();
         assert!(m.node_count() > 20);
-        let mut state = 7u64;
-        let mut random = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = StdRng::seed_from_u64(7);
         for _ in 0..2000 {
-            let p = DVec3::new(random() * 30.0 - 3.0, random() * 6.0 - 3.0, random() * 30.0 - 3.0);
+            let p = DVec3::new(
+                rng.random_range(-3.0..27.0),
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-3.0..27.0),
+            );
             let brute = (0..m.triangle_count())
                 .map(|k| {
                     let [a, b, c] = m.triangle(k);
