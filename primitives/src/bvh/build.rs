@@ -14,8 +14,8 @@
 //! and their centre boxes are gathered while partitioning, so a node costs two passes over its
 //! items. Subtrees of more than [`PARALLEL_MIN`] triangles are built with `rayon::join`, and the
 //! binary tree is collapsed into quads in parallel (each subtree's quad count is known from the
-//! build, so each writes its own slots). A node becomes a leaf when SAH prefers it and it holds at most the caller's `max_leaf`
-//! items; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split at the
+//! build, so each writes its own slots). A node becomes a leaf when SAH prefers it and it holds
+//! at most the caller's `max_leaf` items; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split at the
 //! median instead, which bounds the depth to `MEDIAN_DEPTH + 32` and the traversal stack.
 //!
 //! Traversal. Slab tests in f32 against the mesh's own f32 ray (the one the triangle test uses),
@@ -41,8 +41,8 @@ const FEW_ITEMS: usize = 64;
 pub(crate) const PARALLEL_MIN: usize = 4096;
 /// Nodes with more triangles than this bin in parallel.
 const PARALLEL_BINNING_MIN: usize = 65536;
-/// The most items a leaf may hold (a quad stores leaf sizes in 16 bits); leaves below the
-/// caller's `max_leaf` or of one item, so callers keep `max_leaf` at most this.
+/// The largest `max_leaf` a caller may ask for: a quad stores leaf sizes in 16 bits, and a leaf
+/// holds at most `max_leaf` items (or one, below the median-split depth).
 pub(crate) const MAX_LEAF_ITEMS: usize = u16::MAX as usize;
 /// From this depth on, nodes are split at the median.
 const MEDIAN_DEPTH: usize = 64;
@@ -289,7 +289,7 @@ impl QuadBvh {
         assert!(max_leaf <= MAX_LEAF_ITEMS, "leaves of at most {MAX_LEAF_ITEMS} items");
         let tree = build_tree(tris, max_leaf);
         let bvh = Self::flatten_tree(&tree);
-        drop_tree(tree.node);
+        drop_tree(tree);
         bvh
     }
 
@@ -302,16 +302,15 @@ impl QuadBvh {
         let ids = tris.iter().map(|t| t.id).collect();
         drop(tris);
         let bvh = Self::flatten_tree(&tree);
-        drop_tree(tree.node);
+        drop_tree(tree);
         (bvh, ids)
     }
 
     /// The 4-wide nodes of `tree`.
-    fn flatten_tree(built: &Built) -> Self {
+    fn flatten_tree(tree: &BuildNode) -> Self {
         // the exact number of quads (counted during the build): a node array is never grown or
         // shrunk, which would copy it (their 64-byte alignment rules out an in-place `realloc`):
         // 120 MB at the peak for 10⁶ objects
-        let tree = &built.node;
         let (top, len) = collapse(tree);
         let mut quads = vec![Quad::default(); tree.quads().max(1) as usize];
         fill_quads(&mut quads, 0, &top[..len]);
@@ -448,14 +447,15 @@ fn fill_quads(slots: &mut [Quad], index: u32, children: &[&BuildNode]) {
         ..Quad::default()
     };
     let mut next = index + 1;
-    let mut subtrees = Vec::with_capacity(4);
+    // each inner child's slots, its index and itself
+    let mut subtrees: [Option<(&mut [Quad], u32, &BuildNode)>; 4] = [None, None, None, None];
     for (slot, child) in children.iter().enumerate() {
         let (bounds, first, count) = match child {
             BuildNode::Leaf { bounds, start, count } => (bounds, *start, *count),
             BuildNode::Inner { bounds, quads, .. } => {
                 let (own, after) = std::mem::take(&mut rest).split_at_mut(*quads as usize);
                 rest = after;
-                subtrees.push((own, next, collapse(child), *quads));
+                subtrees[slot] = Some((own, next, *child));
                 next += quads;
                 (bounds, next - quads, 0)
             }
@@ -468,14 +468,14 @@ fn fill_quads(slots: &mut [Quad], index: u32, children: &[&BuildNode]) {
         quad.count[slot] = u16::try_from(count).expect("leaves hold at most u16::MAX items (checked by the build)");
     }
     *head = quad;
+    let fill = |(own, at, child): (&mut [Quad], u32, &BuildNode)| {
+        let (nodes, len) = collapse(child);
+        fill_quads(own, at, &nodes[..len]);
+    };
     if next - index > PARALLEL_QUADS {
-        subtrees
-            .into_par_iter()
-            .for_each(|(own, at, (nodes, len), _)| fill_quads(own, at, &nodes[..len]));
+        subtrees.into_par_iter().flatten().for_each(fill);
     } else {
-        for (own, at, (nodes, len), _) in subtrees {
-            fill_quads(own, at, &nodes[..len]);
-        }
+        subtrees.into_iter().flatten().for_each(fill);
     }
 }
 
@@ -520,7 +520,7 @@ fn collapse(node: &BuildNode) -> ([&BuildNode; 4], usize) {
 }
 
 /// The binary tree over `tris` (reordered in place into leaf order); `tris` must not be empty.
-fn build_tree(tris: &mut [BuildItem], max_leaf: usize) -> Built {
+fn build_tree(tris: &mut [BuildItem], max_leaf: usize) -> BuildNode {
     let (bounds, centroids) = if tris.len() > PARALLEL_BINNING_MIN {
         tris.par_chunks(16384)
             .map(boxes_of)
@@ -538,26 +538,23 @@ fn boxes_of(tris: &[BuildItem]) -> (Bb, Bb) {
     })
 }
 
-/// A subtree as built: its root, the number of its leaves and the number of 4-wide nodes it
-/// flattens into ([`quad_count`], counted bottom-up so the flattening needs no pass of its own).
-struct Built {
-    node: BuildNode,
-    leaves: usize,
-}
-
 /// Builds the subtree over `tris` (items `start..` of the leaf order), whose boxes span `bounds`
 /// and whose centres span `centroids`. Each split takes the children's boxes from its bins and
 /// their centre boxes from its partition pass, so a node costs two passes over its items (bin,
 /// partition) and the tree is exactly the one a fold over the items' boxes would give.
-fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, centroids: Bb, depth: usize, max_leaf: usize) -> Built {
+fn build_node(
+    tris: &mut [BuildItem],
+    start: u32,
+    bounds: Bb,
+    centroids: Bb,
+    depth: usize,
+    max_leaf: usize,
+) -> BuildNode {
     let n = tris.len();
-    let leaf = |count: usize| Built {
-        node: BuildNode::Leaf {
-            bounds: bounds.into(),
-            start,
-            count: count as u32,
-        },
-        leaves: 1,
+    let leaf = |count: usize| BuildNode::Leaf {
+        bounds: bounds.into(),
+        start,
+        count: count as u32,
     };
     if n == 1 {
         return leaf(1);
@@ -605,7 +602,7 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, centroids: Bb, dep
     };
     let mut node = BuildNode::Inner {
         bounds: bounds.into(),
-        children: Box::new([l.node, r.node]),
+        children: Box::new([l, r]),
         quads: 0,
     };
     let quads = {
@@ -615,10 +612,7 @@ fn build_node(tris: &mut [BuildItem], start: u32, bounds: Bb, centroids: Bb, dep
     if let BuildNode::Inner { quads: q, .. } = &mut node {
         *q = quads;
     }
-    Built {
-        node,
-        leaves: l.leaves + r.leaves,
-    }
+    node
 }
 
 enum Split {
