@@ -24,6 +24,7 @@
 //! first; the farther one is pushed with its entry distance and skipped when popped if the
 //! closest hit found meanwhile is nearer.
 
+use super::quad_array::QuadArray;
 use super::{traverse_quads, Quad};
 use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
@@ -143,76 +144,34 @@ impl BuildItem {
     }
 }
 
-/// A node of the binary tree during the build: 40 bytes, its box as f32 arrays (not the 16-byte
-/// aligned [`Bb`]), so that an inner node's pair of children is an 80-byte allocation (a million
-/// scene objects: about a million of them).
-enum BuildNode {
-    Leaf {
-        bounds: NodeBox,
-        start: u32,
-        count: u32,
-    },
-    Inner {
-        bounds: NodeBox,
-        children: Box<[BuildNode; 2]>,
-        /// The number of 4-wide nodes this subtree flattens into as a node of its own.
-        quads: u32,
-    },
+/// A node whose split is decided: a leaf of `count` items from `start` (`split` is `None`), or
+/// an inner node whose items are already partitioned into its two sides.
+struct Decided {
+    bounds: Bb,
+    start: u32,
+    count: u32,
+    depth: usize,
+    split: Option<Children>,
 }
 
-impl BuildNode {
-    /// The 4-wide nodes this node flattens into when it is a child of a 4-wide node: none for
-    /// a leaf (it is stored in its parent).
-    fn quads(&self) -> u32 {
-        match self {
-            BuildNode::Leaf { .. } => 0,
-            BuildNode::Inner { quads, .. } => *quads,
-        }
-    }
-}
-
-/// A box stored in a [`BuildNode`].
-#[derive(Clone, Copy, Debug)]
-struct NodeBox {
-    lo: [f32; 3],
-    hi: [f32; 3],
-}
-
-impl From<Bb> for NodeBox {
-    fn from(b: Bb) -> Self {
-        Self {
-            lo: b.lo.to_array(),
-            hi: b.hi.to_array(),
-        }
-    }
-}
-
-impl NodeBox {
-    fn node(self, first: u32, count: u32) -> Node {
-        Node {
-            lo: self.lo,
-            first,
-            hi: self.hi,
-            count,
-        }
-    }
-
-    fn half_area(self) -> f32 {
-        Bb {
-            lo: Vec3A::from_array(self.lo),
-            hi: Vec3A::from_array(self.hi),
-        }
-        .half_area()
+impl Decided {
+    /// Its items, as positions inside the items of an ancestor starting at `ancestor_start`.
+    fn range(&self, ancestor_start: u32) -> std::ops::Range<usize> {
+        let first = (self.start - ancestor_start) as usize;
+        first..first + self.count as usize
     }
 }
 
 /// The hierarchy; triangles are referred to by their position in leaf order. Closest-hit
-/// traversal and nearest-point queries both walk the 4-wide `quads` (collapsed from the binary
-/// tree); `root` is the box of everything.
+/// traversal and nearest-point queries both walk the 4-wide `quads`; `root` is the box of
+/// everything. Subtrees built in parallel leave unused, zero nodes after their own (see
+/// [`QuadArray`]); no slot refers to those.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct QuadBvh {
     pub root: Node,
-    quads: Vec<Quad>,
+    quads: QuadArray,
+    /// The nodes in use (the others are the parallel subtrees' unused room).
+    used: usize,
 }
 
 #[derive(Clone, Copy)]
@@ -287,38 +246,53 @@ impl QuadBvh {
     /// `max_leaf` items. `tris` must not be empty.
     pub fn build(tris: &mut [BuildItem], max_leaf: usize) -> Self {
         assert!(max_leaf <= MAX_LEAF_ITEMS, "leaves of at most {MAX_LEAF_ITEMS} items");
-        let tree = build_tree(tris, max_leaf);
-        let bvh = Self::flatten_tree(&tree);
-        drop_tree(tree);
-        bvh
-    }
-
-    /// [`QuadBvh::build`] taking the items and giving their ids in leaf order:
-    /// the items are dropped as soon as the binary tree is built, before the 4-wide nodes are
-    /// written (a million scene objects: 28 MB less at the peak).
-    pub fn build_ids(mut tris: Vec<BuildItem>, max_leaf: usize) -> (Self, Vec<u32>) {
-        assert!(max_leaf <= MAX_LEAF_ITEMS, "leaves of at most {MAX_LEAF_ITEMS} items");
-        let tree = build_tree(&mut tris, max_leaf);
-        let ids = tris.iter().map(|t| t.id).collect();
-        drop(tris);
-        let bvh = Self::flatten_tree(&tree);
-        drop_tree(tree);
-        (bvh, ids)
-    }
-
-    /// The 4-wide nodes of `tree`.
-    fn flatten_tree(tree: &BuildNode) -> Self {
-        // the exact number of quads (counted during the build): a node array is never grown or
-        // shrunk, which would copy it (their 64-byte alignment rules out an in-place `realloc`):
-        // 120 MB at the peak for 10⁶ objects
-        let (top, len) = collapse(tree);
-        let mut quads = vec![Quad::default(); tree.quads().max(1) as usize];
-        fill_quads(&mut quads, 0, &top[..len]);
-        let root = match tree {
-            BuildNode::Leaf { bounds, start, count } => bounds.node(*start, *count),
-            BuildNode::Inner { bounds, .. } => bounds.node(0, 0),
+        let (bounds, centroids) = if tris.len() > PARALLEL_BINNING_MIN {
+            tris.par_chunks(16384)
+                .map(boxes_of)
+                .reduce(|| (Bb::EMPTY, Bb::EMPTY), |a, b| (a.0.union(b.0), a.1.union(b.1)))
+        } else {
+            boxes_of(tris)
         };
-        Self { root, quads }
+        let root = decide(tris, 0, bounds, centroids, 0, max_leaf);
+        let node = |first, count| Node {
+            lo: bounds.lo.to_array(),
+            first,
+            hi: bounds.hi.to_array(),
+            count,
+        };
+        if root.split.is_none() {
+            // a leaf root: one node whose only child is the leaf
+            let mut quads = QuadArray::zeroed(1);
+            let quad = &mut quads[0];
+            quad.len = 1;
+            for axis in 0..3 {
+                quad.lo[axis][0] = bounds.lo[axis];
+                quad.hi[axis][0] = bounds.hi[axis];
+            }
+            quad.count[0] =
+                u16::try_from(root.count).expect("leaves hold at most u16::MAX items (checked by the build)");
+            return Self {
+                root: node(root.start, root.count),
+                quads,
+                used: 1,
+            };
+        }
+        let mut quads = QuadArray::zeroed(node_bound(root.count));
+        let (span, used) = build_quad(tris, &root, &mut quads, 0, max_leaf);
+        quads.truncate(span as usize);
+        Self {
+            root: node(0, 0),
+            quads,
+            used: used as usize,
+        }
+    }
+
+    /// [`QuadBvh::build`] taking the items and giving their ids in leaf order (the items are
+    /// dropped before returning).
+    pub fn build_ids(mut tris: Vec<BuildItem>, max_leaf: usize) -> (Self, Vec<u32>) {
+        let bvh = Self::build(&mut tris, max_leaf);
+        let ids = tris.iter().map(|t| t.id).collect();
+        (bvh, ids)
     }
 
     /// The 4-wide nodes, root first.
@@ -326,14 +300,15 @@ impl QuadBvh {
         &self.quads
     }
 
-    /// Number of 4-wide nodes.
+    /// Number of 4-wide nodes in use.
     pub fn quad_count(&self) -> usize {
-        self.quads.len()
+        self.used
     }
 
-    /// Bytes held by the nodes.
+    /// Bytes held by the nodes in use (the parallel subtrees' unused room is address space
+    /// only, see [`QuadArray`]).
     pub fn memory_bytes(&self) -> usize {
-        self.quads.capacity() * std::mem::size_of::<Quad>() + std::mem::size_of::<Node>()
+        self.used * std::mem::size_of::<Quad>() + std::mem::size_of::<Node>()
     }
 
     /// Closest-hit traversal over the 4-wide nodes: `leaf(first, count, t_max)` tests a leaf's
@@ -434,101 +409,11 @@ impl SlabRay {
     }
 }
 
-/// Subtrees of more 4-wide nodes than this are flattened, and dropped, in parallel.
-const PARALLEL_QUADS: u32 = 1024;
-
-/// Writes the 4-wide node of `children` into `slots[0]` (global index `index`) and the nodes of
-/// its inner children's subtrees after it, depth first, each subtree into the slots its
-/// [`BuildNode::quads`] count reserves: the layout a sequential depth-first walk gives.
-fn fill_quads(slots: &mut [Quad], index: u32, children: &[&BuildNode]) {
-    let (head, mut rest) = slots.split_first_mut().expect("a slot for every 4-wide node");
-    let mut quad = Quad {
-        len: children.len() as u32,
-        ..Quad::default()
-    };
-    let mut next = index + 1;
-    // each inner child's slots, its index and itself
-    let mut subtrees: [Option<(&mut [Quad], u32, &BuildNode)>; 4] = [None, None, None, None];
-    for (slot, child) in children.iter().enumerate() {
-        let (bounds, first, count) = match child {
-            BuildNode::Leaf { bounds, start, count } => (bounds, *start, *count),
-            BuildNode::Inner { bounds, quads, .. } => {
-                let (own, after) = std::mem::take(&mut rest).split_at_mut(*quads as usize);
-                rest = after;
-                subtrees[slot] = Some((own, next, *child));
-                next += quads;
-                (bounds, next - quads, 0)
-            }
-        };
-        for axis in 0..3 {
-            quad.lo[axis][slot] = bounds.lo[axis];
-            quad.hi[axis][slot] = bounds.hi[axis];
-        }
-        quad.child[slot] = first;
-        quad.count[slot] = u16::try_from(count).expect("leaves hold at most u16::MAX items (checked by the build)");
-    }
-    *head = quad;
-    let fill = |(own, at, child): (&mut [Quad], u32, &BuildNode)| {
-        let (nodes, len) = collapse(child);
-        fill_quads(own, at, &nodes[..len]);
-    };
-    if next - index > PARALLEL_QUADS {
-        subtrees.into_par_iter().flatten().for_each(fill);
-    } else {
-        subtrees.into_iter().flatten().for_each(fill);
-    }
-}
-
-/// Drops a built tree, its large subtrees in parallel.
-fn drop_tree(node: BuildNode) {
-    if let BuildNode::Inner { children, quads, .. } = node {
-        if quads > PARALLEL_QUADS {
-            let [a, b] = *children;
-            rayon::join(|| drop_tree(a), || drop_tree(b));
-        }
-    }
-}
-
-/// Up to four nodes standing for `node` in a 4-wide tree: its children, with the inner one of
-/// largest surface area replaced by its own two children while fewer than four (a leaf root is
-/// its own single child).
-fn collapse(node: &BuildNode) -> ([&BuildNode; 4], usize) {
-    let BuildNode::Inner { children, .. } = node else {
-        return ([node; 4], 1);
-    };
-    // `out[..len]` are the nodes; the rest is filler
-    let mut out = [&children[0], &children[1], node, node];
-    let mut len = 2;
-    while len < 4 {
-        let widest = out[..len]
-            .iter()
-            .enumerate()
-            .filter_map(|(i, n)| match n {
-                BuildNode::Inner { bounds, .. } => Some((i, bounds.half_area())),
-                BuildNode::Leaf { .. } => None,
-            })
-            .max_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((i, _)) = widest else { break };
-        let BuildNode::Inner { children, .. } = out[i] else {
-            unreachable!("chosen among inner nodes")
-        };
-        out[i] = &children[0];
-        out[len] = &children[1];
-        len += 1;
-    }
-    (out, len)
-}
-
-/// The binary tree over `tris` (reordered in place into leaf order); `tris` must not be empty.
-fn build_tree(tris: &mut [BuildItem], max_leaf: usize) -> BuildNode {
-    let (bounds, centroids) = if tris.len() > PARALLEL_BINNING_MIN {
-        tris.par_chunks(16384)
-            .map(boxes_of)
-            .reduce(|| (Bb::EMPTY, Bb::EMPTY), |a, b| (a.0.union(b.0), a.1.union(b.1)))
-    } else {
-        boxes_of(tris)
-    };
-    build_node(tris, 0, bounds, centroids, 0, max_leaf)
+/// The most 4-wide nodes a subtree over `count ≥ 2` items can need: every node has at least two
+/// children and every leaf at least one item, so a tree of `L ≤ count` leaves has at most
+/// `L − 1` nodes.
+fn node_bound(count: u32) -> usize {
+    count.saturating_sub(1).max(1) as usize
 }
 
 /// The box of `tris`' boxes and the box of their centres.
@@ -538,26 +423,23 @@ fn boxes_of(tris: &[BuildItem]) -> (Bb, Bb) {
     })
 }
 
-/// Builds the subtree over `tris` (items `start..` of the leaf order), whose boxes span `bounds`
-/// and whose centres span `centroids`. Each split takes the children's boxes from its bins and
-/// their centre boxes from its partition pass, so a node costs two passes over its items (bin,
-/// partition) and the tree is exactly the one a fold over the items' boxes would give.
-fn build_node(
-    tris: &mut [BuildItem],
-    start: u32,
-    bounds: Bb,
-    centroids: Bb,
-    depth: usize,
-    max_leaf: usize,
-) -> BuildNode {
+/// Decides how the node over `tris` (items `start..` of the leaf order), whose boxes span
+/// `bounds` and whose centres span `centroids`, is split, and partitions its items
+/// accordingly: SAH over binned centres, a leaf where SAH prefers one of at most `max_leaf`
+/// items, the median along the widest centre axis from depth [`MEDIAN_DEPTH`] on or where
+/// every centre coincides. The sides' boxes come from the bins and their centre boxes from the
+/// partition pass, so a node costs two passes over its items.
+fn decide(tris: &mut [BuildItem], start: u32, bounds: Bb, centroids: Bb, depth: usize, max_leaf: usize) -> Decided {
     let n = tris.len();
-    let leaf = |count: usize| BuildNode::Leaf {
-        bounds: bounds.into(),
+    let decided = |split| Decided {
+        bounds,
         start,
-        count: count as u32,
+        count: n as u32,
+        depth,
+        split,
     };
     if n == 1 {
-        return leaf(1);
+        return decided(None);
     }
     let extent = centroids.hi - centroids.lo;
     let split = if depth >= MEDIAN_DEPTH || extent.max_element() <= 0.0 {
@@ -565,9 +447,9 @@ fn build_node(
     } else {
         sah_split(tris, bounds, centroids, max_leaf)
     };
-    let children = match split {
-        Some(Split::Leaf) => return leaf(n),
-        Some(Split::At(children)) => children,
+    match split {
+        Some(Split::Leaf) => decided(None),
+        Some(Split::At(children)) => decided(Some(children)),
         None => {
             // median along the widest centroid axis (any order when all centroids coincide)
             let axis = extent.max_position();
@@ -575,44 +457,141 @@ fn build_node(
             tris.select_nth_unstable_by(mid, |a, b| a.centroid_on(axis).total_cmp(&b.centroid_on(axis)));
             let (left, right) = tris.split_at(mid);
             let ((lb, lc), (rb, rc)) = (boxes_of(left), boxes_of(right));
-            Children {
+            decided(Some(Children {
                 mid,
                 bounds: [lb, rb],
                 centroids: [lc, rc],
-            }
+            }))
         }
-    };
+    }
+}
+
+/// The two children of the inner node `node`, whose items are `tris`, decided (in parallel
+/// for a node of more than [`PARALLEL_MIN`] items).
+fn children_of(tris: &mut [BuildItem], node: &Decided, max_leaf: usize) -> [Decided; 2] {
     let Children {
         mid,
         bounds: [lb, rb],
         centroids: [lc, rc],
-    } = children;
+    } = *node.split.as_ref().expect("an inner node");
     let (left, right) = tris.split_at_mut(mid);
-    let rstart = start + mid as u32;
-    let (l, r) = if n > PARALLEL_MIN {
-        rayon::join(
-            || build_node(left, start, lb, lc, depth + 1, max_leaf),
-            || build_node(right, rstart, rb, rc, depth + 1, max_leaf),
-        )
+    let (start, rstart, depth) = (node.start, node.start + mid as u32, node.depth + 1);
+    if node.count as usize > PARALLEL_MIN {
+        let (l, r) = rayon::join(
+            || decide(left, start, lb, lc, depth, max_leaf),
+            || decide(right, rstart, rb, rc, depth, max_leaf),
+        );
+        [l, r]
     } else {
-        (
-            build_node(left, start, lb, lc, depth + 1, max_leaf),
-            build_node(right, rstart, rb, rc, depth + 1, max_leaf),
-        )
-    };
-    let mut node = BuildNode::Inner {
-        bounds: bounds.into(),
-        children: Box::new([l, r]),
-        quads: 0,
-    };
-    let quads = {
-        let (nodes, len) = collapse(&node);
-        1 + nodes[..len].iter().map(|n| n.quads()).sum::<u32>()
-    };
-    if let BuildNode::Inner { quads: q, .. } = &mut node {
-        *q = quads;
+        [
+            decide(left, start, lb, lc, depth, max_leaf),
+            decide(right, rstart, rb, rc, depth, max_leaf),
+        ]
     }
-    node
+}
+
+/// Builds the 4-wide subtree of the inner node `node` (items `tris`) into `slots` (at least
+/// [`node_bound`] of its count), its own node into `slots[0]`, whose index is `index`.
+///
+/// The node's children are its two sides, the inner one of largest surface area replaced by
+/// its own two sides while fewer than four (the binary SAH tree collapsed two levels at a
+/// time). The children's subtrees follow depth first in slot order: packed one after the other
+/// for a node of at most [`PARALLEL_MIN`] items, otherwise built in parallel, each in a range
+/// of its bound, leaving the unused rest of each range zero. Returns the slots spanned and the
+/// nodes written.
+fn build_quad(tris: &mut [BuildItem], node: &Decided, slots: &mut [Quad], index: u32, max_leaf: usize) -> (u32, u32) {
+    let [first, second] = children_of(tris, node, max_leaf);
+    let mut members = [Some(first), Some(second), None, None];
+    let mut len = 2;
+    while len < 4 {
+        // the widest inner member (the last of equal areas)
+        let mut widest: Option<(usize, f32)> = None;
+        for (i, member) in members[..len].iter().enumerate() {
+            let member = member.as_ref().expect("the first `len` members are set");
+            if member.split.is_some() {
+                let area = member.bounds.half_area();
+                if widest.is_none_or(|(_, w)| area.total_cmp(&w).is_ge()) {
+                    widest = Some((i, area));
+                }
+            }
+        }
+        let Some((i, _)) = widest else { break };
+        let opened = members[i].take().expect("set");
+        let [a, b] = children_of(&mut tris[opened.range(node.start)], &opened, max_leaf);
+        members[i] = Some(a);
+        members[len] = Some(b);
+        len += 1;
+    }
+    // the first `len` are set
+    let members = &members[..len];
+    let member = |slot: usize| members[slot].as_ref().expect("the first `len` members are set");
+    let mut quad = Quad {
+        len: len as u32,
+        ..Quad::default()
+    };
+    for (slot, member) in members.iter().flatten().enumerate() {
+        for axis in 0..3 {
+            quad.lo[axis][slot] = member.bounds.lo[axis];
+            quad.hi[axis][slot] = member.bounds.hi[axis];
+        }
+        if member.split.is_none() {
+            quad.child[slot] = member.start;
+            quad.count[slot] =
+                u16::try_from(member.count).expect("leaves hold at most u16::MAX items (checked by the build)");
+        }
+    }
+    let (head, rest) = slots.split_first_mut().expect("a slot for every 4-wide node");
+    let (mut span, mut used) = (1u32, 1u32);
+    if node.count as usize <= PARALLEL_MIN {
+        // packed: each subtree right after the previous one
+        let mut rest = rest;
+        for (slot, member) in members.iter().flatten().enumerate() {
+            if member.split.is_none() {
+                continue;
+            }
+            quad.child[slot] = index + span;
+            let (s, u) = build_quad(
+                &mut tris[member.range(node.start)],
+                member,
+                rest,
+                index + span,
+                max_leaf,
+            );
+            rest = &mut std::mem::take(&mut rest)[s as usize..];
+            span += s;
+            used += u;
+        }
+    } else {
+        // each subtree in a range of its bound, its items and slots split off as disjoint slices
+        let mut by_position: Vec<usize> = (0..len).collect();
+        by_position.sort_by_key(|&slot| member(slot).start);
+        let mut items: [Option<&mut [BuildItem]>; 4] = [None, None, None, None];
+        let mut remaining = tris;
+        for &slot in &by_position {
+            let (mine, after) = std::mem::take(&mut remaining).split_at_mut(member(slot).count as usize);
+            items[slot] = Some(mine);
+            remaining = after;
+        }
+        let mut work = Vec::with_capacity(4);
+        let mut rest = rest;
+        for (slot, (member, items)) in members.iter().flatten().zip(items).enumerate() {
+            if member.split.is_none() {
+                continue;
+            }
+            let bound = node_bound(member.count);
+            let (own, after) = std::mem::take(&mut rest).split_at_mut(bound);
+            rest = after;
+            quad.child[slot] = index + span;
+            work.push((items.expect("every member's items"), member, own, index + span));
+            span += bound as u32;
+        }
+        used += work
+            .into_par_iter()
+            .map(|(items, member, own, at)| build_quad(items, member, own, at, max_leaf).1)
+            .sum::<u32>();
+    }
+    *head = quad;
+    (span, used)
 }
 
 enum Split {
@@ -621,6 +600,7 @@ enum Split {
 }
 
 /// Where a node's items were split and the two sides' boxes and centre boxes.
+#[derive(Clone, Copy)]
 struct Children {
     mid: usize,
     bounds: [Bb; 2],
@@ -742,7 +722,6 @@ mod tests {
     #[test]
     fn build_items_are_small_and_keep_box_and_centre() {
         assert_eq!(std::mem::size_of::<BuildItem>(), 28);
-        assert_eq!(std::mem::size_of::<BuildNode>(), 40);
         assert_eq!(std::mem::size_of::<Quad>(), 128);
         let bounds = Bb {
             lo: Vec3A::new(-f32::MAX, 1.0, -3.5),
@@ -759,10 +738,12 @@ mod tests {
         }
     }
 
-    /// The node array is allocated at its exact final size (never grown or shrunk, which
-    /// copies it), for leaf roots and trees of every shape, and it holds the whole tree.
+    /// Every node in use is reached exactly once from the root, children after their parent;
+    /// the parallel subtrees' unused room is zero nodes that no slot refers to; every item lies
+    /// in exactly one leaf, inside its box. For leaf roots and trees of every shape, small ones
+    /// packed and large ones built in parallel (more than `PARALLEL_MIN` items).
     #[test]
-    fn node_arrays_are_allocated_exactly() {
+    fn node_arrays_hold_the_whole_tree() {
         let mut state = 12345u64;
         let mut random = move || {
             state = state
@@ -780,8 +761,8 @@ mod tests {
                 .collect();
             for max_leaf in [2, 6] {
                 let bvh = QuadBvh::build(&mut items, max_leaf);
-                assert_eq!(bvh.quads.len(), bvh.quads.capacity(), "{n} items");
                 assert!(!bvh.quads.is_empty());
+                assert!(bvh.quads.len() <= node_bound(n));
                 // every quad reached once, children after their parent (depth first), and
                 // every item in exactly one leaf inside its leaf's box
                 let mut reached = vec![0; bvh.quads.len()];
@@ -803,7 +784,16 @@ mod tests {
                         }
                     }
                 }
-                assert!(reached.iter().all(|&r| r == 1), "{n} items, leaf {max_leaf}");
+                assert_eq!(reached.iter().filter(|&&r| r == 1).count(), bvh.quad_count());
+                for (quad, &r) in bvh.quads.iter().zip(&reached) {
+                    assert!(r <= 1, "{n} items, leaf {max_leaf}");
+                    if r == 0 {
+                        assert!(quad.len == 0 && quad.child == [0; 4] && quad.count == [0; 4]);
+                    }
+                }
+                if n <= PARALLEL_MIN as u32 {
+                    assert_eq!(bvh.quads.len(), bvh.quad_count(), "packed: {n} items");
+                }
                 assert!(covered.iter().all(|&c| c == 1), "{n} items, leaf {max_leaf}");
             }
         }
