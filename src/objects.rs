@@ -8,21 +8,22 @@
 
 use crate::desc::{Material, ObjectDesc, SceneDesc, TransformDesc};
 use crate::motion::{Moving, Placement};
+pub use crate::shape_desc::ObjectPrimitive;
 use crate::shape_desc::BuildContext;
 use glam::DQuat;
 use std::collections::hash_map::{Entry, HashMap};
 use std::sync::Arc;
-use zeroset_primitives::{Primitive, Transformed};
+use zeroset_primitives::Transformed;
 
-/// A placed primitive with its material: 48 bytes, plus the primitive's own allocation (a
-/// sphere's is 48 B, 64 B with the allocator's header and rounding).
+/// A placed primitive with its material: 72 bytes, a sphere included (other primitives add
+/// their own shared allocation).
 #[derive(Clone, Debug)]
 pub struct Object {
     /// Name from the scene file, if any.
     pub name: Option<Box<str>>,
     /// The primitive in world space (its transform applied; for a moving object, placed at frame
     /// time 0, which is what time-less queries such as `Scene::intersect` see).
-    pub primitive: Arc<dyn Primitive>,
+    pub primitive: ObjectPrimitive,
     /// The motion of a moving object; `None` for a static one (which ignores ray times).
     pub motion: Option<Arc<Moving>>,
     /// Surface material, shared by the objects that have equal ones.
@@ -82,7 +83,7 @@ impl<'c> ObjectBuilder<'c> {
         let mut primitive = object
             .shape
             .shape
-            .build(context)
+            .build_object_primitive(context)
             .map_err(|e| (location(), format!("field `{}`: {}", e.field, e.problem)))?;
         self.warnings.extend(
             context
@@ -103,16 +104,17 @@ impl<'c> ObjectBuilder<'c> {
                     None
                 } else {
                     Some(Arc::new(
-                        Moving::new(primitive.clone(), start, end).map_err(|m| (location(), m))?,
+                        Moving::new(primitive.clone().into_shared(), start, end).map_err(|m| (location(), m))?,
                     ))
                 }
             }
         };
         if let Some(t) = &object.transform {
             let m = t.to_affine().map_err(|m| (location(), m))?;
-            primitive = Arc::new(
-                Transformed::new(primitive, m).map_err(|e| (location(), format!("transform: {}", e.problem)))?,
-            );
+            primitive = ObjectPrimitive::Shared(Arc::new(
+                Transformed::new(primitive.into_shared(), m)
+                    .map_err(|e| (location(), format!("transform: {}", e.problem)))?,
+            ));
         }
         let m = object.material;
         if !m.color.is_finite() {

@@ -5,7 +5,7 @@
 //! field; see `scenes/README.md` for one example per primitive.
 
 use crate::desc::RotationDesc;
-use crate::shape_desc::{BuildContext, SceneShape};
+use crate::shape_desc::{BuildContext, ObjectPrimitive, SceneShape};
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
@@ -41,6 +41,11 @@ pub struct SphereDesc {
 impl SceneShape for SphereDesc {
     fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         Ok(Arc::new(Sphere::new(self.center, self.radius)?))
+    }
+
+    /// The sphere in place (see [`ObjectPrimitive`]).
+    fn build_object_primitive(&self, _: &BuildContext) -> Result<ObjectPrimitive, PrimitiveError> {
+        Ok(ObjectPrimitive::Sphere(Sphere::new(self.center, self.radius)?))
     }
 }
 

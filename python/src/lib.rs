@@ -142,7 +142,7 @@ impl State {
         };
         self.pending.push(Object {
             name,
-            primitive,
+            primitive: primitive.into(),
             motion: None,
             material,
         });
@@ -367,7 +367,7 @@ impl PyScene {
                 .into_iter()
                 .next()
                 .ok_or_else(|| error("no object given"))?;
-            state.push(object.primitive, matrix, object.name, object.material)
+            state.push(object.primitive.into_shared(), matrix, object.name, object.material)
         })
     }
 
