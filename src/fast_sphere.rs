@@ -4,8 +4,9 @@
 //! (name: "ball 7", shape: Sphere(center: (1.5, -2, 3e-1), radius: 0.25), material: (color: (0.1, 0.2, 0.3)))
 //! ```
 //!
-//! [`parse_sphere_object`] reads one such element without serde, about ten times faster than the
-//! RON parser, and gives exactly the [`ObjectDesc`] the RON parser gives — or `None`, and the
+//! [`parse_plain_sphere`] reads one such element without serde, about ten times faster than the
+//! RON parser, and gives exactly the [`ObjectDesc`] the RON parser gives
+//! ([`PlainSphere::into_desc`]) — or `None`, and the
 //! caller parses it with RON. It accepts only a strict subset of what RON accepts:
 //!
 //! - the element is `(` fields `)`, the fields `name`, `shape` (required) and `material`, each at
@@ -30,10 +31,35 @@ use crate::shape_desc::ShapeDesc;
 use crate::shapes::SphereDesc;
 use glam::DVec3;
 
-/// The description of the plain sphere object `text` (one trimmed element of an `objects`
-/// list), or `None` where the RON parser must read it (see the module docs). `sphere_is_builtin`
-/// says whether the registry's `Sphere` is still the built-in one.
-pub(crate) fn parse_sphere_object(text: &str, sphere_is_builtin: bool) -> Option<ObjectDesc> {
+/// A plain sphere element as [`parse_plain_sphere`] reads it: its name, sphere and material
+/// descriptions (not validated).
+#[derive(Debug)]
+pub(crate) struct PlainSphere {
+    pub(crate) name: Option<String>,
+    pub(crate) sphere: SphereDesc,
+    pub(crate) material: Material,
+}
+
+impl PlainSphere {
+    /// The object description the RON parser gives for the same element.
+    pub(crate) fn into_desc(self) -> ObjectDesc {
+        ObjectDesc {
+            name: self.name,
+            shape: ShapeDesc {
+                name: "Sphere",
+                shape: Box::new(self.sphere),
+            },
+            transform: None,
+            transform_close: None,
+            material: self.material,
+        }
+    }
+}
+
+/// The plain sphere object `text` (one trimmed element of an `objects` list), or `None` where
+/// the RON parser must read it (see the module docs). `sphere_is_builtin` says whether the
+/// registry's `Sphere` is still the built-in one.
+pub(crate) fn parse_plain_sphere(text: &str, sphere_is_builtin: bool) -> Option<PlainSphere> {
     if !sphere_is_builtin {
         return None;
     }
@@ -62,14 +88,9 @@ pub(crate) fn parse_sphere_object(text: &str, sphere_is_builtin: bool) -> Option
     if p.at != p.bytes.len() {
         return None;
     }
-    Some(ObjectDesc {
+    Some(PlainSphere {
         name,
-        shape: ShapeDesc {
-            name: "Sphere",
-            shape: Box::new(sphere?),
-        },
-        transform: None,
-        transform_close: None,
+        sphere: sphere?,
         material: material.unwrap_or_default(),
     })
 }
@@ -253,6 +274,11 @@ impl<'a> Cursor<'a> {
 mod tests {
     use super::*;
     use crate::desc::ron_options;
+
+    /// The element's description by the fast path.
+    fn parse_sphere_object(text: &str, sphere_is_builtin: bool) -> Option<ObjectDesc> {
+        parse_plain_sphere(text, sphere_is_builtin).map(PlainSphere::into_desc)
+    }
 
     /// The RON parser's reading of one element.
     fn by_ron(text: &str) -> Result<ObjectDesc, ron::error::SpannedError> {

@@ -13,8 +13,9 @@
 //! top-level `objects` list, inner attributes (`#![enable(...)]`), a batch or the rest of the scene
 //! that does not parse, an object that does not build, text that is not UTF-8, a read error.
 
+use crate::desc::Material;
 use crate::desc::{ron_options, ObjectDesc, SceneDesc, PARSE_STACK_BYTES};
-use crate::fast_sphere::parse_sphere_object;
+use crate::fast_sphere::{parse_plain_sphere, PlainSphere};
 use crate::objects::{BuiltObjects, ObjectBuilder};
 use crate::parallel_parse::{objects_list_start, scan_elements, ListScan, PARALLEL_OBJECTS};
 use crate::shape_desc::BuildContext;
@@ -23,6 +24,7 @@ use std::io::Read;
 use std::ops::Range;
 use std::sync::mpsc;
 use std::sync::Mutex;
+use zeroset_primitives::Sphere;
 
 /// Bytes read at a time.
 const BLOCK_BYTES: usize = 1 << 20;
@@ -102,7 +104,7 @@ fn stream(source: impl Read, context: &BuildContext, block_bytes: usize) -> Opti
     std::thread::scope(|scope| {
         // owned here, so that any early return closes the queue and the workers stop
         let jobs = jobs;
-        let (done, parsed) = mpsc::channel::<(usize, Option<Vec<ObjectDesc>>)>();
+        let (done, parsed) = mpsc::channel::<(usize, Option<Parsed>)>();
         for _ in 0..workers {
             let (job_queue, done) = (&job_queue, done.clone());
             std::thread::Builder::new()
@@ -202,22 +204,40 @@ struct Batch {
     elements: Range<usize>,
 }
 
-/// The descriptions of a batch's elements (`text` a RON list, `elements` the byte ranges of its
-/// elements), or `None` if it does not parse or gives another number of elements. Plain spheres
-/// are read by [`parse_sphere_object`]; if any element is not one, the whole list is parsed by
-/// RON.
-fn parse_batch(text: &str, elements: &[Range<usize>], sphere_is_builtin: bool) -> Option<Vec<ObjectDesc>> {
+/// A parsed batch: its plain spheres built (on the parsing thread, so that the calling thread
+/// only stores them), or the descriptions of its elements.
+enum Parsed {
+    /// Every element a plain sphere that builds: name, sphere, material.
+    Spheres(Vec<(Option<String>, Sphere, Material)>),
+    Descriptions(Vec<ObjectDesc>),
+}
+
+/// A batch's elements parsed (`text` a RON list, `elements` the byte ranges of its elements),
+/// or `None` if it does not parse or gives another number of elements. Plain spheres are read
+/// by [`parse_plain_sphere`] and built; if any element is not one, the whole list is parsed by
+/// RON, and if one does not build, the batch is given as descriptions, whose build reports it.
+fn parse_batch(text: &str, elements: &[Range<usize>], sphere_is_builtin: bool) -> Option<Parsed> {
     // one comma between elements (as the list scan guarantees), else RON says what is wrong
     let one_comma = elements
         .windows(2)
         .all(|pair| text[pair[0].end..pair[1].start].trim_ascii() == ",");
     if one_comma {
-        let fast: Option<Vec<ObjectDesc>> = elements
+        let fast: Option<Vec<PlainSphere>> = elements
             .iter()
-            .map(|e| parse_sphere_object(&text[e.clone()], sphere_is_builtin))
+            .map(|e| parse_plain_sphere(&text[e.clone()], sphere_is_builtin))
             .collect();
-        if fast.is_some() {
-            return fast;
+        if let Some(fast) = fast {
+            let build = |p: &PlainSphere| Sphere::new(p.sphere.center, p.sphere.radius);
+            if !fast.iter().all(|p| build(p).is_ok()) {
+                return Some(Parsed::Descriptions(
+                    fast.into_iter().map(PlainSphere::into_desc).collect(),
+                ));
+            }
+            let built = fast.into_iter().map(|p| {
+                let sphere = build(&p).expect("every sphere of the batch builds");
+                (p.name, sphere, p.material)
+            });
+            return Some(Parsed::Spheres(built.collect()));
         }
     }
     // a panic is a batch that did not parse: the load in one piece meets it again
@@ -225,6 +245,7 @@ fn parse_batch(text: &str, elements: &[Range<usize>], sphere_is_builtin: bool) -
         .ok()
         .and_then(Result::ok)
         .filter(|objects| objects.len() == elements.len())
+        .map(Parsed::Descriptions)
 }
 
 /// `elements` grouped into consecutive batches of about [`BATCH_BYTES`] of text.
@@ -249,9 +270,9 @@ fn batches(elements: &[Range<usize>]) -> Vec<Batch> {
 /// Parsed batches built in the order they were sent, whatever order they come back in.
 struct InOrder<'c> {
     builder: ObjectBuilder<'c>,
-    parsed: mpsc::Receiver<(usize, Option<Vec<ObjectDesc>>)>,
+    parsed: mpsc::Receiver<(usize, Option<Parsed>)>,
     /// Batches back before their turn.
-    waiting: BTreeMap<usize, Option<Vec<ObjectDesc>>>,
+    waiting: BTreeMap<usize, Option<Parsed>>,
     /// The next batch to build.
     next: usize,
     /// Batches sent.
@@ -280,9 +301,18 @@ impl InOrder<'_> {
     }
 
     fn build_due(&mut self) -> Option<()> {
-        while let Some(objects) = self.waiting.remove(&self.next) {
-            for object in objects? {
-                self.builder.push(object).ok()?;
+        while let Some(parsed) = self.waiting.remove(&self.next) {
+            match parsed? {
+                Parsed::Spheres(spheres) => {
+                    for (name, sphere, material) in spheres {
+                        self.builder.push_sphere(name, sphere, material).ok()?;
+                    }
+                }
+                Parsed::Descriptions(objects) => {
+                    for object in objects {
+                        self.builder.push(object).ok()?;
+                    }
+                }
             }
             self.next += 1;
         }
@@ -393,5 +423,21 @@ mod tests {
         for (i, (a, b)) in streamed.objects.iter().zip(&builder.objects).enumerate() {
             assert_eq!(format!("{a:?}"), format!("{b:?}"), "object {i}");
         }
+        // equal materials share one allocation, whichever path built them
+        let mut shared: std::collections::HashMap<String, *const Material> = std::collections::HashMap::new();
+        for object in &streamed.objects {
+            let first = *shared
+                .entry(format!("{:?}", object.material))
+                .or_insert(std::sync::Arc::as_ptr(&object.material));
+            assert_eq!(first, std::sync::Arc::as_ptr(&object.material));
+        }
+        assert_eq!(
+            shared.len(),
+            1 + (0..n)
+                .step_by(10)
+                .map(|i| i % 97)
+                .collect::<std::collections::HashSet<_>>()
+                .len()
+        );
     }
 }

@@ -8,12 +8,12 @@
 
 use crate::desc::{Material, ObjectDesc, SceneDesc, TransformDesc};
 use crate::motion::{Moving, Placement};
-pub use crate::shape_desc::ObjectPrimitive;
 use crate::shape_desc::BuildContext;
+pub use crate::shape_desc::ObjectPrimitive;
 use glam::DQuat;
 use std::collections::hash_map::{Entry, HashMap};
 use std::sync::Arc;
-use zeroset_primitives::Transformed;
+use zeroset_primitives::{Sphere, Transformed};
 
 /// A placed primitive with its material: 72 bytes, a sphere included (other primitives add
 /// their own shared allocation).
@@ -53,6 +53,8 @@ pub(crate) struct ObjectBuilder<'c> {
     context: &'c BuildContext,
     /// One allocation per distinct material.
     materials: HashMap<[u64; 5], Arc<Material>>,
+    /// The last material asked for, with its key.
+    last_material: Option<([u64; 5], Arc<Material>)>,
     /// The objects built so far; the next one is `objects[objects.len()]` of the file.
     pub(crate) objects: Vec<Object>,
     /// Warnings, each prefixed by its object.
@@ -65,9 +67,58 @@ impl<'c> ObjectBuilder<'c> {
         Self {
             context,
             materials: HashMap::new(),
+            last_material: None,
             objects: Vec::with_capacity(capacity),
             warnings: Vec::new(),
         }
+    }
+
+    /// The next object, a sphere already built (from a plain sphere element, which gives no
+    /// warnings): exactly what [`ObjectBuilder::push`] builds from its description.
+    pub(crate) fn push_sphere(
+        &mut self,
+        name: Option<String>,
+        sphere: Sphere,
+        material: Material,
+    ) -> Result<(), (String, String)> {
+        let material = self.material(material).map_err(|m| {
+            let index = self.objects.len();
+            let location = match &name {
+                Some(name) => format!("objects[{index}] {name:?} (Sphere)"),
+                None => format!("objects[{index}] (Sphere)"),
+            };
+            (location, m)
+        })?;
+        self.objects.push(Object {
+            name: name.map(String::into_boxed_str),
+            primitive: ObjectPrimitive::Sphere(sphere),
+            motion: None,
+            material,
+        });
+        Ok(())
+    }
+
+    /// Checks a material and gives the shared allocation of its value (the previous object's
+    /// when equal, without hashing: runs of one material are the common case).
+    fn material(&mut self, m: Material) -> Result<Arc<Material>, String> {
+        if !m.color.is_finite() {
+            return Err(format!("field `material.color`: must be finite, got {}", m.color));
+        }
+        if !(m.specular.is_finite() && m.specular >= 0.0 && m.shininess.is_finite() && m.shininess > 0.0) {
+            return Err("field `material`: specular must be ≥ 0 and shininess > 0, both finite".into());
+        }
+        let key = material_key(&m);
+        if let Some((last, shared)) = &self.last_material {
+            if *last == key {
+                return Ok(shared.clone());
+            }
+        }
+        let shared = match self.materials.entry(key) {
+            Entry::Occupied(e) => e.get().clone(),
+            Entry::Vacant(e) => e.insert(Arc::new(m)).clone(),
+        };
+        self.last_material = Some((key, shared.clone()));
+        Ok(shared)
     }
 
     /// Validates and builds the next object; the error is `(location, message)`, the location
@@ -116,23 +167,7 @@ impl<'c> ObjectBuilder<'c> {
                     .map_err(|e| (location(), format!("transform: {}", e.problem)))?,
             ));
         }
-        let m = object.material;
-        if !m.color.is_finite() {
-            return Err((
-                location(),
-                format!("field `material.color`: must be finite, got {}", m.color),
-            ));
-        }
-        if !(m.specular.is_finite() && m.specular >= 0.0 && m.shininess.is_finite() && m.shininess > 0.0) {
-            return Err((
-                location(),
-                "field `material`: specular must be ≥ 0 and shininess > 0, both finite".into(),
-            ));
-        }
-        let material = match self.materials.entry(material_key(&m)) {
-            Entry::Occupied(e) => e.get().clone(),
-            Entry::Vacant(e) => e.insert(Arc::new(m)).clone(),
-        };
+        let material = self.material(object.material).map_err(|m| (location(), m))?;
         self.objects.push(Object {
             name: object.name.map(String::into_boxed_str),
             primitive,

@@ -1,6 +1,6 @@
 //! The scene's bounding volume hierarchy over its bounded objects, and what every hierarchy
 //! shares: the 4-wide node ([`Quad`]) and its ordered closest-hit walk ([`traverse_quads`]).
-//! One builder (`build`: parallel binned SAH, collapsed into 4-wide nodes) makes both the
+//! One builder (`build`: parallel binned SAH, written straight into 4-wide nodes) makes both the
 //! scene's hierarchy (leaves of at most two objects) and each mesh's (leaves of at most six
 //! triangles).
 //!
@@ -11,6 +11,7 @@
 //! Primitives are then tested in f64, so the f32 traversal never changes a hit.
 
 pub(crate) mod build;
+mod quad_array;
 
 use crate::PACKET;
 use crate::{Aabb, Interval, Ray};
