@@ -124,6 +124,24 @@ impl AtomicFile {
     }
 }
 
+/// Asks the operating system to start writing `file`'s bytes `offset..offset + len` (already
+/// handed to it) to disk, without waiting: Linux's `sync_file_range(SYNC_FILE_RANGE_WRITE)`.
+/// A large file written this way as it grows finds little left to write at the `fsync` of
+/// [`AtomicFile::commit`] (a 265 MB 4K EXR: that `fsync` took 0.47 s after the trace). Nothing
+/// elsewhere, and a failure is ignored: the commit's `fsync` is what guarantees the data.
+pub fn start_writeback(file: &File, offset: u64, len: u64) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        if let (Ok(offset), Ok(len)) = (i64::try_from(offset), i64::try_from(len)) {
+            // SAFETY: a plain system call on an open descriptor; it reads no memory of ours
+            let _ = unsafe { libc::sync_file_range(file.as_raw_fd(), offset, len, libc::SYNC_FILE_RANGE_WRITE) };
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (file, offset, len);
+}
+
 /// Permissions of a new output file: `rw-r--r--` on Unix; elsewhere the temporary file's own.
 fn default_permissions() -> Option<std::fs::Permissions> {
     #[cfg(unix)]

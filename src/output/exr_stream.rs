@@ -16,7 +16,10 @@
 //! list, sorted by name, the same attributes); blocks are made with the crate's own
 //! `UncompressedBlock::compress_to_chunk` and written with its `Chunk::write`.
 
-use crate::output::atomic::AtomicFile;
+use crate::output::atomic::{start_writeback, AtomicFile};
+
+/// Bytes written between two requests to start writing them to disk.
+const WRITEBACK_BYTES: u64 = 16 << 20;
 use crate::output::exr::{flat_image, frame_channels, sort_header_attributes, ExrCompression, ExrHeader};
 use crate::render::FrameLayout;
 use crate::stream::BandSink;
@@ -55,6 +58,8 @@ struct Written {
     out: BufWriter<File>,
     /// File position after the last byte written.
     position: u64,
+    /// File position up to which the bytes are on their way to disk ([`start_writeback`]).
+    writeback: u64,
     /// File position of each block written, in increasing `y`.
     offsets: Vec<u64>,
 }
@@ -113,6 +118,7 @@ impl ExrStream {
                 file,
                 out,
                 position: head.len() as u64,
+                writeback: 0,
                 offsets: Vec::with_capacity(block_count),
             }),
         })
@@ -210,6 +216,15 @@ impl BandSink for ExrStream {
             .write_all(&prepared)
             .with_context(|| format!("writing {}", self.path.display()))?;
         written.position += prepared.len() as u64;
+        if written.position - written.writeback >= WRITEBACK_BYTES {
+            written
+                .out
+                .flush()
+                .with_context(|| format!("writing {}", self.path.display()))?;
+            let (from, to) = (written.writeback, written.position);
+            start_writeback(written.out.get_ref(), from, to - from);
+            written.writeback = to;
+        }
         Ok(())
     }
 }
