@@ -36,6 +36,33 @@ def test_render_tiles_equal_the_single_process_render(client, repo):
     assert sum(len(v) for v in client.run(lambda dask_worker: list(dask_worker.data.keys())).values()) >= 0
 
 
+def test_render_graph_renders_each_tile_once(repo, monkeypatch):
+    """The arrays' blocks take their AOV from one render per tile: a task per tile, a task per
+    tile and AOV, the scene, and nothing else; computing every AOV renders each tile once."""
+    crops = []
+    render_block = zdask._render_block
+
+    def counting(scene, kwargs):
+        crops.append(kwargs["crop"])
+        return render_block(scene, kwargs)
+
+    monkeypatch.setattr(zdask, "_render_block", counting)
+    path = str(repo / "scenes" / "default.ron")
+    aovs = ["Depth", "Normal", "Alpha"]
+    tiled = zdask.render(path, chunks=(60, 50), aovs=aovs, width=150, height=120)
+    tasks = {}
+    for name in aovs:
+        tasks.update(dict(tiled[name].__dask_graph__()))
+    tiles = [k for k in tasks if isinstance(k, tuple) and str(k[0]).startswith("zeroset-tile-")]
+    assert len(tiles) == 2 * 3
+    assert len(tasks) == 1 + 2 * 3 + 2 * 3 * len(aovs)
+    computed = dask.compute(tiled, scheduler="synchronous")[0]
+    assert sorted(crops) == sorted(set(crops)) and len(crops) == 6
+    single = zeroset.Scene.load(path).render(aovs=aovs, width=150, height=120)
+    for name in aovs:
+        np.testing.assert_array_equal(computed[name], single[name], err_msg=name)
+
+
 def test_scene_built_in_code_ships_to_workers(client):
     scene = zeroset.Scene.empty(eye=(0, 0, -4), width=64, height=48)
     scene.add("Sphere", radius=1.0)

@@ -21,9 +21,13 @@ from __future__ import annotations
 import os
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
+import operator
+
 import dask
 import dask.array as da
 import numpy as np
+from dask.base import tokenize
+from dask.highlevelgraph import HighLevelGraph
 
 from . import Scene, ZerosetError
 
@@ -87,6 +91,11 @@ def render(scene: SceneLike, chunks: Tuple[int, int] = (512, 512), aovs: Optiona
 
     Each ``chunks = (rows, columns)`` tile is one task: a ``crop`` render of that window on a
     worker. ``.compute()`` assembles the frame; ``dask.array.to_zarr`` writes it tile by tile.
+
+    The graph holds the scene, one task per tile and one per tile and AOV (taking that AOV from
+    the tile's result), which are the arrays' blocks themselves: no concatenation layers, so
+    Dask has a few tasks per tile to schedule (each task costs the scheduler and the workers
+    about a millisecond of Python).
     """
     s = _as_scene(scene)
     cam = s.camera
@@ -96,18 +105,30 @@ def render(scene: SceneLike, chunks: Tuple[int, int] = (512, 512), aovs: Optiona
     shared = dask.delayed(s, pure=True)
     rows = _splits(h, chunks[0])
     cols = _splits(w, chunks[1])
-    blocks: Dict[str, list] = {name: [] for name, _ in channels}
-    for y0, y1 in rows:
-        row: Dict[str, list] = {name: [] for name, _ in channels}
-        for x0, x1 in cols:
+    token = tokenize(shared.key, aovs, w, h, spp, depth_miss, rows, cols)
+    tiles_name = "zeroset-tile-" + token
+    tiles = {}
+    for i, (y0, y1) in enumerate(rows):
+        for j, (x0, x1) in enumerate(cols):
             kwargs = dict(aovs=aovs, width=w, height=h, crop=(x0, y0, x1, y1), spp=spp, depth_miss=depth_miss)
-            tile = dask.delayed(_render_block, pure=True)(shared, kwargs)
-            for name, c in channels:
-                shape = (y1 - y0, x1 - x0) if c == 1 else (y1 - y0, x1 - x0, c)
-                row[name].append(da.from_delayed(tile[name], shape=shape, dtype=np.float32))
-        for name, _ in channels:
-            blocks[name].append(row[name])
-    return {name: _assemble(blocks[name]) for name, _ in channels}
+            tiles[(tiles_name, i, j)] = (_render_block, shared.key, kwargs)
+    layers = dict(shared.dask.layers)
+    dependencies = dict(shared.dask.dependencies)
+    layers[tiles_name] = tiles
+    dependencies[tiles_name] = {shared.key}
+    out = {}
+    for name, c in channels:
+        block_name = f"zeroset-{name.lower()}-{token}"
+        extra = (0,) if c > 1 else ()
+        blocks = {
+            (block_name, i, j) + extra: (operator.getitem, (tiles_name, i, j), name)
+            for i in range(len(rows))
+            for j in range(len(cols))
+        }
+        graph = HighLevelGraph({**layers, block_name: blocks}, {**dependencies, block_name: {tiles_name}})
+        block_chunks = (tuple(b - a for a, b in rows), tuple(b - a for a, b in cols)) + (((c,),) if c > 1 else ())
+        out[name] = da.Array(graph, block_name, block_chunks, dtype=np.float32)
+    return out
 
 
 def render_views(scene: SceneLike, cameras: Iterable[Dict[str, Any]], aovs: Optional[Sequence[str]] = None,
