@@ -7,7 +7,8 @@
 //! array is obtained from `calloc`, which for a large block returns fresh zero pages from the
 //! operating system without writing them, so the unused parts of the ranges take address space
 //! but no memory (glibc; an allocator that clears the block itself costs memory, never
-//! correctness). A zero [`Quad`] is a valid, empty node (`len = 0`).
+//! correctness). A zero [`Quad`] is a valid, empty node (`len = 0`). The address space taken is
+//! 128 bytes per item (10⁶ scene objects: 128 MB of address space for 56 MB of nodes in use).
 
 use super::Quad;
 use std::alloc::Layout;
@@ -88,9 +89,15 @@ impl Drop for QuadArray {
 }
 
 impl Clone for QuadArray {
+    /// Copies the nodes in use (`len > 0`) only, so that the copy's unused room stays untouched
+    /// like the original's.
     fn clone(&self) -> Self {
         let mut copy = Self::zeroed(self.len);
-        copy.copy_from_slice(self);
+        for (to, from) in copy.iter_mut().zip(self.iter()) {
+            if from.len > 0 {
+                *to = *from;
+            }
+        }
         copy
     }
 }
@@ -121,9 +128,11 @@ mod tests {
                 .iter()
                 .all(|q| q.len == 0 && q.child == [0; 4] && q.lo == [[0.0; 4]; 3]));
             if len > 0 {
+                quads[len - 1].len = 1;
                 quads[len - 1].child[2] = 7;
                 let copy = quads.clone();
                 assert_eq!(copy[len - 1].child, [0, 0, 7, 0]);
+                assert!(copy[..len - 1].iter().all(|q| q.len == 0 && q.child == [0; 4]));
                 quads.truncate(1);
                 assert_eq!(quads.len(), 1);
             }
