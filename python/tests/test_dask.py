@@ -53,7 +53,7 @@ def test_render_graph_renders_each_tile_once(repo, monkeypatch):
     tasks = {}
     for name in aovs:
         tasks.update(dict(tiled[name].__dask_graph__()))
-    tiles = [k for k in tasks if isinstance(k, tuple) and str(k[0]).startswith("zeroset-tile-")]
+    tiles = [k for k in tasks if isinstance(k, tuple) and str(k[0]).startswith("zeroset-render-")]
     assert len(tiles) == 2 * 3
     assert len(tasks) == 1 + 2 * 3 + 2 * 3 * len(aovs)
     computed = dask.compute(tiled, scheduler="synchronous")[0]
@@ -93,13 +93,16 @@ def test_cast_rays_over_ray_blocks(client, repo):
 def test_render_views_stack(client, repo):
     path = str(repo / "scenes" / "default.ron")
     views = [dict(eye=(0, 2.5, -7), look_at=(0, 0, 0)), dict(eye=(3, 2, -5), look_at=(0, 0.5, 0))]
-    stack = zdask.render_views(path, views, aovs=["Depth"], width=80, height=60)
+    stack = zdask.render_views(path, views, aovs=["Depth", "Normal"], width=80, height=60)
     assert stack["Depth"].shape == (2, 60, 80)
-    got = stack["Depth"].compute()
+    assert stack["Normal"].shape == (2, 60, 80, 3)
+    got = dask.compute(stack)[0]
     scene = zeroset.Scene.load(path)
     for i, v in enumerate(views):
-        np.testing.assert_array_equal(got[i], scene.render(aovs=["Depth"], width=80, height=60, view=v)["Depth"])
-    assert not np.array_equal(got[0], got[1])
+        ref = scene.render(aovs=["Depth", "Normal"], width=80, height=60, view=v)
+        for name in ref:
+            np.testing.assert_array_equal(got[name][i], ref[name], err_msg=name)
+    assert not np.array_equal(got["Depth"][0], got["Depth"][1])
 
 
 def test_fetch_equals_compute_block_by_block(client, repo):
