@@ -756,12 +756,24 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (state >> 40) as f32 / (1u64 << 24) as f32
         };
-        for n in [1, 2, 3, 7, 64, 65, 1000, 5000, 70_000] {
+        // random boxes, then (from 10⁴ items on) boxes whose centres all coincide, which are split
+        // at the median all the way down
+        let sizes = [1, 2, 3, 7, 64, 65, 1000, 5000, 70_000, 10_000, 20_000];
+        for (round, n) in sizes.into_iter().enumerate() {
+            let coincide = round >= 9;
             let mut items: Vec<BuildItem> = (0..n)
                 .map(|id| {
                     let lo = Vec3A::new(random(), random(), random()) * 100.0;
                     let size = Vec3A::new(random(), random(), random());
-                    BuildItem::new(Bb { lo, hi: lo + size }, id)
+                    let bounds = if coincide {
+                        Bb {
+                            lo: Vec3A::splat(-1.0) - size,
+                            hi: Vec3A::splat(1.0) + size,
+                        }
+                    } else {
+                        Bb { lo, hi: lo + size }
+                    };
+                    BuildItem::new(bounds, id)
                 })
                 .collect();
             for max_leaf in [2, 6] {
