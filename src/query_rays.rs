@@ -234,10 +234,18 @@ impl<'a> RayColumns<'a> {
     /// # Errors
     /// The first bad ray by index: `(index, what is wrong)`.
     pub fn rays(&self, setup: &RaySetup) -> Result<Vec<QueryRay>, (usize, String)> {
-        (0..self.len())
+        let rays: Result<Vec<QueryRay>, ()> = (0..self.len())
             .into_par_iter()
-            .map(|i| self.ray(i, setup).map_err(|message| (i, message)))
-            .collect()
+            .map(|i| self.ray(i, setup).map_err(|_| ()))
+            .collect();
+        // a parallel collect stops at whichever bad ray a thread met first, not at the first by
+        // index: look for that one
+        rays.map_err(|()| {
+            (0..self.len())
+                .into_par_iter()
+                .find_map_first(|i| self.ray(i, setup).err().map(|message| (i, message)))
+                .expect("a ray failed to build")
+        })
     }
 }
 
@@ -300,6 +308,28 @@ pub fn trace_columns<O: Send>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// With bad rays on either side of the middle (the second is where a second thread starts),
+    /// the error names the first by index, whichever thread meets which first.
+    #[test]
+    fn the_first_bad_ray_by_index_is_reported() {
+        let n = 40_000;
+        let mut origins = vec![0.0; 3 * n];
+        let mut directions: Vec<f64> = (0..3 * n).map(|k| if k % 3 == 2 { 1.0 } else { 0.0 }).collect();
+        origins[3 * 19_999 + 1] = f64::INFINITY;
+        directions[3 * 20_001..3 * 20_001 + 3].fill(0.0);
+        let columns = RayColumns::new(&origins, &directions, &[0.0], &[f64::INFINITY], None).unwrap();
+        for _ in 0..20 {
+            let (index, message) = columns.rays(&RaySetup::default()).unwrap_err();
+            assert_eq!(
+                (index, message.as_str()),
+                (19_999, "origin and direction must be finite")
+            );
+        }
+        origins[3 * 19_999 + 1] = 0.0;
+        let columns = RayColumns::new(&origins, &directions, &[0.0], &[f64::INFINITY], None).unwrap();
+        assert_eq!(columns.rays(&RaySetup::default()).unwrap_err().0, 20_001);
+    }
 
     #[test]
     fn open_range_excludes_the_start_and_closed_keeps_it() {
