@@ -268,14 +268,8 @@ impl QuadBvh {
         if root.split.is_none() {
             // a leaf root: one node whose only child is the leaf
             let mut quads = QuadArray::zeroed(1);
-            let quad = &mut quads[0];
-            quad.len = 1;
-            for axis in 0..3 {
-                quad.lo[axis][0] = bounds.lo[axis];
-                quad.hi[axis][0] = bounds.hi[axis];
-            }
-            quad.count[0] =
-                u16::try_from(root.count).expect("leaves hold at most u16::MAX items (checked by the build)");
+            quads[0].len = 1;
+            set_slot(&mut quads[0], 0, &root);
             return Self {
                 root: node(root.start, root.count),
                 quads,
@@ -495,6 +489,20 @@ fn children_of(tris: &mut [BuildItem], node: &Decided, max_leaf: usize) -> [Deci
     }
 }
 
+/// Writes `node`'s box into `quad`'s slot `slot`, and for a leaf its items (an inner node's
+/// child index is written once its subtree has a place).
+fn set_slot(quad: &mut Quad, slot: usize, node: &Decided) {
+    for axis in 0..3 {
+        quad.lo[axis][slot] = node.bounds.lo[axis];
+        quad.hi[axis][slot] = node.bounds.hi[axis];
+    }
+    if node.split.is_none() {
+        quad.child[slot] = node.start;
+        quad.count[slot] =
+            u16::try_from(node.count).expect("leaves hold at most u16::MAX items (checked by the build)");
+    }
+}
+
 /// Builds the 4-wide subtree of the inner node `node` (items `tris`) into `slots` (at least
 /// [`node_bound`] of its count), its own node into `slots[0]`, whose index is `index`.
 ///
@@ -535,15 +543,7 @@ fn build_quad(tris: &mut [BuildItem], node: &Decided, slots: &mut [Quad], index:
         ..Quad::default()
     };
     for (slot, member) in members.iter().flatten().enumerate() {
-        for axis in 0..3 {
-            quad.lo[axis][slot] = member.bounds.lo[axis];
-            quad.hi[axis][slot] = member.bounds.hi[axis];
-        }
-        if member.split.is_none() {
-            quad.child[slot] = member.start;
-            quad.count[slot] =
-                u16::try_from(member.count).expect("leaves hold at most u16::MAX items (checked by the build)");
-        }
+        set_slot(&mut quad, slot, member);
     }
     let (head, rest) = slots.split_first_mut().expect("a slot for every 4-wide node");
     let (mut span, mut used) = (1u32, 1u32);
