@@ -227,17 +227,16 @@ fn parse_batch(text: &str, elements: &[Range<usize>], sphere_is_builtin: bool) -
             .map(|e| parse_plain_sphere(&text[e.clone()], sphere_is_builtin))
             .collect();
         if let Some(fast) = fast {
-            let build = |p: &PlainSphere| Sphere::new(p.sphere.center, p.sphere.radius);
-            if !fast.iter().all(|p| build(p).is_ok()) {
-                return Some(Parsed::Descriptions(
-                    fast.into_iter().map(PlainSphere::into_desc).collect(),
-                ));
-            }
-            let built = fast.into_iter().map(|p| {
-                let sphere = build(&p).expect("every sphere of the batch builds");
-                (p.name, sphere, p.material)
+            let spheres: Result<Vec<Sphere>, _> = fast.iter().map(|p| p.sphere.sphere()).collect();
+            return Some(match spheres {
+                Ok(spheres) => Parsed::Spheres(
+                    fast.into_iter()
+                        .zip(spheres)
+                        .map(|(p, sphere)| (p.name, sphere, p.material))
+                        .collect(),
+                ),
+                Err(_) => Parsed::Descriptions(fast.into_iter().map(PlainSphere::into_desc).collect()),
             });
-            return Some(Parsed::Spheres(built.collect()));
         }
     }
     // a panic is a batch that did not parse: the load in one piece meets it again

@@ -81,14 +81,9 @@ impl<'c> ObjectBuilder<'c> {
         sphere: Sphere,
         material: Material,
     ) -> Result<(), (String, String)> {
-        let material = self.material(material).map_err(|m| {
-            let index = self.objects.len();
-            let location = match &name {
-                Some(name) => format!("objects[{index}] {name:?} (Sphere)"),
-                None => format!("objects[{index}] (Sphere)"),
-            };
-            (location, m)
-        })?;
+        let material = self
+            .material(material)
+            .map_err(|m| (location(self.objects.len(), name.as_deref(), "Sphere"), m))?;
         self.objects.push(Object {
             name: name.map(String::into_boxed_str),
             primitive: ObjectPrimitive::Sphere(sphere),
@@ -126,10 +121,7 @@ impl<'c> ObjectBuilder<'c> {
     pub(crate) fn push(&mut self, object: ObjectDesc) -> Result<(), (String, String)> {
         let index = self.objects.len();
         // formatted only for an error (a million objects need no million strings)
-        let location = || match &object.name {
-            Some(name) => format!("objects[{index}] {name:?} ({})", object.shape.name),
-            None => format!("objects[{index}] ({})", object.shape.name),
-        };
+        let location = || location(index, object.name.as_deref(), object.shape.name);
         let context = self.context;
         let mut primitive = object
             .shape
@@ -175,6 +167,15 @@ impl<'c> ObjectBuilder<'c> {
             material,
         });
         Ok(())
+    }
+}
+
+/// Where an error is, for object `index` of the file with its name and primitive:
+/// `objects[index] "name" (Primitive)`.
+fn location(index: usize, name: Option<&str>, primitive: &str) -> String {
+    match name {
+        Some(name) => format!("objects[{index}] {name:?} ({primitive})"),
+        None => format!("objects[{index}] ({primitive})"),
     }
 }
 

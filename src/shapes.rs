@@ -38,14 +38,24 @@ pub struct SphereDesc {
     pub radius: f64,
 }
 
+impl SphereDesc {
+    /// The validated sphere (what every build of the description makes).
+    ///
+    /// # Errors
+    /// A non-finite centre, or a radius that is not finite and positive.
+    pub fn sphere(&self) -> Result<Sphere, PrimitiveError> {
+        Sphere::new(self.center, self.radius)
+    }
+}
+
 impl SceneShape for SphereDesc {
     fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
-        Ok(Arc::new(Sphere::new(self.center, self.radius)?))
+        Ok(Arc::new(self.sphere()?))
     }
 
     /// The sphere in place (see [`ObjectPrimitive`]).
     fn build_object_primitive(&self, _: &BuildContext) -> Result<ObjectPrimitive, PrimitiveError> {
-        Ok(ObjectPrimitive::Sphere(Sphere::new(self.center, self.radius)?))
+        self.sphere().map(ObjectPrimitive::Sphere)
     }
 }
 
