@@ -80,9 +80,24 @@ pub(crate) fn traverse_quads(
     quads: &[Quad],
     t_max: f32,
     entry4: impl Fn(&Quad, f32) -> (u32, [f32; 4]),
-    leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
+    leaf: impl LeafTest,
 ) {
     traverse_quads_from(quads, 0, t_max, entry4, leaf);
+}
+
+/// What [`traverse_quads`] does at a leaf: `test(first, count, t_max)` tests the leaf's items
+/// and returns the new, smaller `t_max` if it found a hit. Closures are leaf tests; a type of
+/// its own with an `#[inline(always)]` method is inlined into the walk for certain (a closure
+/// called from the walk's loop may be left out of line, its ray data spilled around each call).
+pub(crate) trait LeafTest {
+    fn test(&mut self, first: u32, count: u32, t_max: f32) -> Option<f32>;
+}
+
+impl<F: FnMut(u32, u32, f32) -> Option<f32>> LeafTest for F {
+    #[inline(always)]
+    fn test(&mut self, first: u32, count: u32, t_max: f32) -> Option<f32> {
+        self(first, count, t_max)
+    }
 }
 
 /// [`traverse_quads`] of the subtree under `quads[root]`.
@@ -92,7 +107,7 @@ pub(crate) fn traverse_quads_from(
     root: usize,
     mut t_max: f32,
     entry4: impl Fn(&Quad, f32) -> (u32, [f32; 4]),
-    mut leaf: impl FnMut(u32, u32, f32) -> Option<f32>,
+    mut leaf: impl LeafTest,
 ) {
     if quads.is_empty() {
         return;
@@ -154,7 +169,7 @@ pub(crate) fn traverse_quads_from(
                 quad = child as usize;
                 continue 'nodes;
             }
-            if let Some(t) = leaf(child, count, t_max) {
+            if let Some(t) = leaf.test(child, count, t_max) {
                 t_max = t;
             }
         }

@@ -43,7 +43,7 @@
 
 use crate::bounds::Aabb;
 use crate::bvh::build::{Bb, BuildItem, Node, QuadBvh, SlabRay};
-use crate::bvh::{round_down, round_up};
+use crate::bvh::{round_down, round_up, LeafTest};
 use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
@@ -124,17 +124,39 @@ impl MeshRay {
     /// The watertight test against `(a, b, c)`: `(t, u, v)` with `t` in `[t_min, t_max]`.
     #[inline(always)]
     fn triangle(&self, a: [f32; 3], b: [f32; 3], c: [f32; 3], t_min: f32, t_max: f32) -> Option<(f32, f32, f32)> {
-        let [kx, ky, kz] = self.k;
+        match self.k {
+            [1, 2, 0] => self.triangle_in::<1, 2, 0>(a, b, c, t_min, t_max),
+            [2, 1, 0] => self.triangle_in::<2, 1, 0>(a, b, c, t_min, t_max),
+            [2, 0, 1] => self.triangle_in::<2, 0, 1>(a, b, c, t_min, t_max),
+            [0, 2, 1] => self.triangle_in::<0, 2, 1>(a, b, c, t_min, t_max),
+            [0, 1, 2] => self.triangle_in::<0, 1, 2>(a, b, c, t_min, t_max),
+            _ => self.triangle_in::<1, 0, 2>(a, b, c, t_min, t_max),
+        }
+    }
+
+    /// [`MeshRay::triangle`] for the axes `k = [KX, KY, KZ]` known at compile time, so that the
+    /// vertices' permuted components are read from registers rather than from memory at a
+    /// run-time index. `self.k` must be `[KX, KY, KZ]`.
+    #[inline(always)]
+    fn triangle_in<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        a: [f32; 3],
+        b: [f32; 3],
+        c: [f32; 3],
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(f32, f32, f32)> {
+        debug_assert_eq!(self.k, [KX, KY, KZ]);
         let [sx, sy, sz] = self.shear;
         let o = self.origin;
         // vertices relative to the origin, then sheared so the ray is the +z axis
-        let (az, bz, cz) = (a[kz] - o[kz], b[kz] - o[kz], c[kz] - o[kz]);
-        let ax = (a[kx] - o[kx]) - sx * az;
-        let ay = (a[ky] - o[ky]) - sy * az;
-        let bx = (b[kx] - o[kx]) - sx * bz;
-        let by = (b[ky] - o[ky]) - sy * bz;
-        let cx = (c[kx] - o[kx]) - sx * cz;
-        let cy = (c[ky] - o[ky]) - sy * cz;
+        let (az, bz, cz) = (a[KZ] - o[KZ], b[KZ] - o[KZ], c[KZ] - o[KZ]);
+        let ax = (a[KX] - o[KX]) - sx * az;
+        let ay = (a[KY] - o[KY]) - sy * az;
+        let bx = (b[KX] - o[KX]) - sx * bz;
+        let by = (b[KY] - o[KY]) - sy * bz;
+        let cx = (c[KX] - o[KX]) - sx * cz;
+        let cy = (c[KY] - o[KY]) - sy * cz;
         // scaled barycentrics (edge functions)
         let mut e0 = cx * by - cy * bx;
         let mut e1 = ax * cy - ay * cx;
@@ -390,6 +412,17 @@ impl Mesh {
         (n != DVec3::ZERO).then_some(n)
     }
 
+    /// The f32 corners of the triangle at leaf position `k`.
+    #[inline(always)]
+    fn corners(&self, k: usize) -> [[f32; 3]; 3] {
+        let [a, b, c] = self.tris[k];
+        [
+            self.vertices[a as usize],
+            self.vertices[b as usize],
+            self.vertices[c as usize],
+        ]
+    }
+
     /// Unnormalised geometric normal of the triangle at leaf position `k`, and its first corner.
     fn plane(&self, k: usize) -> (DVec3, DVec3) {
         let [a, b, c] = self.tris[k].map(|i| v64(self.vertices[i as usize]));
@@ -413,7 +446,7 @@ impl Mesh {
         let mut best = None;
         let mut t_max = f32::INFINITY;
         for k in 0..self.in_bvh {
-            let [a, b, c] = self.tris[k].map(|i| self.vertices[i as usize]);
+            let [a, b, c] = self.corners(k);
             if let Some((t, _, _)) = r.triangle(a, b, c, 0.0, t_max) {
                 t_max = t;
                 best = Some((self.leaf_to_file[k], t));
@@ -489,14 +522,16 @@ impl Implicit for Mesh {
 }
 
 /// One ray's set-up for the mesh tests: the f32 ray with unit direction, its range along that
-/// direction, and the band near `t_min` where hits are re-decided in f64 (see the module docs).
+/// direction, and the band near `t_min` where hits are re-decided in f64 (see the module docs),
+/// worked out at the first candidate hit (most rays have none).
 struct MeshQuery {
     ray: MeshRay,
     /// Length of the f64 direction (`t` along the unit f32 direction is `len` times the ray's).
     len: f64,
     t_min: f32,
     t_max: f32,
-    band: f32,
+    /// `t_min + 10⁻⁵·(radius + |origin − centre|)`, once asked for ([`Mesh::counts`]).
+    band: std::cell::OnceCell<f32>,
 }
 
 /// The closest candidate so far: leaf position, f32 `t` along the unit direction, barycentrics.
@@ -518,7 +553,7 @@ impl Mesh {
             len,
             t_min,
             t_max: round_up(range.max * len),
-            band: t_min + (1e-5 * (self.radius + (ray.origin - self.center).length())) as f32,
+            band: std::cell::OnceCell::new(),
         })
     }
 
@@ -526,7 +561,10 @@ impl Mesh {
     /// near `t_min` always, inside it only if the f64 `t` on the triangle's plane is in `range`.
     #[inline(always)]
     fn counts(&self, ray: &Ray, range: Interval, query: &MeshQuery, k: usize, t: f32) -> bool {
-        t > query.band || self.plane_t(ray, k).is_some_and(|t| range.contains(t))
+        let band = *query
+            .band
+            .get_or_init(|| query.t_min + (1e-5 * (self.radius + (ray.origin - self.center).length())) as f32);
+        t > band || self.plane_t(ray, k).is_some_and(|t| range.contains(t))
     }
 
     /// Whether a candidate at `(k, t)` replaces `best`, whose `t` is `t_far`: a nearer `t`, or the
@@ -556,32 +594,75 @@ impl Mesh {
     }
 }
 
+impl Mesh {
+    /// The single-ray walk of `query` (whose axes are `[KX, KY, KZ]`): the closest candidate.
+    #[inline(always)]
+    fn closest_candidate<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        ray: &Ray,
+        range: Interval,
+        query: &MeshQuery,
+    ) -> Option<Candidate> {
+        let mut leaves = SingleRayLeaves::<KX, KY, KZ> {
+            mesh: self,
+            ray,
+            range,
+            query,
+            best: None,
+        };
+        self.bvh
+            .traverse(&query.ray.slab, query.t_min, query.t_max, &mut leaves);
+        leaves.best
+    }
+}
+
+/// The single-ray leaf test for a ray whose axes are `[KX, KY, KZ]`: each triangle of the leaf
+/// in turn, keeping the closest candidate.
+struct SingleRayLeaves<'a, const KX: usize, const KY: usize, const KZ: usize> {
+    mesh: &'a Mesh,
+    ray: &'a Ray,
+    range: Interval,
+    query: &'a MeshQuery,
+    best: Option<Candidate>,
+}
+
+impl<const KX: usize, const KY: usize, const KZ: usize> LeafTest for &mut SingleRayLeaves<'_, KX, KY, KZ> {
+    #[inline(always)]
+    fn test(&mut self, first: u32, count: u32, mut t_far: f32) -> Option<f32> {
+        let (mesh, q) = (self.mesh, self.query);
+        let mut found = None;
+        for k in first as usize..(first + count) as usize {
+            let [a, b, c] = mesh.corners(k);
+            if let Some((t, u, v)) = q.ray.triangle_in::<KX, KY, KZ>(a, b, c, q.t_min, t_far) {
+                if !Mesh::beats(self.best.as_ref(), k, t, t_far) || !mesh.counts(self.ray, self.range, q, k, t) {
+                    continue;
+                }
+                t_far = t;
+                found = Some(t);
+                self.best = Some((k, t, u, v));
+            }
+        }
+        found
+    }
+}
+
 impl Intersect for Mesh {
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
         // the whole test inlined into the AVX2+FMA copy where the CPU has them
         #[inline(always)]
-        fn test(this: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
-            let q = this.query(ray, range)?;
-            let mut best: Option<Candidate> = None;
-            this.bvh
-                .traverse(&q.ray.slab, q.t_min, q.t_max, |first, count, mut t_far| {
-                    let mut found = None;
-                    for k in first as usize..(first + count) as usize {
-                        let [a, b, c] = this.tris[k].map(|i| this.vertices[i as usize]);
-                        if let Some((t, u, v)) = q.ray.triangle(a, b, c, q.t_min, t_far) {
-                            if !Mesh::beats(best.as_ref(), k, t, t_far) || !this.counts(ray, range, &q, k, t) {
-                                continue;
-                            }
-                            t_far = t;
-                            found = Some(t);
-                            best = Some((k, t, u, v));
-                        }
-                    }
-                    found
-                });
-            this.finish(ray, range, &q, best)
+        fn test(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let query = mesh.query(ray, range)?;
+            let best = match query.ray.k {
+                [1, 2, 0] => mesh.closest_candidate::<1, 2, 0>(ray, range, &query),
+                [2, 1, 0] => mesh.closest_candidate::<2, 1, 0>(ray, range, &query),
+                [2, 0, 1] => mesh.closest_candidate::<2, 0, 1>(ray, range, &query),
+                [0, 2, 1] => mesh.closest_candidate::<0, 2, 1>(ray, range, &query),
+                [0, 1, 2] => mesh.closest_candidate::<0, 1, 2>(ray, range, &query),
+                _ => mesh.closest_candidate::<1, 0, 2>(ray, range, &query),
+            };
+            mesh.finish(ray, range, &query, best)
         }
-        crate::with_fma!(test(this: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
+        crate::with_fma!(test(mesh: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
     /// Walks the hierarchy once for the whole packet (see `mesh/packet.rs`); the same answers

@@ -30,7 +30,7 @@
 //! closest hit found meanwhile is nearer.
 
 use super::quad_array::QuadArray;
-use super::{traverse_quads, Quad};
+use super::{traverse_quads, LeafTest, Quad};
 use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
@@ -314,8 +314,8 @@ impl QuadBvh {
     /// triangles and returns the new, smaller `t_max` if it found a hit. `t_min`/`t_max` bound
     /// the search. The children a node's ray enters are pushed farthest first, so the nearest is
     /// visited next; an entry popped after the closest hit moved nearer than it is skipped.
-    #[inline]
-    pub fn traverse(&self, ray: &SlabRay, t_min: f32, t_max: f32, leaf: impl FnMut(u32, u32, f32) -> Option<f32>) {
+    #[inline(always)]
+    pub(crate) fn traverse(&self, ray: &SlabRay, t_min: f32, t_max: f32, leaf: impl LeafTest) {
         traverse_quads(&self.quads, t_max, |q, t1| ray.entry4(q, t_min, t1), leaf);
     }
 
