@@ -117,11 +117,17 @@ pub fn ray_from_fields(v: &[f64], setup: &RaySetup) -> Result<(Ray, Interval), S
             spawn_origin(origin, n, dir, precision, setup.magnitude)
         }
     };
+    Ok((Ray::new(origin, dir), accepted_range(tmin, tmax, setup)))
+}
+
+/// The accepted `t` of a ray whose checked bounds are `tmin ≤ tmax`, under `setup`'s convention.
+#[inline(always)]
+fn accepted_range(tmin: f64, tmax: f64, setup: &RaySetup) -> Interval {
     let min = match setup.range {
         RangeConvention::OpenStart => tmin.next_up(),
         RangeConvention::Closed => tmin,
     };
-    Ok((Ray::new(origin, dir), Interval::new(min, tmax)))
+    Interval::new(min, tmax)
 }
 
 /// Rays per step of [`trace_columns`]: the rays and hit records of one chunk (about 64 and 120
@@ -202,9 +208,22 @@ impl<'a> RayColumns<'a> {
     ///
     /// # Panics
     /// If `i ≥ self.len()`.
+    #[inline]
     pub fn ray(&self, i: usize, setup: &RaySetup) -> Result<QueryRay, String> {
         let at = |column: &[f64]| column[if column.len() == 1 { 0 } else { i }];
         let (o, d) = (&self.origins[3 * i..3 * i + 3], &self.directions[3 * i..3 * i + 3]);
+        // the common case built in place: no spawning, and a ray that passes every check
+        // (anything else goes through `ray_from_fields`, for the same ray or the same error)
+        if self.normals.is_none() && setup.origin_precision.is_none() {
+            let (origin, dir) = (DVec3::from_slice(o), DVec3::from_slice(d));
+            let (tmin, tmax) = (at(self.tmin), at(self.tmax));
+            if origin.is_finite() && dir.is_finite() && dir != DVec3::ZERO && tmin <= tmax {
+                return Ok(QueryRay {
+                    ray: Ray::new(origin, dir),
+                    range: accepted_range(tmin, tmax, setup),
+                });
+            }
+        }
         let mut fields = [
             o[0],
             o[1],
@@ -308,6 +327,60 @@ pub fn trace_columns<O: Send>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Rays built from columns equal the rays (or the errors) `ray_from_fields` makes of the same
+    /// numbers on one line, under both range conventions, good rays and bad ones alike (the
+    /// columns build good rays without going through it).
+    #[test]
+    fn column_rays_equal_line_rays() {
+        let values = [0.0, -0.0, 1.5, -2.0, 1e300, f64::INFINITY, f64::NEG_INFINITY, f64::NAN];
+        let mut state = 12345u64;
+        let mut pick = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            // mostly ordinary numbers, sometimes one of the special values
+            let r = (state >> 33) as usize;
+            if r % 5 == 0 {
+                values[r / 5 % values.len()]
+            } else {
+                (r % 2001) as f64 / 100.0 - 10.0
+            }
+        };
+        let n = 4000;
+        let origins: Vec<f64> = (0..3 * n).map(|_| pick()).collect();
+        let directions: Vec<f64> = (0..3 * n).map(|k| if k % 7 == 0 { 0.0 } else { pick() }).collect();
+        let tmin: Vec<f64> = (0..n).map(|_| pick()).collect();
+        let tmax: Vec<f64> = (0..n).map(|_| pick()).collect();
+        let columns = RayColumns::new(&origins, &directions, &tmin, &tmax, None).unwrap();
+        let (mut good, mut bad) = (0, 0);
+        for range in [RangeConvention::OpenStart, RangeConvention::Closed] {
+            let setup = RaySetup {
+                range,
+                ..RaySetup::default()
+            };
+            for i in 0..n {
+                let mut fields = origins[3 * i..3 * i + 3].to_vec();
+                fields.extend_from_slice(&directions[3 * i..3 * i + 3]);
+                fields.extend_from_slice(&[tmin[i], tmax[i]]);
+                let line = ray_from_fields(&fields, &setup).map(|(ray, range)| QueryRay { ray, range });
+                let column = columns.ray(i, &setup);
+                match (&column, &line) {
+                    (Ok(c), Ok(l)) => {
+                        good += 1;
+                        // bit for bit (NaN-free: good rays are finite)
+                        assert_eq!(format!("{c:?}"), format!("{l:?}"), "ray {i}");
+                    }
+                    (Err(c), Err(l)) => {
+                        bad += 1;
+                        assert_eq!(c, l, "ray {i}");
+                    }
+                    _ => panic!("ray {i}: columns {column:?}, line {line:?}"),
+                }
+            }
+        }
+        assert!(good > 1000 && bad > 1000, "{good} good, {bad} bad");
+    }
 
     /// With bad rays on either side of the middle (the second is where a second thread starts),
     /// the error names the first by index, whichever thread meets which first.

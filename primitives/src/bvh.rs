@@ -294,6 +294,11 @@ impl Bvh {
         mut range: Interval,
         mut test: impl FnMut(u32, Interval) -> Option<f64>,
     ) -> Option<u32> {
+        // an empty hierarchy (a scene whose one bounded object is tested directly) costs nothing,
+        // not even the slab set-up's divisions
+        if self.items.is_empty() {
+            return None;
+        }
         let slab = SlabRay::new(ray);
         let mut best = None;
         if !slab.is_representable() {
