@@ -124,14 +124,8 @@ impl MeshRay {
     /// The watertight test against `(a, b, c)`: `(t, u, v)` with `t` in `[t_min, t_max]`.
     #[inline(always)]
     fn triangle(&self, a: [f32; 3], b: [f32; 3], c: [f32; 3], t_min: f32, t_max: f32) -> Option<(f32, f32, f32)> {
-        match self.k {
-            [1, 2, 0] => self.triangle_in::<1, 2, 0>(a, b, c, t_min, t_max),
-            [2, 1, 0] => self.triangle_in::<2, 1, 0>(a, b, c, t_min, t_max),
-            [2, 0, 1] => self.triangle_in::<2, 0, 1>(a, b, c, t_min, t_max),
-            [0, 2, 1] => self.triangle_in::<0, 2, 1>(a, b, c, t_min, t_max),
-            [0, 1, 2] => self.triangle_in::<0, 1, 2>(a, b, c, t_min, t_max),
-            _ => self.triangle_in::<1, 0, 2>(a, b, c, t_min, t_max),
-        }
+        let p = |v| permuted(v, self.k);
+        self.permuted_triangle(p(a), p(b), p(c), p(self.origin), t_min, t_max)
     }
 
     /// [`MeshRay::triangle`] for the axes `k = [KX, KY, KZ]` known at compile time, so that the
@@ -147,16 +141,30 @@ impl MeshRay {
         t_max: f32,
     ) -> Option<(f32, f32, f32)> {
         debug_assert_eq!(self.k, [KX, KY, KZ]);
+        let p = |v: [f32; 3]| [v[KX], v[KY], v[KZ]];
+        self.permuted_triangle(p(a), p(b), p(c), p(self.origin), t_min, t_max)
+    }
+
+    /// The watertight test on corners and origin whose components are in the order `k`.
+    #[inline(always)]
+    fn permuted_triangle(
+        &self,
+        a: [f32; 3],
+        b: [f32; 3],
+        c: [f32; 3],
+        o: [f32; 3],
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(f32, f32, f32)> {
         let [sx, sy, sz] = self.shear;
-        let o = self.origin;
         // vertices relative to the origin, then sheared so the ray is the +z axis
-        let (az, bz, cz) = (a[KZ] - o[KZ], b[KZ] - o[KZ], c[KZ] - o[KZ]);
-        let ax = (a[KX] - o[KX]) - sx * az;
-        let ay = (a[KY] - o[KY]) - sy * az;
-        let bx = (b[KX] - o[KX]) - sx * bz;
-        let by = (b[KY] - o[KY]) - sy * bz;
-        let cx = (c[KX] - o[KX]) - sx * cz;
-        let cy = (c[KY] - o[KY]) - sy * cz;
+        let (az, bz, cz) = (a[2] - o[2], b[2] - o[2], c[2] - o[2]);
+        let ax = (a[0] - o[0]) - sx * az;
+        let ay = (a[1] - o[1]) - sy * az;
+        let bx = (b[0] - o[0]) - sx * bz;
+        let by = (b[1] - o[1]) - sy * bz;
+        let cx = (c[0] - o[0]) - sx * cz;
+        let cy = (c[1] - o[1]) - sy * cz;
         // scaled barycentrics (edge functions)
         let mut e0 = cx * by - cy * bx;
         let mut e1 = ax * cy - ay * cx;
@@ -179,6 +187,20 @@ impl MeshRay {
             return None;
         }
         Some((t, e1 / det, e2 / det))
+    }
+}
+
+/// `[v[kx], v[ky], v[kz]]` for the axes `k` of a [`MeshRay`], with constant indices in each arm
+/// (a run-time index would send `v` through memory).
+#[inline(always)]
+fn permuted(v: [f32; 3], k: [usize; 3]) -> [f32; 3] {
+    match k {
+        [1, 2, 0] => [v[1], v[2], v[0]],
+        [2, 1, 0] => [v[2], v[1], v[0]],
+        [2, 0, 1] => [v[2], v[0], v[1]],
+        [0, 2, 1] => [v[0], v[2], v[1]],
+        [0, 1, 2] => [v[0], v[1], v[2]],
+        _ => [v[1], v[0], v[2]],
     }
 }
 

@@ -21,7 +21,7 @@
     reason = "lane loops index several per-lane arrays by the lane; the form the compiler vectorises"
 )]
 
-use super::{Candidate, Mesh, MeshQuery};
+use super::{permuted, Candidate, Mesh, MeshQuery};
 use crate::bvh::build::EXIT_PAD;
 use crate::bvh::{lane_mask, lanes_of, max_f32, min_f32, traverse_quads_from, walk_packet, PacketVisitor, Quad};
 use crate::hit::RawHit;
@@ -284,20 +284,6 @@ impl PacketQuery<'_> {
                 self.best[l] = Some((k, hit.0, hit.1, hit.2));
             }
         }
-    }
-}
-
-/// `[v[kx], v[ky], v[kz]]` for the axes `k`, with constant indices in each arm (a run-time index
-/// would send `v` through memory).
-#[inline(always)]
-fn permuted(v: [f32; 3], k: [usize; 3]) -> [f32; 3] {
-    match k {
-        [1, 2, 0] => [v[1], v[2], v[0]],
-        [2, 1, 0] => [v[2], v[1], v[0]],
-        [2, 0, 1] => [v[2], v[0], v[1]],
-        [0, 2, 1] => [v[0], v[2], v[1]],
-        [0, 1, 2] => [v[0], v[1], v[2]],
-        _ => [v[1], v[0], v[2]],
     }
 }
 
