@@ -93,6 +93,20 @@ pub fn ray_from_fields(v: &[f64], setup: &RaySetup) -> Result<(Ray, Interval), S
         (0.0, f64::INFINITY)
     };
     let normal = (v.len() == 9 || v.len() == 11).then(|| DVec3::new(v[v.len() - 3], v[v.len() - 2], v[v.len() - 1]));
+    checked_ray(origin, dir, tmin, tmax, normal, setup)
+}
+
+/// The ray of one line's values, already split into their columns (`normal` where the line has
+/// one): every check of the module docs, the spawned origin and the range convention.
+#[inline(always)]
+fn checked_ray(
+    origin: DVec3,
+    dir: DVec3,
+    tmin: f64,
+    tmax: f64,
+    normal: Option<DVec3>,
+    setup: &RaySetup,
+) -> Result<(Ray, Interval), String> {
     if !origin.is_finite() || !dir.is_finite() {
         return Err("origin and direction must be finite".into());
     }
@@ -117,17 +131,11 @@ pub fn ray_from_fields(v: &[f64], setup: &RaySetup) -> Result<(Ray, Interval), S
             spawn_origin(origin, n, dir, precision, setup.magnitude)
         }
     };
-    Ok((Ray::new(origin, dir), accepted_range(tmin, tmax, setup)))
-}
-
-/// The accepted `t` of a ray whose checked bounds are `tmin ≤ tmax`, under `setup`'s convention.
-#[inline(always)]
-fn accepted_range(tmin: f64, tmax: f64, setup: &RaySetup) -> Interval {
     let min = match setup.range {
         RangeConvention::OpenStart => tmin.next_up(),
         RangeConvention::Closed => tmin,
     };
-    Interval::new(min, tmax)
+    Ok((Ray::new(origin, dir), Interval::new(min, tmax)))
 }
 
 /// Rays per step of [`trace_columns`]: the rays and hit records of one chunk (about 64 and 120
@@ -211,40 +219,15 @@ impl<'a> RayColumns<'a> {
     #[inline]
     pub fn ray(&self, i: usize, setup: &RaySetup) -> Result<QueryRay, String> {
         let at = |column: &[f64]| column[if column.len() == 1 { 0 } else { i }];
-        let (o, d) = (&self.origins[3 * i..3 * i + 3], &self.directions[3 * i..3 * i + 3]);
-        // the common case built in place: no spawning, and a ray that passes every check
-        // (anything else goes through `ray_from_fields`, for the same ray or the same error)
-        if self.normals.is_none() && setup.origin_precision.is_none() {
-            let (origin, dir) = (DVec3::from_slice(o), DVec3::from_slice(d));
-            let (tmin, tmax) = (at(self.tmin), at(self.tmax));
-            if origin.is_finite() && dir.is_finite() && dir != DVec3::ZERO && tmin <= tmax {
-                return Ok(QueryRay {
-                    ray: Ray::new(origin, dir),
-                    range: accepted_range(tmin, tmax, setup),
-                });
-            }
-        }
-        let mut fields = [
-            o[0],
-            o[1],
-            o[2],
-            d[0],
-            d[1],
-            d[2],
+        let row = |values: &[f64]| DVec3::from_slice(&values[3 * i..3 * i + 3]);
+        let (ray, range) = checked_ray(
+            row(self.origins),
+            row(self.directions),
             at(self.tmin),
             at(self.tmax),
-            0.0,
-            0.0,
-            0.0,
-        ];
-        let count = match self.normals {
-            Some(normals) => {
-                fields[8..].copy_from_slice(&normals[3 * i..3 * i + 3]);
-                11
-            }
-            None => 8,
-        };
-        let (ray, range) = ray_from_fields(&fields[..count], setup)?;
+            self.normals.map(row),
+            setup,
+        )?;
         Ok(QueryRay { ray, range })
     }
 
@@ -329,8 +312,8 @@ mod tests {
     use super::*;
 
     /// Rays built from columns equal the rays (or the errors) `ray_from_fields` makes of the same
-    /// numbers on one line, under both range conventions, good rays and bad ones alike (the
-    /// columns build good rays without going through it).
+    /// numbers on one line, under both range conventions, good rays and bad ones alike (the two
+    /// take their values apart differently, then share `checked_ray`).
     #[test]
     fn column_rays_equal_line_rays() {
         let values = [0.0, -0.0, 1.5, -2.0, 1e300, f64::INFINITY, f64::NEG_INFINITY, f64::NAN];
@@ -352,17 +335,33 @@ mod tests {
         let directions: Vec<f64> = (0..3 * n).map(|k| if k % 7 == 0 { 0.0 } else { pick() }).collect();
         let tmin: Vec<f64> = (0..n).map(|_| pick()).collect();
         let tmax: Vec<f64> = (0..n).map(|_| pick()).collect();
-        let columns = RayColumns::new(&origins, &directions, &tmin, &tmax, None).unwrap();
+        let normals: Vec<f64> = (0..3 * n).map(|_| pick()).collect();
         let (mut good, mut bad) = (0, 0);
-        for range in [RangeConvention::OpenStart, RangeConvention::Closed] {
+        // without normals, and with them (spawned origins, and the error without a precision)
+        let cases = [
+            (RangeConvention::OpenStart, None, None),
+            (RangeConvention::Closed, None, None),
+            (
+                RangeConvention::OpenStart,
+                Some(&normals[..]),
+                Some(PointPrecision::F32),
+            ),
+            (RangeConvention::Closed, Some(&normals[..]), None),
+        ];
+        for (range, normals, origin_precision) in cases {
+            let columns = RayColumns::new(&origins, &directions, &tmin, &tmax, normals).unwrap();
             let setup = RaySetup {
                 range,
-                ..RaySetup::default()
+                origin_precision,
+                magnitude: 10.0,
             };
             for i in 0..n {
                 let mut fields = origins[3 * i..3 * i + 3].to_vec();
                 fields.extend_from_slice(&directions[3 * i..3 * i + 3]);
                 fields.extend_from_slice(&[tmin[i], tmax[i]]);
+                if let Some(normals) = normals {
+                    fields.extend_from_slice(&normals[3 * i..3 * i + 3]);
+                }
                 let line = ray_from_fields(&fields, &setup).map(|(ray, range)| QueryRay { ray, range });
                 let column = columns.ray(i, &setup);
                 match (&column, &line) {
@@ -379,7 +378,7 @@ mod tests {
                 }
             }
         }
-        assert!(good > 1000 && bad > 1000, "{good} good, {bad} bad");
+        assert!(good > 2000 && bad > 2000, "{good} good, {bad} bad");
     }
 
     /// With bad rays on either side of the middle (the second is where a second thread starts),
