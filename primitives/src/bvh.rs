@@ -16,7 +16,7 @@ mod quad_array;
 use crate::PACKET;
 use crate::{Aabb, Interval, Ray};
 use build::{Bb, BuildItem, QuadBvh};
-use glam::{Vec3A, Vec4};
+use glam::{BVec4A, Vec3A, Vec4, Vec4Swizzles};
 use std::mem::MaybeUninit;
 
 /// Rounds an f64 to the nearest f32 not above it (boxes and ray ranges rounded outward).
@@ -73,16 +73,44 @@ pub(crate) const QUAD_STACK: usize = 3 * 128 + 4;
 /// gives a bit per child slot the ray enters before `t_max` and the entry distances. The nearest
 /// entered child is visited next and the others pushed farthest first (among equal entries the
 /// later slot is visited first); one popped after the closest hit moved nearer than its entry
-/// is skipped. `leaf(first, count, t_max)` tests a leaf and returns the new, smaller `t_max` if
+/// (by more than [`cull_bound`]'s margin) is skipped. `leaf(first, count, t_max)` tests a leaf and returns the new, smaller `t_max` if
 /// it found a hit.
 #[inline(always)]
-pub(crate) fn traverse_quads(
-    quads: &[Quad],
-    t_max: f32,
-    entry4: impl Fn(&Quad, f32) -> (u32, [f32; 4]),
-    leaf: impl LeafTest,
-) {
-    traverse_quads_from(quads, 0, t_max, entry4, leaf);
+pub(crate) fn traverse_quads(quads: &[Quad], t_max: f32, nodes: impl NodeTest, leaf: impl LeafTest) {
+    traverse_quads_from(quads, 0, t_max, nodes, leaf);
+}
+
+/// The distance past which the walks skip a node when the closest hit so far is at `t_max`:
+/// `t_max` enlarged by `2⁻¹⁰` of itself (infinities and NaN unchanged). A triangle's f32 `t` can
+/// come out a few ulps below the computed entry into its own box, so culling at `t_max` itself
+/// could drop a leaf holding a triangle hit at the same `t` as the best so far, and which of the
+/// two wins (the one earlier in leaf order) would then depend on the order of visits: a single
+/// ray and a packet could disagree. The margin keeps the leaf in; it costs next to nothing.
+#[inline(always)]
+pub(crate) fn cull_bound(t_max: f32) -> f32 {
+    const MARGIN: f32 = 1.0 / 1024.0;
+    t_max * if t_max >= 0.0 { 1.0 + MARGIN } else { 1.0 - MARGIN }
+}
+
+/// What [`traverse_quads`] does at a node: `entry4(quad, t_max)` gives a bit per child slot the
+/// ray enters before `t_max` and the entry distances. A type with an `#[inline(always)]` method
+/// (not a closure), so that the test is inlined into the walk for certain.
+pub(crate) trait NodeTest {
+    fn entry4(&self, quad: &Quad, t_max: f32) -> (u32, [f32; 4]);
+}
+
+/// A ray's slab tests (`S`: the scene's conservative [`SlabRay`] or a mesh's f32
+/// `build::SlabRay`) over its range from `t_min`: a [`NodeTest`].
+pub(crate) struct SlabsFrom<'a, S> {
+    pub ray: &'a S,
+    pub t_min: f32,
+}
+
+impl NodeTest for SlabsFrom<'_, SlabRay> {
+    #[inline(always)]
+    fn entry4(&self, quad: &Quad, t_max: f32) -> (u32, [f32; 4]) {
+        self.ray.entry4(quad, self.t_min, t_max)
+    }
 }
 
 /// What [`traverse_quads`] does at a leaf: `test(first, count, t_max)` tests the leaf's items
@@ -106,7 +134,7 @@ pub(crate) fn traverse_quads_from(
     quads: &[Quad],
     root: usize,
     mut t_max: f32,
-    entry4: impl Fn(&Quad, f32) -> (u32, [f32; 4]),
+    nodes: impl NodeTest,
     mut leaf: impl LeafTest,
 ) {
     if quads.is_empty() {
@@ -118,35 +146,39 @@ pub(crate) fn traverse_quads_from(
     let mut quad = root;
     'nodes: loop {
         let q = &quads[quad];
-        let (hits, near) = entry4(q, t_max);
-        let mut hits = hits & ((1u32 << q.len) - 1);
+        let (hits, near) = nodes.entry4(q, cull_bound(t_max));
+        let hits = hits & ((1u32 << q.len) - 1);
         let mut next = None;
         if hits != 0 {
             if hits & (hits - 1) == 0 {
                 let slot = hits.trailing_zeros() as usize;
                 next = Some((q.child[slot], u32::from(q.count[slot]), near[slot]));
             } else {
-                // the entered children sorted farthest first (insertion into at most four)
-                let mut order = [(0f32, 0usize); 4];
-                let mut n = 0;
-                while hits != 0 {
-                    let slot = hits.trailing_zeros() as usize;
-                    hits &= hits - 1;
-                    let t = near[slot];
-                    let mut k = n;
-                    while k > 0 && order[k - 1].0 < t {
-                        order[k] = order[k - 1];
-                        k -= 1;
+                let first = hits.trailing_zeros() as usize;
+                let rest = hits & (hits - 1);
+                let (slot, pushed) = if rest & (rest - 1) == 0 {
+                    // two: the farther pushed, the nearer next (the later slot among equals)
+                    let second = rest.trailing_zeros() as usize;
+                    let second_nearer = near[second] <= near[first];
+                    (
+                        if second_nearer { second } else { first },
+                        if second_nearer { first } else { second },
+                    )
+                } else {
+                    // three or four, sorted farthest first ([`farthest_first`], no branch on the
+                    // entries); the two farthest written whatever their number, the top raised past
+                    // those pushed
+                    let order = farthest_first(hits, near);
+                    let entered = 3 + usize::from(hits.count_ones() == 4);
+                    for (k, &slot) in order[..2].iter().enumerate() {
+                        stack[top + k].write((q.child[slot], u32::from(q.count[slot]), near[slot]));
                     }
-                    order[k] = (t, slot);
-                    n += 1;
-                }
-                for &(t, slot) in &order[..n - 1] {
-                    stack[top].write((q.child[slot], u32::from(q.count[slot]), t));
-                    top += 1;
-                }
-                let (t, slot) = order[n - 1];
-                next = Some((q.child[slot], u32::from(q.count[slot]), t));
+                    top += entered - 2;
+                    (order[entered - 1], order[entered - 2])
+                };
+                stack[top].write((q.child[pushed], u32::from(q.count[pushed]), near[pushed]));
+                top += 1;
+                next = Some((q.child[slot], u32::from(q.count[slot]), near[slot]));
             }
         }
         // visit `next`, else pop, until an inner node to open
@@ -162,7 +194,7 @@ pub(crate) fn traverse_quads_from(
                     unsafe { stack[top].assume_init() }
                 }
             };
-            if entry > t_max {
+            if entry > cull_bound(t_max) {
                 continue;
             }
             if count == 0 {
@@ -174,6 +206,33 @@ pub(crate) fn traverse_quads_from(
             }
         }
     }
+}
+
+/// The slots of a node, the entered ones (bits of `entered`) first, sorted farthest first by
+/// their entry `near[slot]` (among equal entries the later slot last, so that it is visited
+/// first); the slots not entered follow in no particular order. A fixed sorting network of five
+/// min/max exchanges on keys that carry the slot in their two low bits, so no branch depends on
+/// the entries.
+#[inline(always)]
+fn farthest_first(entered: u32, near: [f32; 4]) -> [usize; 4] {
+    let mut keys = [0f32; 4];
+    for slot in 0..4 {
+        // finite keys (no NaN from the slot bits), the slot's bits below the entry's
+        let bits = near[slot].clamp(-f32::MAX, f32::MAX).to_bits();
+        let key = f32::from_bits((bits & !3) | (3 - slot as u32));
+        keys[slot] = if entered & (1 << slot) != 0 {
+            key
+        } else {
+            f32::NEG_INFINITY
+        };
+    }
+    let keys = Vec4::from_array(keys);
+    // exchanges (0,1) and (2,3), then (0,2) and (1,3), then (1,2): larger key to the lower index
+    let exchange = |v: Vec4, partner: Vec4, upper: BVec4A| Vec4::select(upper, v.max(partner), v.min(partner));
+    let keys = exchange(keys, keys.yxwz(), BVec4A::new(true, false, true, false));
+    let keys = exchange(keys, keys.zwxy(), BVec4A::new(true, true, false, false));
+    let keys = exchange(keys, keys.xzyw(), BVec4A::new(true, true, false, false));
+    keys.to_array().map(|key| 3 - (key.to_bits() & 3) as usize)
 }
 
 /// Largest leaf of the scene's hierarchy.
@@ -314,7 +373,7 @@ impl Bvh {
         traverse_quads(
             self.tree.quads(),
             round_up(range.max),
-            |q, t1| slab.entry4(q, t0, t1),
+            SlabsFrom { ray: &slab, t_min: t0 },
             |first, count, _| {
                 let mut found = None;
                 for &id in &self.items[first as usize..(first + count) as usize] {
@@ -463,7 +522,7 @@ pub(crate) fn walk_packet(
         let pending = unsafe { stack[top].assume_init() };
         let mut still = [0i32; PACKET];
         for l in 0..PACKET {
-            still[l] = -i32::from(pending.entry[l] <= t_max[l]);
+            still[l] = -i32::from(pending.entry[l] <= cull_bound(t_max[l]));
         }
         let lanes = pending.lanes & lane_mask(&still);
         if lanes == 0 {
@@ -481,7 +540,7 @@ pub(crate) fn walk_packet(
         let mut t1 = [f32::NEG_INFINITY; PACKET];
         for l in 0..PACKET {
             if (lanes >> l) & 1 != 0 {
-                t1[l] = t_max[l];
+                t1[l] = cull_bound(t_max[l]);
             }
         }
         // the entered children, sorted farthest first by their nearest lane's entry
@@ -588,7 +647,7 @@ impl<T: FnMut(usize, u32, Interval) -> Option<f64>> PacketVisitor for ScenePacke
                 quads,
                 root,
                 lane_max,
-                |q, t1| slab.entry4(q, t0, t1),
+                SlabsFrom { ray: slab, t_min: t0 },
                 |first, count, _| {
                     let t = self.leaf_lane(l, first, count)?;
                     lane_max = t;

@@ -18,8 +18,8 @@
 //!   closed, consistently oriented mesh. Near the surface this is the signed distance; far from a
 //!   mesh that is not closed the sign is only "which side of the nearest face". Φ costs a BVH
 //!   nearest-point query (it is not on the hot path: intersection never evaluates it).
-//! - **Precision.** Storage is f32. Each query converts the f64 ray once to an f32 ray with unit
-//!   direction and precomputes the data of the watertight test of Woop, Benthin and Wald (2013,
+//! - **Precision.** Storage is f32. Each query converts the f64 ray once to an f32 ray (its direction
+//!   scaled by a power of two, exactly, so that its largest component lies in `[1, 2)`) and precomputes the data of the watertight test of Woop, Benthin and Wald (2013,
 //!   "Watertight Ray/Triangle Intersection", JCGT 2(1)): the axis `k_z` of the largest direction
 //!   component, the permuted axes and the shear constants. Edge functions that evaluate to exactly
 //!   zero are recomputed in f64, and a ray through a shared edge or vertex hits at least one of
@@ -105,19 +105,26 @@ struct MeshRay {
 }
 
 impl MeshRay {
-    /// `dir` must be unit length and finite.
+    /// `dir` must be finite, its largest component of magnitude in `[2⁻⁵³, 8)` ([`direction_scale`]).
+    ///
+    /// Written without branches on the direction (selects and array reads rather than
+    /// `Vec3A::max_position` and indexing, which branch): random rays would mispredict them.
     fn new(origin: Vec3A, dir: Vec3A) -> Self {
-        let kz = dir.abs().max_position();
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        if dir[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        let d = dir.to_array();
+        let a = dir.abs().to_array();
+        // the axis of the largest |component|, the first among equals
+        let first_two = if a[1] > a[0] { 1 } else { 0 };
+        let kz = if a[2] > a[first_two] { 2 } else { first_two };
+        let (next, after) = ([1, 2, 0][kz], [2, 0, 1][kz]);
+        // a negative `d_kz` swaps the other two, keeping the winding of the test
+        let negative = d[kz] < 0.0;
+        let kx = if negative { after } else { next };
+        let ky = if negative { next } else { after };
         Self {
             slab: SlabRay::new(origin, dir),
             origin: origin.to_array(),
             k: [kx, ky, kz],
-            shear: [dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]],
+            shear: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
         }
     }
 
@@ -169,13 +176,14 @@ impl MeshRay {
         let mut e0 = cx * by - cy * bx;
         let mut e1 = ax * cy - ay * cx;
         let mut e2 = bx * ay - by * ax;
-        if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+        // `|` and `&` rather than `||` and `&&`: one branch per test, not one per comparison
+        if (e0 == 0.0) | (e1 == 0.0) | (e2 == 0.0) {
             let f = f64::from;
             e0 = (f(cx) * f(by) - f(cy) * f(bx)) as f32;
             e1 = (f(ax) * f(cy) - f(ay) * f(cx)) as f32;
             e2 = (f(bx) * f(ay) - f(by) * f(ax)) as f32;
         }
-        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        if ((e0 < 0.0) | (e1 < 0.0) | (e2 < 0.0)) & ((e0 > 0.0) | (e1 > 0.0) | (e2 > 0.0)) {
             return None;
         }
         let det = e0 + e1 + e2;
@@ -543,49 +551,75 @@ impl Implicit for Mesh {
     }
 }
 
-/// One ray's set-up for the mesh tests: the f32 ray with unit direction, its range along that
-/// direction, and the band near `t_min` where hits are re-decided in f64 (see the module docs),
-/// worked out at the first candidate hit (most rays have none).
+/// One ray's set-up for the mesh tests: the f32 ray (its direction scaled by a power of two, see
+/// [`direction_scale`]), its range in that ray's `t`, and the band near `t_min` where hits are
+/// re-decided in f64 (see the module docs), worked out at the first candidate hit (most rays have
+/// none).
 struct MeshQuery {
     ray: MeshRay,
-    /// Length of the f64 direction (`t` along the unit f32 direction is `len` times the ray's).
-    len: f64,
+    /// The power of two `s` the f64 direction was multiplied by: `t` along the f32 ray is the
+    /// ray's `t` divided by `s`.
+    scale: f64,
     t_min: f32,
     t_max: f32,
-    /// `t_min + 10⁻⁵·(radius + |origin − centre|)`, once asked for ([`Mesh::counts`]).
+    /// `t_min + 10⁻⁵·(radius + |origin − centre|) / |s·dir|`, once asked for ([`Mesh::counts`]).
     band: std::cell::OnceCell<f32>,
 }
 
-/// The closest candidate so far: leaf position, f32 `t` along the unit direction, barycentrics.
+/// The closest candidate so far: leaf position, f32 `t` along the scaled direction, barycentrics.
 type Candidate = (usize, f32, f32, f32);
+
+/// For a direction whose largest component magnitude is `m` (finite, > 0): the power of two `s`
+/// that brings `s·m` into `[1, 2)` (into `[2⁻⁵³, 8)` at the ends of the f64 range, where `s`
+/// is clamped to `[2⁻¹⁰²¹, 2¹⁰²¹]`), and `1/s`. Scaling by `s` is exact, so it costs no accuracy
+/// and, unlike normalising, no square root or division.
+#[inline(always)]
+fn direction_scale(m: f64) -> (f64, f64) {
+    let exponent = (((m.to_bits() >> 52) & 0x7ff) as i64 - 1023).clamp(-1021, 1021);
+    let power_of_two = |e: i64| f64::from_bits(((1023 + e) as u64) << 52);
+    (power_of_two(-exponent), power_of_two(exponent))
+}
 
 impl Mesh {
     /// The set-up of `ray` over `range`, or `None` where nothing can be hit (a zero, infinite or
     /// NaN direction, a non-finite origin, an empty range).
     #[inline(always)]
     fn query(&self, ray: &Ray, range: Interval) -> Option<MeshQuery> {
-        let len = ray.dir.length();
-        if !(len > 0.0 && len.is_finite() && ray.origin.is_finite()) || range.is_empty() {
+        let largest = ray.dir.abs().max_element();
+        if !(largest > 0.0 && largest.is_finite() && ray.origin.is_finite()) || range.is_empty() {
             return None;
         }
-        let dir = (ray.dir / len).as_vec3a();
-        let t_min = round_down(range.min * len).clamp(0.0, f32::MAX);
+        let (scale, unscale) = direction_scale(largest);
+        let dir = (ray.dir * scale).as_vec3a();
         Some(MeshQuery {
             ray: MeshRay::new(ray.origin.as_vec3a(), dir),
-            len,
-            t_min,
-            t_max: round_up(range.max * len),
+            scale,
+            t_min: round_down(range.min * unscale).clamp(0.0, f32::MAX),
+            t_max: round_up(range.max * unscale),
             band: std::cell::OnceCell::new(),
         })
+    }
+
+    /// Whether the ray of `query` enters the hierarchy's root box at all: the first slab test
+    /// of the walk, done before the walk is chosen, so that a ray passing the mesh by (most of a
+    /// random batch) costs the set-up and this test alone.
+    #[inline(always)]
+    fn enters_root(&self, query: &MeshQuery) -> bool {
+        let Some(root) = self.bvh.quads().first() else {
+            return false;
+        };
+        let (entered, _) = query.ray.slab.entry4(root, query.t_min, query.t_max);
+        entered & ((1u32 << root.len) - 1) != 0
     }
 
     /// Whether a hit at f32 `t` on the triangle at leaf position `k` counts: outside the band
     /// near `t_min` always, inside it only if the f64 `t` on the triangle's plane is in `range`.
     #[inline(always)]
     fn counts(&self, ray: &Ray, range: Interval, query: &MeshQuery, k: usize, t: f32) -> bool {
-        let band = *query
-            .band
-            .get_or_init(|| query.t_min + (1e-5 * (self.radius + (ray.origin - self.center).length())) as f32);
+        let band = *query.band.get_or_init(|| {
+            let band = 1e-5 * (self.radius + (ray.origin - self.center).length());
+            query.t_min + (band / (ray.dir * query.scale).length()) as f32
+        });
         t > band || self.plane_t(ray, k).is_some_and(|t| range.contains(t))
     }
 
@@ -603,7 +637,7 @@ impl Mesh {
         let (k, t32, u, v) = best?;
         let t = self
             .plane_t(ray, k)
-            .unwrap_or(f64::from(t32) / query.len)
+            .unwrap_or(f64::from(t32) * query.scale)
             .max(range.min);
         if t > range.max {
             return None;
@@ -674,6 +708,9 @@ impl Intersect for Mesh {
         #[inline(always)]
         fn test(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
             let query = mesh.query(ray, range)?;
+            if !mesh.enters_root(&query) {
+                return None;
+            }
             let best = match query.ray.k {
                 [1, 2, 0] => mesh.closest_candidate::<1, 2, 0>(ray, range, &query),
                 [2, 1, 0] => mesh.closest_candidate::<2, 1, 0>(ray, range, &query),

@@ -30,7 +30,7 @@
 //! closest hit found meanwhile is nearer.
 
 use super::quad_array::QuadArray;
-use super::{traverse_quads, LeafTest, Quad};
+use super::{traverse_quads, LeafTest, NodeTest, Quad, SlabsFrom};
 use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
@@ -316,7 +316,7 @@ impl QuadBvh {
     /// visited next; an entry popped after the closest hit moved nearer than it is skipped.
     #[inline(always)]
     pub(crate) fn traverse(&self, ray: &SlabRay, t_min: f32, t_max: f32, leaf: impl LeafTest) {
-        traverse_quads(&self.quads, t_max, |q, t1| ray.entry4(q, t_min, t1), leaf);
+        traverse_quads(&self.quads, t_max, SlabsFrom { ray, t_min }, leaf);
     }
 
     /// Depth-first visit for nearest-point queries: `lower_bound(node)` gives a lower bound
@@ -405,6 +405,13 @@ impl SlabRay {
         }
         let far = (far * EXIT_PAD).min(Vec4::splat(t1));
         (near.cmple(far).bitmask(), near.to_array())
+    }
+}
+
+impl NodeTest for SlabsFrom<'_, SlabRay> {
+    #[inline(always)]
+    fn entry4(&self, quad: &Quad, t_max: f32) -> (u32, [f32; 4]) {
+        self.ray.entry4(quad, self.t_min, t_max)
     }
 }
 

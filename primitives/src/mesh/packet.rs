@@ -23,7 +23,9 @@
 
 use super::{permuted, Candidate, Mesh, MeshQuery};
 use crate::bvh::build::EXIT_PAD;
-use crate::bvh::{lane_mask, lanes_of, max_f32, min_f32, traverse_quads_from, walk_packet, PacketVisitor, Quad};
+use crate::bvh::{
+    lane_mask, lanes_of, max_f32, min_f32, traverse_quads_from, walk_packet, PacketVisitor, Quad, SlabsFrom,
+};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::Intersect;
@@ -186,7 +188,10 @@ impl PacketVisitor for PacketQuery<'_> {
                 self.mesh.bvh.quads(),
                 root,
                 lane_max,
-                |quad, t1| q.ray.slab.entry4(quad, q.t_min, t1),
+                SlabsFrom {
+                    ray: &q.ray.slab,
+                    t_min: q.t_min,
+                },
                 |first, count, t_far| {
                     let t = self.leaf_lane(l, first, count, t_far);
                     // a hit at exactly `t_far` (an earlier triangle at the same `t`) keeps it
