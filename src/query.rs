@@ -177,9 +177,11 @@ fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> impl Iterat
     out.into_iter().take(n)
 }
 
-/// One ray's first hit, with normal and uv, and whether its answer is uncertain.
+/// One ray's first hit, with normal and uv, and whether its answer is uncertain: what
+/// [`trace_batch`] gives for each of its rays.
 #[inline]
-fn trace_one(scene: &Scene, q: &QueryRay) -> QueryHit {
+#[must_use]
+pub fn trace_one(scene: &Scene, q: &QueryRay) -> QueryHit {
     let exhausted_before = thread_uncertain_events();
     let hit = scene.intersect(&q.ray, q.range).map(|(object, raw)| {
         (

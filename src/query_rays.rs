@@ -18,12 +18,12 @@
 //!
 //! **Columns.** Rays already in memory as arrays (the Python package's numpy arrays) are a
 //! [`RayColumns`]: each ray is built by the same [`ray_from_fields`] as a line of input, and
-//! [`trace_columns`] builds, traces ([`crate::query::trace_batch`]) and hands over the hits a
-//! chunk of [`COLUMN_CHUNK`] rays at a time, in parallel, so rays and hit records only ever exist
-//! for the chunks in flight (cache-sized) and the caller writes each chunk's answers straight
-//! into its own output buffers.
+//! [`trace_columns`] builds a chunk of [`COLUMN_CHUNK`] rays at a time, in parallel, then traces
+//! them ([`crate::query::trace_one`]) and hands each ray's hit over as it comes, so rays only
+//! ever exist for the chunks in flight (cache-sized), hit records only one at a time, and the
+//! caller writes each answer straight into its own output buffers.
 
-use crate::query::{trace_batch, QueryHit, QueryRay};
+use crate::query::{trace_one, QueryHit, QueryRay};
 use crate::scene::Scene;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -138,9 +138,8 @@ fn checked_ray(
     Ok((Ray::new(origin, dir), Interval::new(min, tmax)))
 }
 
-/// Rays per step of [`trace_columns`]: the rays and hit records of one chunk (about 64 and 120
-/// bytes a ray) stay in a core's cache between building, tracing and handing over, and a chunk is
-/// no longer than the pieces `trace_batch` splits a batch into, so one thread does all of it.
+/// Rays per step of [`trace_columns`]: the rays of one chunk (about 64 bytes a ray) stay in a
+/// core's cache between building and tracing, and one thread does all of a chunk.
 pub const COLUMN_CHUNK: usize = 256;
 
 /// Rays as columns: `origins` and `directions` flat `[x₀, y₀, z₀, x₁, …]`, `tmin` and `tmax` one
@@ -251,11 +250,12 @@ impl<'a> RayColumns<'a> {
     }
 }
 
-/// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, traced by
-/// [`trace_batch`]), handed to `take(out, hits)` one chunk at a time: `outputs[k]` receives the
-/// hits of rays `k·COLUMN_CHUNK ..` (up to [`COLUMN_CHUNK`] of them, in ray order). Chunks run in
-/// parallel on rayon's pool, each built, traced and handed over while in cache; the hits equal
-/// `trace_batch` on all the rays at once (every ray is traced on its own).
+/// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, each traced by
+/// [`trace_one`]), handed to `put(out, row, hit)` one ray at a time: `outputs[k]` receives the
+/// hits of rays `k·COLUMN_CHUNK ..` (up to [`COLUMN_CHUNK`] of them, in ray order, `row` counting
+/// from 0 in each chunk). Chunks run in parallel on rayon's pool, each built, then traced and
+/// handed over ray by ray while in cache (no hit record is kept beyond the ray's own); the hits
+/// equal [`crate::query::trace_batch`] on all the rays at once (every ray is traced on its own).
 ///
 /// # Errors
 /// The first bad ray by index, `(index, what is wrong)`; every ray is still checked (so the
@@ -269,7 +269,7 @@ pub fn trace_columns<O: Send>(
     columns: &RayColumns<'_>,
     setup: &RaySetup,
     outputs: Vec<O>,
-    take: impl Fn(&mut O, &[QueryHit]) + Sync,
+    put: impl Fn(&mut O, usize, &QueryHit) + Sync,
 ) -> Result<(), (usize, String)> {
     let n = columns.len();
     assert_eq!(outputs.len(), n.div_ceil(COLUMN_CHUNK), "one output per chunk of rays");
@@ -294,7 +294,9 @@ pub fn trace_columns<O: Send>(
                 }
             }
             if !failed.load(Ordering::Relaxed) {
-                take(&mut out, &trace_batch(scene, rays));
+                for (row, ray) in rays.iter().enumerate() {
+                    put(&mut out, row, &trace_one(scene, ray));
+                }
             }
         },
     );
@@ -310,6 +312,7 @@ pub fn trace_columns<O: Send>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::query::trace_batch;
 
     /// Rays built from columns equal the rays (or the errors) `ray_from_fields` makes of the same
     /// numbers on one line, under both range conventions, good rays and bad ones alike (the two
@@ -485,8 +488,10 @@ mod tests {
         let expected = trace_batch(&scene, &rays);
         let chunks = columns.len().div_ceil(COLUMN_CHUNK);
         let slots: Vec<Mutex<Vec<QueryHit>>> = (0..chunks).map(|_| Mutex::new(Vec::new())).collect();
-        trace_columns(&scene, &columns, &setup, slots.iter().collect(), |slot, hits| {
-            slot.lock().unwrap().extend_from_slice(hits);
+        trace_columns(&scene, &columns, &setup, slots.iter().collect(), |slot, row, hit| {
+            let mut slot = slot.lock().unwrap();
+            assert_eq!(row, slot.len(), "rows handed over in order");
+            slot.push(*hit);
         })
         .unwrap();
         let got: Vec<QueryHit> = slots.into_iter().flat_map(|s| s.into_inner().unwrap()).collect();
@@ -504,8 +509,8 @@ mod tests {
         let columns = RayColumns::new(&origins, &directions, &[0.0], &tmax, None).unwrap();
         let setup = RaySetup::default();
         let traced = std::sync::atomic::AtomicUsize::new(0);
-        let error = trace_columns(&scene, &columns, &setup, vec![(); 3], |(), hits| {
-            traced.fetch_add(hits.len(), Ordering::Relaxed);
+        let error = trace_columns(&scene, &columns, &setup, vec![(); 3], |(), _, _| {
+            traced.fetch_add(1, Ordering::Relaxed);
         })
         .unwrap_err();
         assert_eq!(

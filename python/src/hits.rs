@@ -2,8 +2,8 @@
 //!
 //! Each requested field is one numpy array, allocated (uninitialised) while the GIL is held and
 //! then split into one piece per chunk of [`COLUMN_CHUNK`] rays; [`trace_columns`] hands each
-//! chunk's hits to its piece on a rayon thread, with the GIL released, which writes every element
-//! of it (a miss writes the miss values). Nothing is copied after that: the arrays go back to
+//! ray's hit to its chunk's piece on a rayon thread, with the GIL released, which writes its row
+//! of every array (a miss writes the miss values). Nothing is copied after that: the arrays go back to
 //! Python as they are.
 //!
 //! Fields (one row per ray): `t` f64 (`+∞` on a miss), `hit` bool, `point` f64 ×3 and `normal`
@@ -56,7 +56,7 @@ pub struct HitChunk<'a> {
 
 /// Uninitialised `(n,)` array, when `wanted`.
 fn vector<'py, T: numpy::Element>(py: Python<'py>, n: usize, wanted: bool) -> Option<Bound<'py, PyArray1<T>>> {
-    // SAFETY: every element is written by `HitChunk::take` before the array reaches Python (the
+    // SAFETY: every element is written by `HitChunk::put` before the array reaches Python (the
     // chunks cover all rows); on an error the array is dropped unread
     wanted.then(|| unsafe { PyArray1::new(py, [n], false) })
 }
@@ -177,42 +177,44 @@ impl<'py> HitArrays<'py> {
     }
 }
 
-/// `(object, hit)` of a query hit.
-type Found<'h> = Option<&'h (u32, zeroset::primitives::SurfaceHit)>;
-
-/// Writes one field over a chunk: `value` of each ray's hit, `width` elements a ray.
-fn fill<T: Copy, const W: usize>(out: Option<&mut [T]>, hits: &[QueryHit], value: impl Fn(Found<'_>) -> [T; W]) {
-    if let Some(out) = out {
-        for (row, q) in out.chunks_exact_mut(W).zip(hits) {
-            row.copy_from_slice(&value(q.hit.as_ref()));
+impl HitChunk<'_> {
+    /// Writes row `row` of this chunk (of every requested field) from one ray's hit.
+    #[inline]
+    pub fn put(&mut self, row: usize, query: &QueryHit) {
+        let hit = query.hit.as_ref();
+        if let Some(out) = self.t.as_deref_mut() {
+            out[row] = hit.map_or(f64::INFINITY, |(_, h)| h.t);
+        }
+        if let Some(out) = self.hit.as_deref_mut() {
+            out[row] = hit.is_some();
+        }
+        put_row(self.point.as_deref_mut(), row, hit.map_or([0.0; 3], |(_, h)| h.point.to_array()));
+        put_row(
+            self.normal.as_deref_mut(),
+            row,
+            hit.map_or([0.0; 3], |(_, h)| h.normal.unwrap_or_default().to_array()),
+        );
+        if let Some(out) = self.object_id.as_deref_mut() {
+            out[row] = hit.map_or(-1, |(id, _)| *id as i32);
+        }
+        put_row(
+            self.uv.as_deref_mut(),
+            row,
+            hit.and_then(|(_, h)| h.uv).unwrap_or_default().to_array(),
+        );
+        if let Some(out) = self.primitive_id.as_deref_mut() {
+            out[row] = hit.map_or(-1, |(_, h)| i64::from(h.feature));
+        }
+        if let Some(out) = self.uncertain.as_deref_mut() {
+            out[row] = query.uncertain;
         }
     }
 }
 
-impl HitChunk<'_> {
-    /// Writes this chunk's rows from its rays' hits (one hit per row, in order).
-    pub fn take(&mut self, hits: &[QueryHit]) {
-        fill(self.t.as_deref_mut(), hits, |h| [h.map_or(f64::INFINITY, |(_, h)| h.t)]);
-        fill(self.hit.as_deref_mut(), hits, |h| [h.is_some()]);
-        fill(self.point.as_deref_mut(), hits, |h| {
-            h.map_or([0.0; 3], |(_, h)| h.point.to_array())
-        });
-        fill(self.normal.as_deref_mut(), hits, |h| {
-            h.map_or([0.0; 3], |(_, h)| h.normal.unwrap_or_default().to_array())
-        });
-        fill(self.object_id.as_deref_mut(), hits, |h| {
-            [h.map_or(-1, |(id, _)| *id as i32)]
-        });
-        fill(self.uv.as_deref_mut(), hits, |h| {
-            h.and_then(|(_, h)| h.uv).unwrap_or_default().to_array()
-        });
-        fill(self.primitive_id.as_deref_mut(), hits, |h| {
-            [h.map_or(-1, |(_, h)| i64::from(h.feature))]
-        });
-        if let Some(out) = self.uncertain.as_deref_mut() {
-            for (u, q) in out.iter_mut().zip(hits) {
-                *u = q.uncertain;
-            }
-        }
+/// Writes row `row` (`W` elements) of a field of `W` elements a ray, when requested.
+#[inline]
+fn put_row<const W: usize>(out: Option<&mut [f64]>, row: usize, value: [f64; W]) {
+    if let Some(out) = out {
+        out[row * W..][..W].copy_from_slice(&value);
     }
 }

@@ -457,7 +457,7 @@ impl PyScene {
                 0.0
             };
             let setup = ray_setup(closed, precision, magnitude);
-            trace_columns(scene, &view, &setup, chunks, HitChunk::take)
+            trace_columns(scene, &view, &setup, chunks, HitChunk::put)
         })
         .map_err(bad_ray)?;
         arrays.into_dict(py)
