@@ -467,22 +467,23 @@ impl Mesh {
     }
 
     /// The closest hit found by running the watertight test on every triangle, without the BVH
-    /// (a reference for tests): `(file index, f32 t along the unit direction)`.
+    /// (a reference for tests): `(file index, f32 t along the unit direction)`. The same f32 ray
+    /// and the same rule as [`Mesh::intersect`]: the smallest `(t, leaf position)` wins.
     #[doc(hidden)]
     #[must_use]
     pub fn intersect_brute_force(&self, ray: &Ray) -> Option<(u32, f32)> {
-        let len = ray.dir.length();
-        let r = MeshRay::new(ray.origin.as_vec3a(), (ray.dir / len).as_vec3a());
-        let mut best = None;
-        let mut t_max = f32::INFINITY;
+        let query = self.query(ray, Interval::new(0.0, f64::INFINITY))?;
+        let mut best: Option<(u32, f32)> = None;
         for k in 0..self.in_bvh {
             let [a, b, c] = self.corners(k);
-            if let Some((t, _, _)) = r.triangle(a, b, c, 0.0, t_max) {
-                t_max = t;
-                best = Some((self.leaf_to_file[k], t));
+            if let Some((t, _, _)) = query.ray.triangle(a, b, c, 0.0, f32::INFINITY) {
+                if best.is_none_or(|(_, t_best)| t < t_best) {
+                    best = Some((self.leaf_to_file[k], t));
+                }
             }
         }
-        best
+        let unit = query.scale * ray.dir.length();
+        best.map(|(file, t)| (file, (f64::from(t) * unit) as f32))
     }
 
     /// Nearest surface point to `p`: `(q, leaf position of its triangle)`.
