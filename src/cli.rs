@@ -4,7 +4,7 @@
 use crate::aov::Aov;
 use crate::camera::Camera;
 use crate::diagnostics::{uncertain_message, uncertain_since};
-use crate::output::atomic::{check_destination, write_atomically, AtomicFile};
+use crate::output::atomic::{check_destination, write_atomically, AtomicFile, WritebackFile};
 use crate::output::cameras_json::{cameras_json, exr_camera_attributes, transforms_json};
 use crate::output::exr::{size_estimate, write_exr_with, ExrCompression, ExrHeader};
 use crate::output::exr_stream::ExrStream;
@@ -637,7 +637,7 @@ fn query_command(args: &QueryArgs) -> Result<()> {
         check_destination(&crate::output::atomic::parent_dir(&args.output), 0)?;
         let mut file = AtomicFile::create(&args.output)?;
         let counts = {
-            let writer = BufWriter::with_capacity(1 << 20, file.file());
+            let writer = BufWriter::with_capacity(1 << 20, WritebackFile::new(file.file()));
             let mut sink: Box<dyn HitSink> = match format {
                 BatchFormat::Csv => Box::new(CsvHits::new(writer, args.uncertain)),
                 BatchFormat::Npy => Box::new(NpyHits::seekable(writer, args.uncertain)),

@@ -142,6 +142,56 @@ pub fn start_writeback(file: &File, offset: u64, len: u64) {
     let _ = (file, offset, len);
 }
 
+/// Bytes between two [`start_writeback`] calls of a [`WritebackFile`].
+const WRITEBACK_STEP: u64 = 8 << 20;
+
+/// A file written through [`start_writeback`]: every [`WRITEBACK_STEP`] bytes written, the new
+/// bytes are sent on their way to disk, so that the `fsync` of [`AtomicFile::commit`] finds
+/// little left to do (`zeroset query` writing 88 MB of `.npy`: that `fsync` took 0.14 s after the
+/// last chunk). Seeking (to patch a header) is passed through.
+pub struct WritebackFile<'a> {
+    file: &'a File,
+    /// Current position in the file.
+    position: u64,
+    /// Position up to which writeback was started.
+    started: u64,
+}
+
+impl<'a> WritebackFile<'a> {
+    /// Writes to `file` from its current position, assumed to be its start.
+    #[must_use]
+    pub fn new(file: &'a File) -> Self {
+        Self {
+            file,
+            position: 0,
+            started: 0,
+        }
+    }
+}
+
+impl Write for WritebackFile<'_> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let written = self.file.write(buf)?;
+        self.position += written as u64;
+        if self.position >= self.started + WRITEBACK_STEP {
+            start_writeback(self.file, self.started, self.position - self.started);
+            self.started = self.position;
+        }
+        Ok(written)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
+}
+
+impl std::io::Seek for WritebackFile<'_> {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.position = std::io::Seek::seek(&mut self.file, pos)?;
+        Ok(self.position)
+    }
+}
+
 /// Permissions of a new output file: `rw-r--r--` on Unix; elsewhere the temporary file's own.
 fn default_permissions() -> Option<std::fs::Permissions> {
     #[cfg(unix)]
