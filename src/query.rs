@@ -127,27 +127,79 @@ pub fn trace_batch_in(scene: &Scene, rays: &[QueryRay], order: RayOrder) -> Vec<
         RayOrder::Input => false,
         RayOrder::Sorted => rays.len() > 1,
     };
+    let one_by_one = || rays.par_iter().with_min_len(256).map(|q| trace_one(scene, q)).collect();
     if !sort {
-        return rays.par_iter().with_min_len(256).map(|q| trace_one(scene, q)).collect();
+        return one_by_one();
     }
     let permutation = coherent_order(rays);
-    let traced: Vec<QueryHit> = permutation
+    if !packets_pay(rays, &permutation) {
+        return one_by_one();
+    }
+    // one array per packet: an indexed collect, straight into place (a flattened one would
+    // gather pieces and copy them together)
+    let traced: Vec<[QueryHit; PACKET]> = permutation
         .par_chunks(PACKET)
         .with_min_len(32)
-        .flat_map_iter(|packet| trace_packet(scene, rays, packet))
+        .map(|packet| trace_packet(scene, rays, packet))
         .collect();
     // position in the traced order of each input ray
     let mut rank = vec![0u32; rays.len()];
     for (k, &i) in permutation.iter().enumerate() {
         rank[i as usize] = k as u32;
     }
-    rank.par_iter().map(|&k| traced[k as usize]).collect()
+    rank.par_iter()
+        .map(|&k| traced[k as usize / PACKET][k as usize % PACKET])
+        .collect()
 }
 
-/// The first hits of `rays[i]` for the (at most [`PACKET`]) indices `packet`, traced together
-/// ([`Scene::intersect_packet`]), in `packet`'s order. If a root finder ran out of budget while
-/// they were traced, they are traced again one by one ([`trace_one`]) to tell which.
-fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> impl Iterator<Item = QueryHit> {
+/// Rays whose directions are all within this cosine of the first ray's (about 8°: twice the
+/// width of [`coherent_order`]'s direction cells) are traced as a packet; a packet of rays spread wider (random rays, sorted: neighbours in the order start
+/// near each other but point anywhere in their octant) would walk the hierarchy lane by lane
+/// anyway, paying the packet's bookkeeping on top, so its rays are traced one by one.
+const PACKET_COSINE: f64 = 0.99;
+
+/// Whether tracing `rays` in packets of [`PACKET`] along `permutation` pays: at least a quarter
+/// of up to 256 packets spread evenly over it are [`coherent`]. Where they are not (random rays:
+/// sorted neighbours start near each other but point anywhere in their octant), the packets would
+/// be traced ray by ray anyway, and putting the answers back into input order would cost more than
+/// the order saves, so the batch is traced as given.
+fn packets_pay(rays: &[QueryRay], permutation: &[u32]) -> bool {
+    let packets = permutation.len() / PACKET;
+    if packets == 0 {
+        return false;
+    }
+    let sampled = packets.min(256);
+    let coherent_count = (0..sampled)
+        .filter(|&s| {
+            let first = s * packets / sampled * PACKET;
+            let lanes: Vec<Ray> = permutation[first..first + PACKET]
+                .iter()
+                .map(|&i| rays[i as usize].ray)
+                .collect();
+            coherent(&lanes)
+        })
+        .count();
+    4 * coherent_count >= sampled
+}
+
+/// Whether the rays point alike enough to be traced as a packet (see [`PACKET_COSINE`]).
+fn coherent(lanes: &[Ray]) -> bool {
+    let Some(first) = lanes.first() else {
+        return true;
+    };
+    let first_len2 = first.dir.length_squared();
+    lanes[1..].iter().all(|ray| {
+        let dot = first.dir.dot(ray.dir);
+        // `dot ≥ c·|a|·|b|`, squared (both sides are then non-negative)
+        dot > 0.0 && dot * dot >= PACKET_COSINE * PACKET_COSINE * first_len2 * ray.dir.length_squared()
+    })
+}
+
+/// The first hits of `rays[i]` for the (at most [`PACKET`]) indices `packet`, in `packet`'s
+/// order (the lanes past `packet.len()` are misses): traced together ([`Scene::intersect_packet`]) where they point alike ([`coherent`]),
+/// else one by one ([`trace_one`]). If a root finder ran out of budget while a packet was traced,
+/// its rays are traced again one by one to tell which.
+fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> [QueryHit; PACKET] {
     let n = packet.len().min(PACKET);
     let mut lanes = [Ray::new(DVec3::ZERO, DVec3::Z); PACKET];
     let mut ranges = [Interval::POSITIVE; PACKET];
@@ -155,13 +207,19 @@ fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> impl Iterat
         lanes[l] = rays[i as usize].ray;
         ranges[l] = rays[i as usize].range;
     }
-    let exhausted_before = thread_uncertain_events();
-    let mut found = [None; PACKET];
-    scene.intersect_packet(&lanes[..n], &ranges[..n], &mut found[..n]);
     let mut out = [QueryHit {
         hit: None,
         uncertain: false,
     }; PACKET];
+    if !coherent(&lanes[..n]) {
+        for (l, &i) in packet[..n].iter().enumerate() {
+            out[l] = trace_one(scene, &rays[i as usize]);
+        }
+        return out;
+    }
+    let exhausted_before = thread_uncertain_events();
+    let mut found = [None; PACKET];
+    scene.intersect_packet(&lanes[..n], &ranges[..n], &mut found[..n]);
     if thread_uncertain_events() == exhausted_before {
         for l in 0..n {
             out[l].hit = found[l].map(|(object, raw)| {
@@ -174,7 +232,7 @@ fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> impl Iterat
             out[l] = trace_one(scene, &rays[i as usize]);
         }
     }
-    out.into_iter().take(n)
+    out
 }
 
 /// One ray's first hit, with normal and uv, and whether its answer is uncertain: what
@@ -965,8 +1023,30 @@ mod tests {
         assert_ne!(order, (0..5000).collect::<Vec<u32>>(), "random rays get reordered");
         order.sort_unstable();
         assert_eq!(order, (0..5000).collect::<Vec<u32>>());
+        // random rays: sorted neighbours point anywhere, so the batch is traced as given
+        assert!(!packets_pay(&rays, &coherent_order(&rays)));
         let input = trace_batch_in(&scene, &rays, RayOrder::Input);
         let sorted = trace_batch_in(&scene, &rays, RayOrder::Sorted);
+        assert!(input.iter().filter(|h| h.hit.is_some()).count() > 1000);
+        assert_eq!(input, sorted);
+        // four cameras' rays, shuffled: sorting gathers each camera's neighbouring rays into
+        // packets, which are traced together and give the same answers
+        let mut views: Vec<QueryRay> = (0..4000)
+            .map(|i| {
+                let eye = DVec3::new(f64::from(i % 4) - 1.5, 0.5, -6.0);
+                let (u, v) = (f64::from(i / 4 % 40) / 40.0 - 0.5, f64::from(i / 160) / 25.0 - 0.5);
+                QueryRay {
+                    ray: Ray::new(eye, DVec3::new(u * 0.8, v * 0.8, 1.0)),
+                    range: Interval::new(0.0, f64::INFINITY),
+                }
+            })
+            .collect();
+        for k in (1..views.len()).rev() {
+            views.swap(k, rng.random_range(0..=k));
+        }
+        assert!(packets_pay(&views, &coherent_order(&views)));
+        let input = trace_batch_in(&scene, &views, RayOrder::Input);
+        let sorted = trace_batch_in(&scene, &views, RayOrder::Sorted);
         assert!(input.iter().filter(|h| h.hit.is_some()).count() > 1000);
         assert_eq!(input, sorted);
     }
