@@ -115,8 +115,9 @@ pub fn trace_batch(scene: &Scene, rays: &[QueryRay]) -> Vec<QueryHit> {
 pub enum RayOrder {
     /// As given.
     Input,
-    /// Sorted for coherence ([`coherent_order`]) and traced in packets: neighbouring rays in the
-    /// trace start near each other and point alike, so they walk the same nodes together.
+    /// Sorted for coherence ([`coherent_order`]) and traced in packets where the sorted
+    /// neighbours point alike (within ~8°), so they walk the same nodes together; a batch with no
+    /// such coherence to recover (random rays) is traced as given.
     Sorted,
 }
 
