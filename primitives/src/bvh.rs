@@ -73,8 +73,8 @@ pub(crate) const QUAD_STACK: usize = 3 * 128 + 4;
 /// gives a bit per child slot the ray enters before `t_max` and the entry distances. The nearest
 /// entered child is visited next and the others pushed farthest first (among equal entries the
 /// later slot is visited first); one popped after the closest hit moved nearer than its entry
-/// (by more than [`cull_bound`]'s margin) is skipped. `leaf(first, count, t_max)` tests a leaf and returns the new, smaller `t_max` if
-/// it found a hit.
+/// (by more than [`cull_bound`]'s margin) is skipped. `leaf(first, count, t_max)` tests a leaf
+/// and returns the new, smaller `t_max` if it found a hit.
 #[inline(always)]
 pub(crate) fn traverse_quads(quads: &[Quad], t_max: f32, nodes: impl NodeTest, leaf: impl LeafTest) {
     traverse_quads_from(quads, 0, t_max, nodes, leaf);
@@ -169,7 +169,7 @@ pub(crate) fn traverse_quads_from(
                     // entries); the two farthest written whatever their number, the top raised past
                     // those pushed
                     let order = farthest_first(hits, near);
-                    let entered = 3 + usize::from(hits.count_ones() == 4);
+                    let entered = 3 + usize::from(hits == 0b1111);
                     for (k, &slot) in order[..2].iter().enumerate() {
                         stack[top + k].write((q.child[slot], u32::from(q.count[slot]), near[slot]));
                     }
@@ -209,17 +209,21 @@ pub(crate) fn traverse_quads_from(
 }
 
 /// The slots of a node, the entered ones (bits of `entered`) first, sorted farthest first by
-/// their entry `near[slot]` (among equal entries the later slot last, so that it is visited
-/// first); the slots not entered follow in no particular order. A fixed sorting network of five
+/// their entry `near[slot]` (entries within 3 ulps count as equal; among equal entries the later
+/// slot last, so that it is visited first); the slots not entered follow in no particular order.
+/// The order only steers the walk: which hit wins never depends on it. A fixed sorting network of five
 /// min/max exchanges on keys that carry the slot in their two low bits, so no branch depends on
 /// the entries.
 #[inline(always)]
 fn farthest_first(entered: u32, near: [f32; 4]) -> [usize; 4] {
     let mut keys = [0f32; 4];
     for slot in 0..4 {
-        // finite keys (no NaN from the slot bits), the slot's bits below the entry's
+        // finite keys (no NaN from the slot bits), the slot's bits below the entry's: `3 − slot`
+        // raises a positive key more for an earlier slot, `slot` lowers a negative one more for a
+        // later slot
         let bits = near[slot].clamp(-f32::MAX, f32::MAX).to_bits();
-        let key = f32::from_bits((bits & !3) | (3 - slot as u32));
+        let tie = if bits >> 31 == 0 { 3 - slot as u32 } else { slot as u32 };
+        let key = f32::from_bits((bits & !3) | tie);
         keys[slot] = if entered & (1 << slot) != 0 {
             key
         } else {
@@ -232,7 +236,10 @@ fn farthest_first(entered: u32, near: [f32; 4]) -> [usize; 4] {
     let keys = exchange(keys, keys.yxwz(), BVec4A::new(true, false, true, false));
     let keys = exchange(keys, keys.zwxy(), BVec4A::new(true, true, false, false));
     let keys = exchange(keys, keys.xzyw(), BVec4A::new(true, true, false, false));
-    keys.to_array().map(|key| 3 - (key.to_bits() & 3) as usize)
+    keys.to_array().map(|key| {
+        let bits = key.to_bits();
+        (if bits >> 31 == 0 { 3 - (bits & 3) } else { bits & 3 }) as usize
+    })
 }
 
 /// Largest leaf of the scene's hierarchy.
@@ -755,6 +762,45 @@ mod tests {
     use super::*;
     use glam::DVec3;
     use rand::{Rng, SeedableRng};
+
+    /// The sorting network puts the entered slots first, farthest entry first (entries within 3
+    /// ulps, which share a key, in slot order), and among equal entries the earlier slot first,
+    /// for every set of entered slots (entries drawn from a few values, so that ties, near-ties,
+    /// zeros of both signs, negatives and infinities all occur).
+    #[test]
+    fn farthest_first_sorts_the_entered_slots() {
+        let values = [
+            -2.5f32,
+            -0.0,
+            0.0,
+            1e-30,
+            1.0,
+            1.0 + f32::EPSILON,
+            1.5,
+            3.0,
+            f32::INFINITY,
+        ];
+        let close = |a: f32, b: f32| a == b || (a.signum() == b.signum() && a.to_bits().abs_diff(b.to_bits()) <= 3);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        for _ in 0..2000 {
+            let near: [f32; 4] = std::array::from_fn(|_| values[rng.random_range(0..values.len())]);
+            for entered in 1u32..16 {
+                let got = farthest_first(entered, near);
+                let n = entered.count_ones() as usize;
+                let mut slots = got[..n].to_vec();
+                slots.sort_unstable();
+                let want: Vec<usize> = (0..4).filter(|&s| entered & (1 << s) != 0).collect();
+                assert_eq!(slots, want, "the entered slots first: {near:?} {entered:04b}");
+                for pair in got[..n].windows(2) {
+                    let (a, b) = (near[pair[0]], near[pair[1]]);
+                    assert!(a > b || close(a, b), "farthest first: {near:?} {entered:04b} {got:?}");
+                    if a.to_bits() == b.to_bits() {
+                        assert!(pair[0] < pair[1], "ties in slot order: {near:?} {entered:04b} {got:?}");
+                    }
+                }
+            }
+        }
+    }
 
     /// The 4-wide slab test gives exactly the single-box test's answer for each of its boxes.
     #[test]
