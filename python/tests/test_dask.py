@@ -116,11 +116,22 @@ def test_fetch_equals_compute_block_by_block(client, repo):
     for name in aovs:
         assert fetched[name].dtype == np.float32 and fetched[name].shape == single[name].shape
         np.testing.assert_array_equal(fetched[name], single[name], err_msg=name)
+    # a frame's arrays are fetched a whole tile (every AOV) at a time, views a whole view at a time
+    assert zdask._by_render(tiled) is not None
+    views = [dict(eye=[0, 1, -6]), dict(eye=[2, 1, -5])]
+    stack = zdask.render_views(path, views, aovs=aovs, width=48, height=32)
+    assert zdask._by_render(stack) is not None
+    got_views = zdask.fetch(stack, client)
+    for i, v in enumerate(views):
+        ref = zeroset.Scene.load(path).render(aovs=aovs, width=48, height=32, view=v)
+        for name in aovs:
+            np.testing.assert_array_equal(got_views[name][i], ref[name], err_msg=name)
     scene = zeroset.Scene.load(path)
     rng = np.random.default_rng(9)
     origins = rng.uniform(-4, 4, (2500, 3))
     directions = -origins + rng.uniform(-1, 1, (2500, 3))
     lazy = zdask.cast_rays(scene, da.from_array(origins, chunks=(600, 3)), da.from_array(directions, chunks=(600, 3)))
+    assert zdask._by_render(lazy) is None  # ray blocks: fetched block by block
     got = zdask.fetch(lazy)  # the current client
     ref = scene.cast_rays(origins, directions)
     assert ref["hit"].sum() > 500
