@@ -154,9 +154,10 @@ pub fn trace_batch_in(scene: &Scene, rays: &[QueryRay], order: RayOrder) -> Vec<
 }
 
 /// Rays whose directions are all within this cosine of the first ray's (about 8°: twice the
-/// width of [`coherent_order`]'s direction cells) are traced as a packet; a packet of rays spread wider (random rays, sorted: neighbours in the order start
-/// near each other but point anywhere in their octant) would walk the hierarchy lane by lane
-/// anyway, paying the packet's bookkeeping on top, so its rays are traced one by one.
+/// width of [`coherent_order`]'s direction cells) are traced as a packet; a packet of rays spread
+/// wider (random rays, sorted: neighbours in the order start near each other but point anywhere in
+/// their octant) would walk the hierarchy lane by lane anyway, paying the packet's bookkeeping on
+/// top, so its rays are traced one by one.
 const PACKET_COSINE: f64 = 0.99;
 
 /// Whether tracing `rays` in packets of [`PACKET`] along `permutation` pays: at least a quarter
@@ -173,10 +174,7 @@ fn packets_pay(rays: &[QueryRay], permutation: &[u32]) -> bool {
     let coherent_count = (0..sampled)
         .filter(|&s| {
             let first = s * packets / sampled * PACKET;
-            let lanes: Vec<Ray> = permutation[first..first + PACKET]
-                .iter()
-                .map(|&i| rays[i as usize].ray)
-                .collect();
+            let lanes: [Ray; PACKET] = std::array::from_fn(|l| rays[permutation[first + l] as usize].ray);
             coherent(&lanes)
         })
         .count();
@@ -197,9 +195,10 @@ fn coherent(lanes: &[Ray]) -> bool {
 }
 
 /// The first hits of `rays[i]` for the (at most [`PACKET`]) indices `packet`, in `packet`'s
-/// order (the lanes past `packet.len()` are misses): traced together ([`Scene::intersect_packet`]) where they point alike ([`coherent`]),
-/// else one by one ([`trace_one`]). If a root finder ran out of budget while a packet was traced,
-/// its rays are traced again one by one to tell which.
+/// order (the lanes past `packet.len()` are misses): traced together
+/// ([`Scene::intersect_packet`]) where they point alike ([`coherent`]), else one by one
+/// ([`trace_one`]). If a root finder ran out of budget while a packet was traced, its rays are
+/// traced again one by one to tell which.
 fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> [QueryHit; PACKET] {
     let n = packet.len().min(PACKET);
     let mut lanes = [Ray::new(DVec3::ZERO, DVec3::Z); PACKET];
@@ -212,16 +211,14 @@ fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> [QueryHit; 
         hit: None,
         uncertain: false,
     }; PACKET];
-    if !coherent(&lanes[..n]) {
-        for (l, &i) in packet[..n].iter().enumerate() {
-            out[l] = trace_one(scene, &rays[i as usize]);
-        }
-        return out;
-    }
     let exhausted_before = thread_uncertain_events();
     let mut found = [None; PACKET];
-    scene.intersect_packet(&lanes[..n], &ranges[..n], &mut found[..n]);
-    if thread_uncertain_events() == exhausted_before {
+    // together where the rays point alike and no root finder ran out of budget meanwhile
+    let together = coherent(&lanes[..n]) && {
+        scene.intersect_packet(&lanes[..n], &ranges[..n], &mut found[..n]);
+        thread_uncertain_events() == exhausted_before
+    };
+    if together {
         for l in 0..n {
             out[l].hit = found[l].map(|(object, raw)| {
                 let primitive = &*scene.objects[object as usize].primitive;

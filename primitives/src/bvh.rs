@@ -65,6 +65,14 @@ pub(crate) struct Quad {
     pub len: u32,
 }
 
+impl Quad {
+    /// A bit for each slot in use (`0..len`).
+    #[inline(always)]
+    pub(crate) fn occupied(&self) -> u32 {
+        (1u32 << self.len) - 1
+    }
+}
+
 /// Traversal stack capacity: at most 3 entries left per level over at most 128 levels (both
 /// hierarchies split at the median below a fixed depth, which bounds theirs under 128), plus 4.
 pub(crate) const QUAD_STACK: usize = 3 * 128 + 4;
@@ -147,7 +155,7 @@ pub(crate) fn traverse_quads_from(
     'nodes: loop {
         let q = &quads[quad];
         let (hits, near) = nodes.entry4(q, cull_bound(t_max));
-        let hits = hits & ((1u32 << q.len) - 1);
+        let hits = hits & q.occupied();
         let mut next = None;
         if hits != 0 {
             if hits & (hits - 1) == 0 {

@@ -18,8 +18,9 @@
 //!   closed, consistently oriented mesh. Near the surface this is the signed distance; far from a
 //!   mesh that is not closed the sign is only "which side of the nearest face". Φ costs a BVH
 //!   nearest-point query (it is not on the hot path: intersection never evaluates it).
-//! - **Precision.** Storage is f32. Each query converts the f64 ray once to an f32 ray (its direction
-//!   scaled by a power of two, exactly, so that its largest component lies in `[1, 2)`) and precomputes the data of the watertight test of Woop, Benthin and Wald (2013,
+//! - **Precision.** Storage is f32. Each query converts the f64 ray once to an f32 ray (its
+//!   direction scaled by a power of two, exactly, so that its largest component lies in `[1, 2)`)
+//!   and precomputes the data of the watertight test of Woop, Benthin and Wald (2013,
 //!   "Watertight Ray/Triangle Intersection", JCGT 2(1)): the axis `k_z` of the largest direction
 //!   component, the permuted axes and the shear constants. Edge functions that evaluate to exactly
 //!   zero are recomputed in f64, and a ray through a shared edge or vertex hits at least one of
@@ -610,7 +611,7 @@ impl Mesh {
             return false;
         };
         let (entered, _) = query.ray.slab.entry4(root, query.t_min, query.t_max);
-        entered & ((1u32 << root.len) - 1) != 0
+        entered & root.occupied() != 0
     }
 
     /// Whether a hit at f32 `t` on the triangle at leaf position `k` counts: outside the band

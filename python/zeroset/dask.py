@@ -211,6 +211,14 @@ def cast_rays(scene: SceneLike, origins: Any, directions: Any, tmin: float = 0.0
     return out
 
 
+def _windows(a: da.Array) -> Iterable[Tuple[Tuple[int, ...], Tuple[slice, ...]]]:
+    """``(block index, where that block goes in the array)`` for every block of ``a``, in C
+    order."""
+    starts = [np.concatenate([[0], np.cumsum(c)[:-1]]).astype(int) for c in a.chunks]
+    for index in np.ndindex(*a.numblocks):
+        yield index, tuple(slice(starts[k][i], starts[k][i] + a.chunks[k][i]) for k, i in enumerate(index))
+
+
 def fetch(arrays: Dict[str, da.Array], client: Any = None) -> Dict[str, np.ndarray]:
     """Computes dask arrays into numpy arrays in this process, block by block as they finish.
 
@@ -221,19 +229,11 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None) -> Dict[str, np.ndarr
     each block crosses the network once, and the transfers overlap the computation. Arrays made
     by ``render`` or ``render_views`` are fetched a render at a time: each tile's (or view's)
     result, every AOV of it, comes in one piece, and the per-AOV tasks never run (16 futures
-    instead of 64 for a 4×4-tile frame of 4 AOVs). The values are those of ``.compute()``. ``client``: a ``distributed.Client`` (default: the current one);
-    ``False``, or no client at all, computes the blocks with the local scheduler.
+    instead of 64 for a 4×4-tile frame of 4 AOVs). The values are those of ``.compute()``.
+    ``client``: a ``distributed.Client`` (default: the current one); ``False``, or no client at
+    all, computes the blocks with the local scheduler.
     """
     out = {name: np.empty(a.shape, dtype=a.dtype) for name, a in arrays.items()}
-    blocks = []
-    places = []
-    for name, a in arrays.items():
-        starts = [np.concatenate([[0], np.cumsum(c)[:-1]]).astype(int) for c in a.chunks]
-        delayed_blocks = a.to_delayed(optimize_graph=False)  # fused, a tile would run once per AOV
-        for index in np.ndindex(*delayed_blocks.shape):
-            window = tuple(slice(starts[k][i], starts[k][i] + a.chunks[k][i]) for k, i in enumerate(index))
-            blocks.append(delayed_blocks[index])
-            places.append((name, window))
     if client is None:
         try:
             from distributed import default_client
@@ -241,14 +241,10 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None) -> Dict[str, np.ndarr
             client = default_client()
         except (ImportError, ValueError):
             client = False
-    if client is False:
-        for (name, window), block in zip(places, dask.compute(*blocks)):
-            out[name][window] = block
-        return out
-    from distributed import as_completed
-
-    grouped = _by_render(arrays)
+    grouped = None if client is False else _by_render(arrays)
     if grouped is not None:
+        from distributed import as_completed
+
         # the arrays of `render` / `render_views`: fetch each render's whole result (every AOV
         # of a tile) once, rather than one future and one task per tile and AOV
         graph, renders = grouped
@@ -259,6 +255,19 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None) -> Dict[str, np.ndarr
                 out[name][window] = take(frame, aov)
             future.release()
         return out
+    blocks = []
+    places = []
+    for name, a in arrays.items():
+        delayed_blocks = a.to_delayed(optimize_graph=False)  # fused, a tile would run once per AOV
+        for index, window in _windows(a):
+            blocks.append(delayed_blocks[index])
+            places.append((name, window))
+    if client is False:
+        for (name, window), block in zip(places, dask.compute(*blocks)):
+            out[name][window] = block
+        return out
+    from distributed import as_completed
+
     futures = client.compute(blocks)
     where = {f.key: place for f, place in zip(futures, places)}
     for future, block in as_completed(futures, with_results=True):
@@ -278,13 +287,11 @@ def _by_render(arrays: Dict[str, da.Array]) -> Optional[Tuple[Any, Dict[Any, lis
         layer = a.dask.layers.get(a.name)
         if layer is None or not a.name.startswith("zeroset-"):
             return None
-        starts = [np.concatenate([[0], np.cumsum(c)[:-1]]).astype(int) for c in a.chunks]
-        for index in np.ndindex(*a.numblocks):
+        for index, window in _windows(a):
             task = layer.get((a.name,) + index)
             if not (isinstance(task, tuple) and len(task) == 3 and task[0] in (operator.getitem, _view_block)
                     and isinstance(task[1], tuple) and str(task[1][0]).startswith("zeroset-render-")):
                 return None
-            window = tuple(slice(starts[k][i], starts[k][i] + a.chunks[k][i]) for k, i in enumerate(index))
             renders.setdefault(task[1], []).append((name, task[0], task[2], window))
         graph = a.dask if graph is None else HighLevelGraph.merge(graph, a.dask)
     return None if graph is None else (graph, renders)
