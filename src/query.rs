@@ -71,7 +71,7 @@ pub struct QueryRay {
 
 /// What a query answers about a hit: normal and uv (the point comes with every hit); not the
 /// point's error bound, which nothing downstream of a query uses.
-const ANSWER: HitRequest = HitRequest {
+pub const ANSWER: HitRequest = HitRequest {
     normal: true,
     uv: true,
     error: false,
@@ -238,11 +238,19 @@ fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> [QueryHit; 
 #[inline]
 #[must_use]
 pub fn trace_one(scene: &Scene, q: &QueryRay) -> QueryHit {
+    trace_one_for(scene, q, ANSWER)
+}
+
+/// [`trace_one`] with the hit completed as far as `request` asks: a normal or uv not asked for
+/// is left `None` (not computed); everything else is as [`trace_one`] gives it.
+#[inline]
+#[must_use]
+pub fn trace_one_for(scene: &Scene, q: &QueryRay, request: HitRequest) -> QueryHit {
     let exhausted_before = thread_uncertain_events();
     let hit = scene.intersect(&q.ray, q.range).map(|(object, raw)| {
         (
             object,
-            SurfaceHit::complete(&*scene.objects[object as usize].primitive, &q.ray, &raw, ANSWER),
+            SurfaceHit::complete(&*scene.objects[object as usize].primitive, &q.ray, &raw, request),
         )
     });
     QueryHit {

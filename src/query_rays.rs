@@ -23,14 +23,14 @@
 //! ever exist for the chunks in flight (cache-sized), hit records only one at a time, and the
 //! caller writes each answer straight into its own output buffers.
 
-use crate::query::{trace_one, QueryHit, QueryRay};
+use crate::query::{trace_one_for, QueryHit, QueryRay};
 use crate::scene::Scene;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 use zeroset_primitives::offset::{spawn_origin, PointPrecision};
-use zeroset_primitives::{Interval, Ray};
+use zeroset_primitives::{HitRequest, Interval, Ray};
 
 /// Whether the query range includes its start.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -251,7 +251,7 @@ impl<'a> RayColumns<'a> {
 }
 
 /// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, each traced by
-/// [`trace_one`]), handed to `put(out, row, hit)` one ray at a time: `outputs[k]` receives the
+/// [`trace_one_for`] and completed as far as `request` asks), handed to `put(out, row, hit)` one ray at a time: `outputs[k]` receives the
 /// hits of rays `k·COLUMN_CHUNK ..` (up to [`COLUMN_CHUNK`] of them, in ray order, `row` counting
 /// from 0 in each chunk). Chunks run in parallel on rayon's pool, each built, then traced and
 /// handed over ray by ray while in cache (no hit record is kept beyond the ray's own); the hits
@@ -268,6 +268,7 @@ pub fn trace_columns<O: Send>(
     scene: &Scene,
     columns: &RayColumns<'_>,
     setup: &RaySetup,
+    request: HitRequest,
     outputs: Vec<O>,
     put: impl Fn(&mut O, usize, &QueryHit) + Sync,
 ) -> Result<(), (usize, String)> {
@@ -295,7 +296,7 @@ pub fn trace_columns<O: Send>(
             }
             if !failed.load(Ordering::Relaxed) {
                 for (row, ray) in rays.iter().enumerate() {
-                    put(&mut out, row, &trace_one(scene, ray));
+                    put(&mut out, row, &trace_one_for(scene, ray, request));
                 }
             }
         },
@@ -312,7 +313,7 @@ pub fn trace_columns<O: Send>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::query::trace_batch;
+    use crate::query::{trace_batch, ANSWER};
 
     /// Rays built from columns equal the rays (or the errors) `ray_from_fields` makes of the same
     /// numbers on one line, under both range conventions, good rays and bad ones alike (the two
@@ -488,11 +489,18 @@ mod tests {
         let expected = trace_batch(&scene, &rays);
         let chunks = columns.len().div_ceil(COLUMN_CHUNK);
         let slots: Vec<Mutex<Vec<QueryHit>>> = (0..chunks).map(|_| Mutex::new(Vec::new())).collect();
-        trace_columns(&scene, &columns, &setup, slots.iter().collect(), |slot, row, hit| {
-            let mut slot = slot.lock().unwrap();
-            assert_eq!(row, slot.len(), "rows handed over in order");
-            slot.push(*hit);
-        })
+        trace_columns(
+            &scene,
+            &columns,
+            &setup,
+            ANSWER,
+            slots.iter().collect(),
+            |slot, row, hit| {
+                let mut slot = slot.lock().unwrap();
+                assert_eq!(row, slot.len(), "rows handed over in order");
+                slot.push(*hit);
+            },
+        )
         .unwrap();
         let got: Vec<QueryHit> = slots.into_iter().flat_map(|s| s.into_inner().unwrap()).collect();
         let hits = got.iter().filter(|h| h.hit.is_some()).count();
@@ -509,7 +517,7 @@ mod tests {
         let columns = RayColumns::new(&origins, &directions, &[0.0], &tmax, None).unwrap();
         let setup = RaySetup::default();
         let traced = std::sync::atomic::AtomicUsize::new(0);
-        let error = trace_columns(&scene, &columns, &setup, vec![(); 3], |(), _, _| {
+        let error = trace_columns(&scene, &columns, &setup, ANSWER, vec![(); 3], |(), _, _| {
             traced.fetch_add(1, Ordering::Relaxed);
         })
         .unwrap_err();

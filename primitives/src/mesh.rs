@@ -106,11 +106,14 @@ struct MeshRay {
 }
 
 impl MeshRay {
-    /// `dir` must be finite, its largest component of magnitude in `[2⁻⁵³, 8)` ([`direction_scale`]).
+    /// The ray of `origin` and `dir` (`dir` finite, its largest component of magnitude in
+    /// `[2⁻⁵³, 8)`, see [`direction_scale`]) whose slab test `slab` is already made (the root is
+    /// tested before the rest is set up, see [`Mesh::entry`]).
     ///
     /// Written without branches on the direction (selects and array reads rather than
     /// `Vec3A::max_position` and indexing, which branch): random rays would mispredict them.
-    fn new(origin: Vec3A, dir: Vec3A) -> Self {
+    #[inline(always)]
+    fn with_slab(slab: SlabRay, origin: Vec3A, dir: Vec3A) -> Self {
         let d = dir.to_array();
         let a = dir.abs().to_array();
         // the axis of the largest |component|, the first among equals
@@ -122,7 +125,7 @@ impl MeshRay {
         let kx = if negative { after } else { next };
         let ky = if negative { next } else { after };
         Self {
-            slab: SlabRay::new(origin, dir),
+            slab,
             origin: origin.to_array(),
             k: [kx, ky, kz],
             shear: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
@@ -568,6 +571,31 @@ struct MeshQuery {
     band: std::cell::OnceCell<f32>,
 }
 
+/// The part of a [`MeshQuery`] made before the root test ([`Mesh::entry`]): the f32 ray (origin
+/// and scaled direction), its slab test, the scale and the range in the f32 ray's `t`.
+struct MeshEntry {
+    slab: SlabRay,
+    origin: Vec3A,
+    dir: Vec3A,
+    scale: f64,
+    t_min: f32,
+    t_max: f32,
+}
+
+impl MeshEntry {
+    /// The whole set-up: the watertight test's axes and shear added.
+    #[inline(always)]
+    fn query(self) -> MeshQuery {
+        MeshQuery {
+            ray: MeshRay::with_slab(self.slab, self.origin, self.dir),
+            scale: self.scale,
+            t_min: self.t_min,
+            t_max: self.t_max,
+            band: std::cell::OnceCell::new(),
+        }
+    }
+}
+
 /// The closest candidate so far: leaf position, f32 `t` along the scaled direction, barycentrics.
 type Candidate = (usize, f32, f32, f32);
 
@@ -587,30 +615,38 @@ impl Mesh {
     /// NaN direction, a non-finite origin, an empty range).
     #[inline(always)]
     fn query(&self, ray: &Ray, range: Interval) -> Option<MeshQuery> {
+        Some(self.entry(ray, range)?.query())
+    }
+
+    /// The first half of [`Mesh::query`]: the f32 ray and its slab test, all that the root test
+    /// needs, so that a ray passing the mesh by (most of a random batch) costs this, the test of
+    /// the root ([`Mesh::enters_root`]) and nothing more.
+    #[inline(always)]
+    fn entry(&self, ray: &Ray, range: Interval) -> Option<MeshEntry> {
         let largest = ray.dir.abs().max_element();
         if !(largest > 0.0 && largest.is_finite() && ray.origin.is_finite()) || range.is_empty() {
             return None;
         }
         let (scale, unscale) = direction_scale(largest);
-        let dir = (ray.dir * scale).as_vec3a();
-        Some(MeshQuery {
-            ray: MeshRay::new(ray.origin.as_vec3a(), dir),
+        let (origin, dir) = (ray.origin.as_vec3a(), (ray.dir * scale).as_vec3a());
+        Some(MeshEntry {
+            slab: SlabRay::new(origin, dir),
+            origin,
+            dir,
             scale,
             t_min: round_down(range.min * unscale).clamp(0.0, f32::MAX),
             t_max: round_up(range.max * unscale),
-            band: std::cell::OnceCell::new(),
         })
     }
 
-    /// Whether the ray of `query` enters the hierarchy's root box at all: the first slab test
-    /// of the walk, done before the walk is chosen, so that a ray passing the mesh by (most of a
-    /// random batch) costs the set-up and this test alone.
+    /// Whether the ray of `entry` enters the hierarchy's root box at all: the first slab test of
+    /// the walk, done before the rest of the set-up and the choice of walk.
     #[inline(always)]
-    fn enters_root(&self, query: &MeshQuery) -> bool {
+    fn enters_root(&self, entry: &MeshEntry) -> bool {
         let Some(root) = self.bvh.quads().first() else {
             return false;
         };
-        let (entered, _) = query.ray.slab.entry4(root, query.t_min, query.t_max);
+        let (entered, _) = entry.slab.entry4(root, entry.t_min, entry.t_max);
         entered & root.occupied() != 0
     }
 
@@ -709,10 +745,11 @@ impl Intersect for Mesh {
         // the whole test inlined into the AVX2+FMA copy where the CPU has them
         #[inline(always)]
         fn test(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
-            let query = mesh.query(ray, range)?;
-            if !mesh.enters_root(&query) {
+            let entry = mesh.entry(ray, range)?;
+            if !mesh.enters_root(&entry) {
                 return None;
             }
+            let query = entry.query();
             let best = match query.ray.k {
                 [1, 2, 0] => mesh.closest_candidate::<1, 2, 0>(ray, range, &query),
                 [2, 1, 0] => mesh.closest_candidate::<2, 1, 0>(ray, range, &query),

@@ -15,6 +15,7 @@
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use zeroset::primitives::HitRequest;
 use zeroset::query::QueryHit;
 use zeroset::query_rays::COLUMN_CHUNK;
 
@@ -118,6 +119,16 @@ impl<'py> HitArrays<'py> {
         })
     }
 
+    /// What the hits must be completed with: a normal only if `normal` was requested, uv only
+    /// if `uv` was (the point and `t` come with every hit).
+    pub fn request(&self) -> HitRequest {
+        HitRequest {
+            normal: self.normal.is_some(),
+            uv: self.uv.is_some(),
+            error: false,
+        }
+    }
+
     /// The arrays split into one [`HitChunk`] per chunk of `n` rays.
     ///
     /// # Errors
@@ -188,7 +199,11 @@ impl HitChunk<'_> {
         if let Some(out) = self.hit.as_deref_mut() {
             out[row] = hit.is_some();
         }
-        put_row(self.point.as_deref_mut(), row, hit.map_or([0.0; 3], |(_, h)| h.point.to_array()));
+        put_row(
+            self.point.as_deref_mut(),
+            row,
+            hit.map_or([0.0; 3], |(_, h)| h.point.to_array()),
+        );
         put_row(
             self.normal.as_deref_mut(),
             row,

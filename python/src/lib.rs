@@ -448,6 +448,7 @@ impl PyScene {
         let columns = Columns::new(&origins, &directions, &tmin, &tmax, normals.as_ref())?;
         let view = columns.view()?;
         let arrays = HitArrays::new(py, view.len(), outputs.as_deref())?;
+        let request = arrays.request();
         let chunks = arrays.chunks(view.len())?;
         self.with(py, |state| {
             let scene = state.built();
@@ -457,7 +458,7 @@ impl PyScene {
                 0.0
             };
             let setup = ray_setup(closed, precision, magnitude);
-            trace_columns(scene, &view, &setup, chunks, HitChunk::put)
+            trace_columns(scene, &view, &setup, request, chunks, HitChunk::put)
         })
         .map_err(bad_ray)?;
         arrays.into_dict(py)

@@ -342,6 +342,11 @@ def test_cast_rays_outputs_asked_for_only():
     assert sorted(some) == ["normal", "t"]
     np.testing.assert_array_equal(some["t"], full["t"])
     np.testing.assert_array_equal(some["normal"], full["normal"])
+    # without a normal (not computed then) and without uv: the rest unchanged
+    for names in (["uv", "point", "primitive_id"], ["t", "hit", "object_id"]):
+        some = scene.cast_rays(origins, directions, outputs=names)
+        for name in names:
+            np.testing.assert_array_equal(some[name], full[name], err_msg=name)
     assert scene.cast_rays(origins[:5], directions[:5], outputs=[]) == {}
     with pytest.raises(zeroset.ZerosetError, match="outputs: unknown field `depth`"):
         scene.cast_rays(origins, directions, outputs=["t", "depth"])

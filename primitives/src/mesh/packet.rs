@@ -295,6 +295,7 @@ impl PacketQuery<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::build::SlabRay;
     use crate::mesh::Mesh;
     use glam::DVec3;
     use rand::{Rng, SeedableRng};
@@ -406,7 +407,8 @@ mod tests {
             );
             let ray = Ray::new(aim - 3.0 * dir, dir);
             let unit = (ray.dir / ray.dir.length()).as_vec3a();
-            let k = super::super::MeshRay::new(ray.origin.as_vec3a(), unit).k;
+            let (origin, unit) = (ray.origin.as_vec3a(), unit);
+            let k = super::super::MeshRay::with_slab(SlabRay::new(origin, unit), origin, unit).k;
             let single = mesh.intersect(&ray, Interval::POSITIVE);
             let brute = mesh.intersect_brute_force(&ray);
             assert_eq!(single.map(|h| h.feature), brute.map(|b| b.0), "{ray:?}");
