@@ -251,11 +251,13 @@ impl<'a> RayColumns<'a> {
 }
 
 /// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, each traced by
-/// [`trace_one_for`] and completed as far as `request` asks), handed to `put(out, row, hit)` one ray at a time: `outputs[k]` receives the
-/// hits of rays `k·COLUMN_CHUNK ..` (up to [`COLUMN_CHUNK`] of them, in ray order, `row` counting
-/// from 0 in each chunk). Chunks run in parallel on rayon's pool, each built, then traced and
-/// handed over ray by ray while in cache (no hit record is kept beyond the ray's own); the hits
-/// equal [`crate::query::trace_batch`] on all the rays at once (every ray is traced on its own).
+/// [`trace_one_for`] and completed as far as `request` asks), handed to `put(out, row, hit)` one
+/// ray at a time: `outputs[k]` receives the hits of rays `k·COLUMN_CHUNK ..` (up to
+/// [`COLUMN_CHUNK`] of them, in ray order, `row` counting from 0 in each chunk). Chunks run in
+/// parallel on rayon's pool, each built, then traced and handed over ray by ray while in cache
+/// (no hit record is kept beyond the ray's own); with the full request ([`crate::query::ANSWER`])
+/// the hits equal [`crate::query::trace_batch`] on all the rays at once (every ray is traced on
+/// its own).
 ///
 /// # Errors
 /// The first bad ray by index, `(index, what is wrong)`; every ray is still checked (so the
