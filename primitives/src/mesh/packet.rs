@@ -116,7 +116,7 @@ fn trace(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<
         queries: &queries,
         rays,
         ranges,
-        packet,
+        packet: &packet,
         best: [None; PACKET],
     };
     walk_packet(mesh.bvh.quads(), active, t_min, &mut t_max, ALONE_LANES, &mut walk);
@@ -138,7 +138,7 @@ struct PacketQuery<'a> {
     queries: &'a [Option<MeshQuery>; PACKET],
     rays: &'a [Ray],
     ranges: &'a [Interval],
-    packet: Packet,
+    packet: &'a Packet,
     best: [Option<Candidate>; PACKET],
 }
 
@@ -146,7 +146,7 @@ impl PacketVisitor for PacketQuery<'_> {
     /// The single-ray slab test (`SlabRay::entry4`), lane by lane.
     #[inline(always)]
     fn entry(&self, quad: &Quad, slot: usize, t1: &Lanes) -> (u32, Lanes) {
-        let packet = &self.packet;
+        let packet = self.packet;
         let mut near = [0.0; PACKET];
         let mut inside = [0i32; PACKET];
         for l in 0..PACKET {
@@ -232,7 +232,7 @@ impl PacketQuery<'_> {
     #[inline(always)]
     fn leaf_packet(&mut self, first: u32, count: u32, lanes: u32, t_max: &mut Lanes) {
         let mesh = self.mesh;
-        let packet = &self.packet;
+        let packet = self.packet;
         let [kx, ky, kz] = packet.k;
         for k in first as usize..(first + count) as usize {
             let [a, b, c] = mesh.corners(k);
