@@ -2,7 +2,7 @@
 //! shares: the 4-wide node ([`Quad`]) and its ordered closest-hit walk ([`traverse_quads`]).
 //! One builder (`build`: parallel binned SAH, written straight into 4-wide nodes) makes both the
 //! scene's hierarchy (leaves of at most two objects) and each mesh's (leaves of at most six
-//! triangles).
+//! triangles); a mesh's quads are also collapsed into 8-wide nodes for its single rays ([`oct`]).
 //!
 //! Traversal of the scene's hierarchy: quads hold their children's f32 bounds (rounded outward
 //! from the objects' f64 bounds) in SoA layout, tested four at a time with SSE, conservative
@@ -11,6 +11,7 @@
 //! Primitives are then tested in f64, so the f32 traversal never changes a hit.
 
 pub(crate) mod build;
+pub(crate) mod oct;
 mod quad_array;
 
 use crate::PACKET;

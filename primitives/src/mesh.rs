@@ -35,8 +35,10 @@
 //! # Storage
 //! Vertices `12 B` each (plus `12 B` with normals), triangles `12 B` (index triple, kept in BVH
 //! leaf order) plus `8 B` (leaf ↔ file order maps), 4-wide BVH nodes `128 B` each, about
-//! `0.28 N` of them for `N` triangles on the benchmark meshes (see [`Mesh::memory_bytes`]). The
-//! BVH is described in `bvh/build.rs`.
+//! `0.28 N` of them for `N` triangles on the benchmark meshes, which packets walk, and the same
+//! hierarchy collapsed into 8-wide nodes of `256 B`, about half as many, which single rays walk
+//! (see [`Mesh::memory_bytes`]). The BVH is described in `bvh/build.rs`, the 8-wide nodes in
+//! `bvh/oct.rs`.
 //!
 //! One mesh can be placed many times without copying: wrap an `Arc<Mesh>` in
 //! [`crate::Transformed`] per instance; the scene BVH holds the instances, each instance's mesh
@@ -44,6 +46,7 @@
 
 use crate::bounds::Aabb;
 use crate::bvh::build::{Bb, BuildItem, Node, QuadBvh, SlabRay};
+use crate::bvh::oct::Octs;
 use crate::bvh::{round_down, round_up, LeafTest};
 use crate::error::PrimitiveError;
 use crate::hit::RawHit;
@@ -67,7 +70,11 @@ pub struct Mesh {
     leaf_to_file: Vec<u32>,
     file_to_leaf: Vec<u32>,
     in_bvh: usize,
+    /// The 4-wide hierarchy: packets of rays and nearest-point queries walk it.
     bvh: QuadBvh,
+    /// The same hierarchy collapsed into 8-wide nodes: single rays walk it (fewer levels to wait
+    /// on memory for, see `bvh/oct.rs`).
+    octs: Octs,
     bounds: Aabb,
     center: DVec3,
     radius: f64,
@@ -363,6 +370,7 @@ impl Mesh {
             leaf_to_file,
             file_to_leaf,
             in_bvh,
+            octs: Octs::collapse(bvh.quads(), bvh.quad_count()),
             bvh,
             bounds,
         })
@@ -424,6 +432,7 @@ impl Mesh {
             + self.tris.capacity() * 12
             + (self.leaf_to_file.capacity() + self.file_to_leaf.capacity()) * 4
             + self.bvh.memory_bytes()
+            + self.octs.memory_bytes()
     }
 
     /// Number of 4-wide BVH nodes.
@@ -639,15 +648,13 @@ impl Mesh {
         })
     }
 
-    /// Whether the ray of `entry` enters the hierarchy's root box at all: the first slab test of
-    /// the walk, done before the rest of the set-up and the choice of walk.
+    /// The slab test of the ray of `entry` against the root's children (the 8-wide walk's first
+    /// step, see [`Octs::root_entry`]), or `None` if it enters none: made before the rest of the
+    /// set-up and the choice of walk, which a ray passing the mesh by never needs.
     #[inline(always)]
-    fn enters_root(&self, entry: &MeshEntry) -> bool {
-        let Some(root) = self.bvh.quads().first() else {
-            return false;
-        };
-        let (entered, _) = entry.slab.entry4(root, entry.t_min, entry.t_max);
-        entered & root.occupied() != 0
+    fn enters_root(&self, entry: &MeshEntry) -> Option<(u32, [f32; 8])> {
+        let root = self.octs.root_entry(&entry.slab, entry.t_min, entry.t_max)?;
+        (root.0 != 0).then_some(root)
     }
 
     /// Whether a hit at f32 `t` on the triangle at leaf position `k` counts: outside the band
@@ -689,13 +696,15 @@ impl Mesh {
 }
 
 impl Mesh {
-    /// The single-ray walk of `query` (whose axes are `[KX, KY, KZ]`): the closest candidate.
+    /// The single-ray walk of `query` (whose axes are `[KX, KY, KZ]`), the root's slab test
+    /// `root` made ([`Mesh::enters_root`]): the closest candidate.
     #[inline(always)]
     fn closest_candidate<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
         ray: &Ray,
         range: Interval,
         query: &MeshQuery,
+        root: (u32, [f32; 8]),
     ) -> Option<Candidate> {
         let mut leaves = SingleRayLeaves::<KX, KY, KZ> {
             mesh: self,
@@ -704,8 +713,8 @@ impl Mesh {
             query,
             best: None,
         };
-        self.bvh
-            .traverse(&query.ray.slab, query.t_min, query.t_max, &mut leaves);
+        self.octs
+            .traverse(&query.ray.slab, query.t_min, query.t_max, root, &mut leaves);
         leaves.best
     }
 }
@@ -746,17 +755,15 @@ impl Intersect for Mesh {
         #[inline(always)]
         fn test(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
             let entry = mesh.entry(ray, range)?;
-            if !mesh.enters_root(&entry) {
-                return None;
-            }
+            let root = mesh.enters_root(&entry)?;
             let query = entry.query();
             let best = match query.ray.k {
-                [1, 2, 0] => mesh.closest_candidate::<1, 2, 0>(ray, range, &query),
-                [2, 1, 0] => mesh.closest_candidate::<2, 1, 0>(ray, range, &query),
-                [2, 0, 1] => mesh.closest_candidate::<2, 0, 1>(ray, range, &query),
-                [0, 2, 1] => mesh.closest_candidate::<0, 2, 1>(ray, range, &query),
-                [0, 1, 2] => mesh.closest_candidate::<0, 1, 2>(ray, range, &query),
-                _ => mesh.closest_candidate::<1, 0, 2>(ray, range, &query),
+                [1, 2, 0] => mesh.closest_candidate::<1, 2, 0>(ray, range, &query, root),
+                [2, 1, 0] => mesh.closest_candidate::<2, 1, 0>(ray, range, &query, root),
+                [2, 0, 1] => mesh.closest_candidate::<2, 0, 1>(ray, range, &query, root),
+                [0, 2, 1] => mesh.closest_candidate::<0, 2, 1>(ray, range, &query, root),
+                [0, 1, 2] => mesh.closest_candidate::<0, 1, 2>(ray, range, &query, root),
+                _ => mesh.closest_candidate::<1, 0, 2>(ray, range, &query, root),
             };
             mesh.finish(ray, range, &query, best)
         }

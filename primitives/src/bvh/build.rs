@@ -27,10 +27,12 @@
 //! with exits enlarged by `1 + 2γ₃` as in Woop, Benthin and Wald (2013), so that the box test
 //! never rejects a ray the watertight triangle test would hit. The nearer child is visited
 //! first; the farther one is pushed with its entry distance and skipped when popped if the
-//! closest hit found meanwhile is nearer.
+//! closest hit found meanwhile is nearer. A mesh's single rays walk its quads collapsed into
+//! 8-wide nodes ([`super::oct`], [`SlabRay::entry8`]); packets walk the quads.
 
+use super::oct::Oct;
 use super::quad_array::QuadArray;
-use super::{traverse_quads, LeafTest, NodeTest, Quad, SlabsFrom};
+use super::{max_f32, min_f32, NodeTest, Quad, SlabsFrom};
 use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
@@ -310,15 +312,6 @@ impl QuadBvh {
         self.used * std::mem::size_of::<Quad>() + std::mem::size_of::<Node>()
     }
 
-    /// Closest-hit traversal over the 4-wide nodes: `leaf(first, count, t_max)` tests a leaf's
-    /// triangles and returns the new, smaller `t_max` if it found a hit. `t_min`/`t_max` bound
-    /// the search. The children a node's ray enters are pushed farthest first, so the nearest is
-    /// visited next; an entry popped after the closest hit moved nearer than it is skipped.
-    #[inline(always)]
-    pub(crate) fn traverse(&self, ray: &SlabRay, t_min: f32, t_max: f32, leaf: impl LeafTest) {
-        traverse_quads(&self.quads, t_max, SlabsFrom { ray, t_min }, leaf);
-    }
-
     /// Depth-first visit for nearest-point queries: `lower_bound(node)` gives a lower bound
     /// of the distance to anything in `node`'s box (or `None` to prune it), `leaf(first,
     /// count)` visits a leaf's items. The root's box is asked first; a quad's children are
@@ -405,6 +398,28 @@ impl SlabRay {
         }
         let far = (far * EXIT_PAD).min(Vec4::splat(t1));
         (near.cmple(far).bitmask(), near.to_array())
+    }
+
+    /// [`SlabRay::entry4`] for the eight boxes of `oct` (the same operations on each box), one
+    /// loop over the slots that the compiler turns into 8-wide AVX in the AVX2 copy.
+    #[inline(always)]
+    pub(crate) fn entry8(&self, oct: &Oct, t0: f32, t1: f32) -> (u32, [f32; 8]) {
+        let mut near = [t0; 8];
+        let mut inside = [0i32; 8];
+        for s in 0..8 {
+            let mut n = t0;
+            let mut f = f32::INFINITY;
+            for axis in 0..3 {
+                let a = (oct.lo[axis][s] - self.origin[axis]) * self.inv[axis];
+                let b = (oct.hi[axis][s] - self.origin[axis]) * self.inv[axis];
+                n = max_f32(n, min_f32(a, b));
+                f = min_f32(f, max_f32(a, b));
+            }
+            let f = min_f32(f * EXIT_PAD, t1);
+            near[s] = n;
+            inside[s] = -i32::from(n <= f);
+        }
+        (super::lane_mask(&inside), near)
     }
 }
 

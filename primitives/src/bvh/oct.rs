@@ -1,0 +1,440 @@
+//! 8-wide nodes for the single-ray walk over a mesh: the 4-wide hierarchy ([`Quad`]s, from the
+//! one builder) collapsed so that each node holds up to eight child boxes.
+//!
+//! Why. A ray walking a mesh's quads waits at every node for the next one: on a cache-resident
+//! mesh for the slab test and the choice of child, on a mesh many times the cache for memory too
+//! (a ray entering the box of a 1.3-million-triangle mesh visits about 11 quads, about 155 ns
+//! each). Eight children a node take fewer levels: camera rays on the level-4 bench mesh visit 3.8
+//! octs where they visited 5.0 quads. The eight slab tests are one loop that the AVX2 copy of the
+//! walk ([`crate::with_fma!`]) computes 8 wide, so an oct costs about what a quad did there. (A
+//! first version tested the eight boxes as two explicit SSE halves: slower than the quads.)
+//!
+//! Same hits. The boxes are the quads' own child boxes moved up a level and the leaves are the
+//! quads' leaves (the same items, the same leaf order), so the walk meets the same candidates and
+//! keeps the same closest hit, the smallest `(t, leaf position)`, whatever the order of visits
+//! (see [`super::cull_bound`]).
+//!
+//! Collapse. Each oct starts from a quad's slots; while there is room, the inner slot of largest
+//! surface area whose quad's slots fit in the room left is replaced by those slots (the greedy rule
+//! that made the quads from the binary SAH splits). Octs are laid out depth first from the root
+//! `octs[0]`.
+//!
+//! Traversal ([`Octs::traverse`]): as [`super::traverse_quads`]; the entered children are ordered
+//! farthest first by insertion (one or two entered children, the common case, take no loop), and
+//! the entered inner children's nodes are requested from memory as soon as they are known.
+
+use super::build::SlabRay;
+use super::{cull_bound, LeafTest, Quad, QUAD_STACK};
+use std::mem::MaybeUninit;
+
+/// An 8-wide node: up to eight children's f32 boxes in SoA layout (`SlabRay::entry8` tests all
+/// eight in one pass). `count[i] = 0` marks an inner child (its oct is `child[i]`), `count[i] > 0` a leaf of
+/// that many items from `child[i]`; slots beyond `len` are empty. 256 bytes: four cache lines.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+pub(crate) struct Oct {
+    pub lo: [[f32; 8]; 3],
+    pub hi: [[f32; 8]; 3],
+    pub child: [u32; 8],
+    pub count: [u16; 8],
+    pub len: u32,
+}
+
+impl Oct {
+    /// A bit for each slot in use (`0..len`).
+    #[inline(always)]
+    pub(crate) fn occupied(&self) -> u32 {
+        (1u32 << self.len) - 1
+    }
+}
+
+/// Traversal stack capacity: at most 7 entries left per level over at most as many levels as the
+/// quads have (each oct level spans at least one quad level), plus 8.
+const OCT_STACK: usize = 7 * (QUAD_STACK / 3) + 8;
+
+/// The octs of one hierarchy, root first (empty for an empty hierarchy).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Octs {
+    nodes: Vec<Oct>,
+}
+
+/// One child slot while a node is gathered: its box, and `(child, count)` as in a node.
+#[derive(Clone, Copy)]
+struct Slot {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    child: u32,
+    count: u16,
+}
+
+impl Slot {
+    /// Slot `s` of `quad`.
+    fn of(quad: &Quad, s: usize) -> Self {
+        Self {
+            lo: [quad.lo[0][s], quad.lo[1][s], quad.lo[2][s]],
+            hi: [quad.hi[0][s], quad.hi[1][s], quad.hi[2][s]],
+            child: quad.child[s],
+            count: quad.count[s],
+        }
+    }
+
+    /// Half the surface area of its box (in f64: the comparison only steers the collapse).
+    fn half_area(&self) -> f64 {
+        let d: [f64; 3] = std::array::from_fn(|a| f64::from(self.hi[a]) - f64::from(self.lo[a]));
+        d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+    }
+}
+
+impl Octs {
+    /// The octs of the 4-wide hierarchy `quads` (root `quads[0]`, `used` of them in use; see the
+    /// module docs). Room for `used` octs is reserved up front (there are never more octs than
+    /// quads), so the nodes are written once, never moved; the part of that room left unused is
+    /// address space the process never touches, not memory ([`Octs::memory_bytes`] counts the
+    /// octs written).
+    pub(crate) fn collapse(quads: &[Quad], used: usize) -> Self {
+        let mut nodes = Vec::with_capacity(used.max(1));
+        if !quads.is_empty() {
+            emit(quads, 0, &mut nodes);
+        }
+        Self { nodes }
+    }
+
+    /// The nodes, root first.
+    #[inline(always)]
+    pub(crate) fn nodes(&self) -> &[Oct] {
+        &self.nodes
+    }
+
+    /// Bytes of the octs written (the reserved room beyond them is never touched, see
+    /// [`Octs::collapse`]).
+    pub(crate) fn memory_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Oct>()
+    }
+
+    /// The root's slab test (`None` for an empty hierarchy): the entered slots and their entry
+    /// distances, as the walk's first step makes it (culling at [`cull_bound`]`(t_max)`), so a
+    /// caller can test the root first and hand the result to [`Octs::traverse`].
+    #[inline(always)]
+    pub(crate) fn root_entry(&self, ray: &SlabRay, t_min: f32, t_max: f32) -> Option<(u32, [f32; 8])> {
+        let root = self.nodes.first()?;
+        let (entered, near) = ray.entry8(root, t_min, cull_bound(t_max));
+        Some((entered & root.occupied(), near))
+    }
+
+    /// Ordered closest-hit walk from the root, whose slab test `root` ([`Octs::root_entry`] of
+    /// the same ray and range) is already made: the nearest entered child is visited next and
+    /// the others pushed farthest first; one popped after the closest hit moved nearer than its
+    /// entry (by more than [`cull_bound`]'s margin) is skipped. `leaf(first, count, t_max)` tests
+    /// a leaf and returns the new, smaller `t_max` if it found a hit.
+    #[inline(always)]
+    pub(crate) fn traverse(
+        &self,
+        ray: &SlabRay,
+        t_min: f32,
+        mut t_max: f32,
+        root: (u32, [f32; 8]),
+        mut leaf: impl LeafTest,
+    ) {
+        let octs = self.nodes();
+        // uninitialised: only entries below `top`, written before, are ever read
+        let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; OCT_STACK];
+        let mut top = 0usize;
+        let mut node = 0usize;
+        let mut tested = Some(root);
+        'nodes: loop {
+            let o = &octs[node];
+            let (hits, near) = match tested.take() {
+                Some(root) => root,
+                None => {
+                    let (entered, near) = ray.entry8(o, t_min, cull_bound(t_max));
+                    (entered & o.occupied(), near)
+                }
+            };
+            prefetch_children(octs, o, hits);
+            let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
+            let mut next = None;
+            if hits != 0 {
+                let first = hits.trailing_zeros() as usize;
+                let rest = hits & (hits - 1);
+                if rest == 0 {
+                    next = Some(slot(first));
+                } else if rest & (rest - 1) == 0 {
+                    // two: the farther pushed, the nearer next (the later slot among equals)
+                    let second = rest.trailing_zeros() as usize;
+                    let second_nearer = near[second] <= near[first];
+                    let (nearer, farther) = if second_nearer {
+                        (second, first)
+                    } else {
+                        (first, second)
+                    };
+                    stack[top].write(slot(farther));
+                    top += 1;
+                    next = Some(slot(nearer));
+                } else {
+                    // three to eight: sorted farthest first by insertion (among equal entries the
+                    // later slot after the earlier, so visited first), all but the nearest pushed
+                    let mut order = [0usize; 8];
+                    let mut entered = 0;
+                    let mut slots = hits;
+                    while slots != 0 {
+                        let s = slots.trailing_zeros() as usize;
+                        slots &= slots - 1;
+                        let mut i = entered;
+                        while i > 0 && near[order[i - 1]] < near[s] {
+                            order[i] = order[i - 1];
+                            i -= 1;
+                        }
+                        order[i] = s;
+                        entered += 1;
+                    }
+                    for &s in &order[..entered - 1] {
+                        stack[top].write(slot(s));
+                        top += 1;
+                    }
+                    next = Some(slot(order[entered - 1]));
+                }
+            }
+            // visit `next`, else pop, until an inner node to open
+            loop {
+                let (child, count, entry) = match next.take() {
+                    Some(entry) => entry,
+                    None => {
+                        if top == 0 {
+                            return;
+                        }
+                        top -= 1;
+                        // SAFETY: `stack[top]` was written by the push that raised `top` above it
+                        unsafe { stack[top].assume_init() }
+                    }
+                };
+                if entry > cull_bound(t_max) {
+                    continue;
+                }
+                if count == 0 {
+                    node = child as usize;
+                    continue 'nodes;
+                }
+                if let Some(t) = leaf.test(child, count, t_max) {
+                    t_max = t;
+                }
+            }
+        }
+    }
+}
+
+/// Writes the oct for `quads[q]` and, depth first after it, those of its inner children; returns
+/// its index.
+fn emit(quads: &[Quad], q: usize, nodes: &mut Vec<Oct>) -> u32 {
+    let quad = &quads[q];
+    let mut slots = [Slot::of(quad, 0); 8];
+    let mut len = quad.len as usize;
+    for (s, slot) in slots.iter_mut().enumerate().take(len).skip(1) {
+        *slot = Slot::of(quad, s);
+    }
+    // open the largest inner slot whose quad fits in the room left, while any does
+    loop {
+        let open = (0..len)
+            .filter(|&s| slots[s].count == 0 && len - 1 + quads[slots[s].child as usize].len as usize <= 8)
+            .max_by(|&a, &b| slots[a].half_area().total_cmp(&slots[b].half_area()));
+        let Some(s) = open else { break };
+        let inner = &quads[slots[s].child as usize];
+        slots[s] = Slot::of(inner, 0);
+        for k in 1..inner.len as usize {
+            slots[len] = Slot::of(inner, k);
+            len += 1;
+        }
+    }
+    let index = nodes.len();
+    nodes.push(Oct::default());
+    let mut oct = Oct {
+        len: len as u32,
+        ..Oct::default()
+    };
+    for (i, slot) in slots[..len].iter().enumerate() {
+        for axis in 0..3 {
+            oct.lo[axis][i] = slot.lo[axis];
+            oct.hi[axis][i] = slot.hi[axis];
+        }
+        oct.count[i] = slot.count;
+        oct.child[i] = if slot.count == 0 {
+            emit(quads, slot.child as usize, nodes)
+        } else {
+            slot.child
+        };
+    }
+    nodes[index] = oct;
+    index as u32
+}
+
+/// Asks the cache for the nodes of the entered inner children of `o` (bits of `entered`), all
+/// four lines of each, as soon as they are known: the walk visits one next and pushes the
+/// others, and in a hierarchy larger than the cache each visit would otherwise wait on memory
+/// in turn. A leaf slot asks for its own node again (no branch on the slot's kind).
+#[inline(always)]
+fn prefetch_children(octs: &[Oct], o: &Oct, entered: u32) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let mut slots = entered;
+        while slots != 0 {
+            let slot = slots.trailing_zeros() as usize;
+            slots &= slots - 1;
+            let target: *const Oct = if o.count[slot] == 0 {
+                octs.as_ptr().wrapping_add(o.child[slot] as usize)
+            } else {
+                o
+            };
+            let bytes = target.cast::<i8>();
+            for line in 0..4 {
+                // SAFETY: a prefetch never faults, whatever the address
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(bytes.wrapping_add(64 * line)) };
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (octs, o, entered);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::build::{Bb, BuildItem, QuadBvh};
+    use glam::Vec3A;
+    use rand::{Rng, SeedableRng};
+
+    /// The quads over `count` random boxes (leaves of at most 6, as a mesh's).
+    fn quads(count: usize, seed: u64) -> QuadBvh {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let mut items: Vec<BuildItem> = (0..count as u32)
+            .map(|id| {
+                let c = Vec3A::new(
+                    rng.random_range(-10.0..10.0),
+                    rng.random_range(-10.0..10.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                let h = Vec3A::new(
+                    rng.random_range(0.0..0.5),
+                    rng.random_range(0.0..0.5),
+                    rng.random_range(0.0..0.5),
+                );
+                BuildItem::new(Bb { lo: c - h, hi: c + h }, id)
+            })
+            .collect();
+        QuadBvh::build(&mut items, 6)
+    }
+
+    /// A leaf as a node holds it: `(first, count, lo, hi)`.
+    type Leaf = (u32, u16, [f32; 3], [f32; 3]);
+
+    /// The leaves reachable from the root of a hierarchy whose node `i` has `len(i)` slots, slot
+    /// `s` reading as `slot(i, s) = (child, count, lo, hi)`; and the number of nodes reached.
+    fn leaves(len: impl Fn(usize) -> usize, slot: impl Fn(usize, usize) -> Leaf) -> (Vec<Leaf>, usize) {
+        let (mut found, mut nodes, mut pending) = (Vec::new(), 0, vec![0usize]);
+        while let Some(i) = pending.pop() {
+            nodes += 1;
+            for s in 0..len(i) {
+                let leaf = slot(i, s);
+                if leaf.1 == 0 {
+                    pending.push(leaf.0 as usize);
+                } else {
+                    found.push(leaf);
+                }
+            }
+        }
+        found.sort_by_key(|l| l.0);
+        (found, nodes)
+    }
+
+    /// The octs hold exactly the quads' leaves, each with its own box, in nodes of 1 to 8 slots,
+    /// every oct reached from the root once, and fewer of them than there are quads.
+    #[test]
+    fn collapse_keeps_every_leaf_with_its_box() {
+        for (count, seed) in [(1, 1), (2, 2), (7, 3), (100, 4), (5000, 5)] {
+            let bvh = quads(count, seed);
+            let octs = Octs::collapse(bvh.quads(), bvh.quad_count());
+            let (q, o) = (bvh.quads(), octs.nodes());
+            let (quad_leaves, quads_reached) = leaves(
+                |i| q[i].len as usize,
+                |i, s| {
+                    let n = &q[i];
+                    let lo = [n.lo[0][s], n.lo[1][s], n.lo[2][s]];
+                    (n.child[s], n.count[s], lo, [n.hi[0][s], n.hi[1][s], n.hi[2][s]])
+                },
+            );
+            let (oct_leaves, octs_reached) = leaves(
+                |i| o[i].len as usize,
+                |i, s| {
+                    let n = &o[i];
+                    let lo = [n.lo[0][s], n.lo[1][s], n.lo[2][s]];
+                    (n.child[s], n.count[s], lo, [n.hi[0][s], n.hi[1][s], n.hi[2][s]])
+                },
+            );
+            assert_eq!(oct_leaves, quad_leaves, "{count} items");
+            assert_eq!(quad_leaves.iter().map(|l| u32::from(l.1)).sum::<u32>(), count as u32);
+            assert_eq!(octs_reached, o.len(), "every oct is reached once");
+            assert!(o.iter().all(|n| (1..=8).contains(&n.len)));
+            assert!(
+                count < 100 || o.len() * 3 < quads_reached * 2,
+                "{} octs for {quads_reached} quads",
+                o.len()
+            );
+        }
+    }
+
+    /// The 8-wide slab test gives, bit for bit, what the 4-wide one gives for the same boxes.
+    #[test]
+    fn eight_wide_entry_equals_four_wide() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(8);
+        let bvh = quads(3000, 9);
+        let octs = Octs::collapse(bvh.quads(), bvh.quad_count());
+        for _ in 0..20_000 {
+            let origin = Vec3A::new(
+                rng.random_range(-12.0..12.0),
+                rng.random_range(-12.0..12.0),
+                rng.random_range(-3.0..3.0),
+            );
+            let mut dir = Vec3A::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            if rng.random_bool(0.2) {
+                dir.z = 0.0;
+            }
+            let oct = &octs.nodes()[rng.random_range(0..octs.nodes().len())];
+            if rng.random_bool(0.4) {
+                // through a corner of one of the boxes: entry and exit meet there, and only the
+                // exit's enlargement decides whether the box is entered
+                let s = rng.random_range(0..oct.len as usize);
+                let mut pick = |axis: usize| {
+                    if rng.random_bool(0.5) {
+                        oct.lo[axis][s]
+                    } else {
+                        oct.hi[axis][s]
+                    }
+                };
+                dir = Vec3A::new(pick(0), pick(1), pick(2)) - origin;
+            }
+            let ray = SlabRay::new(origin, dir);
+            let (t0, t1) = (rng.random_range(0.0..0.5), rng.random_range(1.0..40.0));
+            let (hits, near) = ray.entry8(oct, t0, t1);
+            for half in 0..2 {
+                let mut quad = Quad {
+                    len: 4,
+                    ..Quad::default()
+                };
+                for s in 0..4 {
+                    for axis in 0..3 {
+                        quad.lo[axis][s] = oct.lo[axis][4 * half + s];
+                        quad.hi[axis][s] = oct.hi[axis][4 * half + s];
+                    }
+                }
+                let (four_hits, four_near) = ray.entry4(&quad, t0, t1);
+                assert_eq!((hits >> (4 * half)) & 0b1111, four_hits);
+                for s in 0..4 {
+                    assert_eq!(near[4 * half + s].to_bits(), four_near[s].to_bits());
+                }
+            }
+        }
+    }
+}
