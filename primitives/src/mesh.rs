@@ -36,8 +36,8 @@
 //! Vertices `12 B` each (plus `12 B` with normals), triangles `12 B` (index triple, kept in BVH
 //! leaf order) plus `8 B` (leaf ↔ file order maps), 4-wide BVH nodes `128 B` each, about
 //! `0.28 N` of them for `N` triangles on the benchmark meshes, which packets walk, and the same
-//! hierarchy collapsed into 8-wide nodes of `256 B`, about half as many, which single rays walk
-//! (see [`Mesh::memory_bytes`]). The BVH is described in `bvh/build.rs`, the 8-wide nodes in
+//! hierarchy collapsed into 8-wide nodes of `256 B`, about half as many, which single rays walk,
+//! made when the first single ray needs them (see [`Mesh::memory_bytes`]). The BVH is described in `bvh/build.rs`, the 8-wide nodes in
 //! `bvh/oct.rs`.
 //!
 //! One mesh can be placed many times without copying: wrap an `Arc<Mesh>` in
@@ -73,8 +73,9 @@ pub struct Mesh {
     /// The 4-wide hierarchy: packets of rays and nearest-point queries walk it.
     bvh: QuadBvh,
     /// The same hierarchy collapsed into 8-wide nodes: single rays walk it (fewer levels to wait
-    /// on memory for, see `bvh/oct.rs`).
-    octs: Octs,
+    /// on memory for, see `bvh/oct.rs`). Made when a single ray first needs it ([`Mesh::octs`]):
+    /// a render whose camera rays all travel in packets never pays for it.
+    octs: std::sync::OnceLock<Octs>,
     bounds: Aabb,
     center: DVec3,
     radius: f64,
@@ -370,7 +371,7 @@ impl Mesh {
             leaf_to_file,
             file_to_leaf,
             in_bvh,
-            octs: Octs::collapse(bvh.quads(), bvh.quad_count()),
+            octs: std::sync::OnceLock::new(),
             bvh,
             bounds,
         })
@@ -424,7 +425,8 @@ impl Mesh {
         self.triangle_indices(i).map(|v| v64(self.vertices[v as usize]))
     }
 
-    /// Bytes of heap memory held (vertices, normals, triangles, order maps, BVH nodes).
+    /// Bytes of heap memory held (vertices, normals, triangles, order maps, BVH nodes; the
+    /// 8-wide nodes once a single ray has made them, about 40 bytes a triangle more).
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
         self.vertices.capacity() * 12
@@ -432,7 +434,7 @@ impl Mesh {
             + self.tris.capacity() * 12
             + (self.leaf_to_file.capacity() + self.file_to_leaf.capacity()) * 4
             + self.bvh.memory_bytes()
-            + self.octs.memory_bytes()
+            + self.octs.get().map_or(0, Octs::memory_bytes)
     }
 
     /// Number of 4-wide BVH nodes.
@@ -648,12 +650,20 @@ impl Mesh {
         })
     }
 
+    /// The 8-wide nodes, collapsed from the quads the first time a single ray asks (about 68 ms
+    /// for 1.3 million triangles; concurrent first callers wait for the one that makes them).
+    #[inline(always)]
+    fn octs(&self) -> &Octs {
+        self.octs
+            .get_or_init(|| Octs::collapse(self.bvh.quads(), self.bvh.quad_count()))
+    }
+
     /// The slab test of the ray of `entry` against the root's children (the 8-wide walk's first
     /// step, see [`Octs::root_entry`]), or `None` if it enters none: made before the rest of the
     /// set-up and the choice of walk, which a ray passing the mesh by never needs.
     #[inline(always)]
     fn enters_root(&self, entry: &MeshEntry) -> Option<(u32, [f32; 8])> {
-        let root = self.octs.root_entry(&entry.slab, entry.t_min, entry.t_max)?;
+        let root = self.octs().root_entry(&entry.slab, entry.t_min, entry.t_max)?;
         (root.0 != 0).then_some(root)
     }
 
@@ -713,7 +723,7 @@ impl Mesh {
             query,
             best: None,
         };
-        self.octs
+        self.octs()
             .traverse(&query.ray.slab, query.t_min, query.t_max, root, &mut leaves);
         leaves.best
     }
