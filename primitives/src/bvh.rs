@@ -150,14 +150,14 @@ pub(crate) fn traverse_quads_from(
         return;
     }
     // uninitialised: only entries below `top`, written before, are ever read
-    let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; QUAD_STACK];
+    let mut stack = [const { MaybeUninit::<Pending>::uninit() }; QUAD_STACK];
     let mut top = 0usize;
     let mut quad = root;
-    'nodes: loop {
+    loop {
         let q = &quads[quad];
         let (hits, near) = nodes.entry4(q, cull_bound(t_max));
         let hits = hits & q.occupied();
-        prefetch_children(quads, q, hits);
+        prefetch_children(quads, &q.child, &q.count, hits);
         let mut next = None;
         if hits != 0 {
             if hits & (hits - 1) == 0 {
@@ -167,13 +167,8 @@ pub(crate) fn traverse_quads_from(
                 let first = hits.trailing_zeros() as usize;
                 let rest = hits & (hits - 1);
                 let (slot, pushed) = if rest & (rest - 1) == 0 {
-                    // two: the farther pushed, the nearer next (the later slot among equals)
-                    let second = rest.trailing_zeros() as usize;
-                    let second_nearer = near[second] <= near[first];
-                    (
-                        if second_nearer { second } else { first },
-                        if second_nearer { first } else { second },
-                    )
+                    // two: the farther pushed, the nearer next
+                    nearer_of_two(first, rest.trailing_zeros() as usize, &near)
                 } else {
                     // three or four, sorted farthest first ([`farthest_first`], no branch on the
                     // entries); the two farthest written whatever their number, the top raised past
@@ -191,39 +186,69 @@ pub(crate) fn traverse_quads_from(
                 next = Some((q.child[slot], u32::from(q.count[slot]), near[slot]));
             }
         }
-        // visit `next`, else pop, until an inner node to open
-        loop {
-            let (child, count, entry) = match next.take() {
-                Some(entry) => entry,
-                None => {
-                    if top == 0 {
-                        return;
-                    }
-                    top -= 1;
-                    // SAFETY: `stack[top]` was written by the push that raised `top` above it
-                    unsafe { stack[top].assume_init() }
-                }
-            };
-            if entry > cull_bound(t_max) {
-                continue;
-            }
-            if count == 0 {
-                quad = child as usize;
-                continue 'nodes;
-            }
-            if let Some(t) = leaf.test(child, count, t_max) {
-                t_max = t;
-            }
+        match next_inner_node(&stack, &mut top, next, &mut t_max, &mut leaf) {
+            Some(inner) => quad = inner,
+            None => return,
         }
     }
 }
 
-/// Asks the cache for the quads of the entered inner children of `q` (bits of `entered`),
-/// both lines of each, as soon as they are known: the walk visits one next and pushes the
-/// others, and in a hierarchy larger than the cache each visit would otherwise wait on memory in
-/// turn. A leaf slot asks for its own quad again (no branch on the slot's kind).
+/// A child waiting on a single-ray walk's stack: `(child, count, entry)`, an inner node
+/// (`count = 0`, `child` its index) or a leaf of `count` items from `child`, and the ray's entry
+/// distance into its box.
+pub(crate) type Pending = (u32, u32, f32);
+
+/// The end of one step of the ordered single-ray walks ([`traverse_quads_from`],
+/// [`oct::Octs::traverse`]): visits `next`, else pops `stack[..top]`, until an inner node to open,
+/// whose index it returns (`None` once the stack is empty). An entry farther than
+/// [`cull_bound`]`(t_max)` is skipped; a leaf is tested (`leaf`), lowering `t_max` if it hits.
 #[inline(always)]
-fn prefetch_children(quads: &[Quad], q: &Quad, entered: u32) {
+pub(crate) fn next_inner_node(
+    stack: &[MaybeUninit<Pending>],
+    top: &mut usize,
+    mut next: Option<Pending>,
+    t_max: &mut f32,
+    leaf: &mut impl LeafTest,
+) -> Option<usize> {
+    loop {
+        let (child, count, entry) = match next.take() {
+            Some(entry) => entry,
+            None => {
+                *top = top.checked_sub(1)?;
+                // SAFETY: `stack[*top]` was written by the push that raised `top` above it
+                unsafe { stack[*top].assume_init() }
+            }
+        };
+        if entry > cull_bound(*t_max) {
+            continue;
+        }
+        if count == 0 {
+            return Some(child as usize);
+        }
+        if let Some(t) = leaf.test(child, count, *t_max) {
+            *t_max = t;
+        }
+    }
+}
+
+/// The two entered slots `first` and `second` (`first < second`) as `(nearer, farther)` by their
+/// entries `near[slot]`; among equal entries the later slot is the nearer, so it is visited first.
+#[inline(always)]
+pub(crate) fn nearer_of_two(first: usize, second: usize, near: &[f32]) -> (usize, usize) {
+    if near[second] <= near[first] {
+        (second, first)
+    } else {
+        (first, second)
+    }
+}
+
+/// Asks the cache for the nodes (`N`: [`Quad`] or [`oct::Oct`], every cache line of each) of
+/// the entered inner children (bits of `entered`) of a node whose slots refer to `child` and
+/// `count`, as soon as they are known: the walk visits one next and pushes the others, and in a
+/// hierarchy larger than the cache each visit would otherwise wait on memory in turn. A leaf slot
+/// asks for `nodes[0]` (no branch on the slot's kind).
+#[inline(always)]
+pub(crate) fn prefetch_children<N>(nodes: &[N], child: &[u32], count: &[u16], entered: u32) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
@@ -231,21 +256,16 @@ fn prefetch_children(quads: &[Quad], q: &Quad, entered: u32) {
         while slots != 0 {
             let slot = slots.trailing_zeros() as usize;
             slots &= slots - 1;
-            let target: *const Quad = if q.count[slot] == 0 {
-                quads.as_ptr().wrapping_add(q.child[slot] as usize)
-            } else {
-                q
-            };
-            let bytes = target.cast::<i8>();
-            // SAFETY: a prefetch never faults, whatever the address
-            unsafe {
-                _mm_prefetch::<_MM_HINT_T0>(bytes);
-                _mm_prefetch::<_MM_HINT_T0>(bytes.wrapping_add(64));
+            let index = if count[slot] == 0 { child[slot] as usize } else { 0 };
+            let bytes = nodes.as_ptr().wrapping_add(index).cast::<i8>();
+            for line in 0..std::mem::size_of::<N>().div_ceil(64) {
+                // SAFETY: a prefetch never faults, whatever the address
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(bytes.wrapping_add(64 * line)) };
             }
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = (quads, q, entered);
+    let _ = (nodes, child, count, entered);
 }
 
 /// The slots of a node, the entered ones (bits of `entered`) first, sorted farthest first by

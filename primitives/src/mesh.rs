@@ -37,8 +37,8 @@
 //! leaf order) plus `8 B` (leaf ↔ file order maps), 4-wide BVH nodes `128 B` each, about
 //! `0.28 N` of them for `N` triangles on the benchmark meshes, which packets walk, and the same
 //! hierarchy collapsed into 8-wide nodes of `256 B`, about half as many, which single rays walk,
-//! made when the first single ray needs them (see [`Mesh::memory_bytes`]). The BVH is described in `bvh/build.rs`, the 8-wide nodes in
-//! `bvh/oct.rs`.
+//! made when the first single ray needs them (see [`Mesh::memory_bytes`]). The BVH is described
+//! in `bvh/build.rs`, the 8-wide nodes in `bvh/oct.rs`.
 //!
 //! One mesh can be placed many times without copying: wrap an `Arc<Mesh>` in
 //! [`crate::Transformed`] per instance; the scene BVH holds the instances, each instance's mesh

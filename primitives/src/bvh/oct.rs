@@ -24,7 +24,7 @@
 //! the entered inner children's nodes are requested from memory as soon as they are known.
 
 use super::build::SlabRay;
-use super::{cull_bound, LeafTest, Quad, QUAD_STACK};
+use super::{cull_bound, nearer_of_two, next_inner_node, prefetch_children, LeafTest, Pending, Quad, QUAD_STACK};
 use std::mem::MaybeUninit;
 
 /// An 8-wide node: up to eight children's f32 boxes in SoA layout (`SlabRay::entry8` tests all
@@ -137,11 +137,11 @@ impl Octs {
     ) {
         let octs = self.nodes();
         // uninitialised: only entries below `top`, written before, are ever read
-        let mut stack = [const { MaybeUninit::<(u32, u32, f32)>::uninit() }; OCT_STACK];
+        let mut stack = [const { MaybeUninit::<Pending>::uninit() }; OCT_STACK];
         let mut top = 0usize;
         let mut node = 0usize;
         let mut tested = Some(root);
-        'nodes: loop {
+        loop {
             let o = &octs[node];
             let (hits, near) = match tested.take() {
                 Some(root) => root,
@@ -150,7 +150,7 @@ impl Octs {
                     (entered & o.occupied(), near)
                 }
             };
-            prefetch_children(octs, o, hits);
+            prefetch_children(octs, &o.child, &o.count, hits);
             let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
             let mut next = None;
             if hits != 0 {
@@ -159,14 +159,8 @@ impl Octs {
                 if rest == 0 {
                     next = Some(slot(first));
                 } else if rest & (rest - 1) == 0 {
-                    // two: the farther pushed, the nearer next (the later slot among equals)
-                    let second = rest.trailing_zeros() as usize;
-                    let second_nearer = near[second] <= near[first];
-                    let (nearer, farther) = if second_nearer {
-                        (second, first)
-                    } else {
-                        (first, second)
-                    };
+                    // two: the farther pushed, the nearer next
+                    let (nearer, farther) = nearer_of_two(first, rest.trailing_zeros() as usize, &near);
                     stack[top].write(slot(farther));
                     top += 1;
                     next = Some(slot(nearer));
@@ -194,29 +188,9 @@ impl Octs {
                     next = Some(slot(order[entered - 1]));
                 }
             }
-            // visit `next`, else pop, until an inner node to open
-            loop {
-                let (child, count, entry) = match next.take() {
-                    Some(entry) => entry,
-                    None => {
-                        if top == 0 {
-                            return;
-                        }
-                        top -= 1;
-                        // SAFETY: `stack[top]` was written by the push that raised `top` above it
-                        unsafe { stack[top].assume_init() }
-                    }
-                };
-                if entry > cull_bound(t_max) {
-                    continue;
-                }
-                if count == 0 {
-                    node = child as usize;
-                    continue 'nodes;
-                }
-                if let Some(t) = leaf.test(child, count, t_max) {
-                    t_max = t;
-                }
+            match next_inner_node(&stack, &mut top, next, &mut t_max, &mut leaf) {
+                Some(inner) => node = inner,
+                None => return,
             }
         }
     }
@@ -264,35 +238,6 @@ fn emit(quads: &[Quad], q: usize, nodes: &mut Vec<Oct>) -> u32 {
     }
     nodes[index] = oct;
     index as u32
-}
-
-/// Asks the cache for the nodes of the entered inner children of `o` (bits of `entered`), all
-/// four lines of each, as soon as they are known: the walk visits one next and pushes the
-/// others, and in a hierarchy larger than the cache each visit would otherwise wait on memory
-/// in turn. A leaf slot asks for its own node again (no branch on the slot's kind).
-#[inline(always)]
-fn prefetch_children(octs: &[Oct], o: &Oct, entered: u32) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let mut slots = entered;
-        while slots != 0 {
-            let slot = slots.trailing_zeros() as usize;
-            slots &= slots - 1;
-            let target: *const Oct = if o.count[slot] == 0 {
-                octs.as_ptr().wrapping_add(o.child[slot] as usize)
-            } else {
-                o
-            };
-            let bytes = target.cast::<i8>();
-            for line in 0..4 {
-                // SAFETY: a prefetch never faults, whatever the address
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(bytes.wrapping_add(64 * line)) };
-            }
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (octs, o, entered);
 }
 
 #[cfg(test)]
