@@ -97,11 +97,15 @@ impl Scene {
         test: impl Fn(u32, &Ray, Interval) -> Option<RawHit>,
         ray: &Ray,
     ) -> Option<(u32, RawHit)> {
-        let size = ray.dir.abs().max_element();
-        if (DIR_SCALE_MIN..=DIR_SCALE_MAX).contains(&size) || !(size > 0.0 && size.is_finite()) {
+        // scaled where `size` is finite and non-zero but outside `[MIN, MAX]`: for the non-negative
+        // `size` (or NaN) the bit patterns order as the values, so two integer comparisons decide
+        let size = ray.dir.abs().max_element().to_bits();
+        let scaled = size.wrapping_sub(1) < DIR_SCALE_MIN.to_bits() - 1
+            || (size > DIR_SCALE_MAX.to_bits() && size < f64::INFINITY.to_bits());
+        if !scaled {
             return self.closest_unscaled(range, |id, r| test(id, ray, r), ray);
         }
-        let k = zeroset_primitives::math::power_of_two_scale(size);
+        let k = zeroset_primitives::math::power_of_two_scale(f64::from_bits(size));
         let scaled = Ray::new(ray.origin, ray.dir / k);
         let (object, hit) = self.closest_unscaled(
             Interval::new(range.min * k, range.max * k),
@@ -125,6 +129,10 @@ impl Scene {
                 range.max = hit.t;
                 best = Some((i, hit));
             }
+        }
+        // a scene of one bounded object has no hierarchy: no call
+        if self.hierarchy.bvh.is_empty() {
+            return best;
         }
         let mut raw: Option<(u32, RawHit)> = None;
         let object = self.hierarchy.bvh.closest(ray, range, |id, r| {

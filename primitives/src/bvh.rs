@@ -370,6 +370,13 @@ impl SlabRay {
 }
 
 impl Bvh {
+    /// Whether the hierarchy holds no items (then every walk finds nothing).
+    #[inline]
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.items.is_empty()
+    }
+
     /// Builds over items `(bounds, id)` (all bounds finite), in parallel; traversal reports
     /// the ids. The tree does not depend on the thread count.
     #[must_use]

@@ -761,11 +761,12 @@ impl<const KX: usize, const KY: usize, const KZ: usize> LeafTest for &mut Single
 
 impl Intersect for Mesh {
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        // the whole test inlined into the AVX2+FMA copy where the CPU has them
+        // The set-up and the root's test, then, for a ray entering one of the root's children,
+        // the walk: both in AVX2+FMA copies where the CPU has them, the walk in its own (not
+        // inlined), so that a ray passing the mesh by (most of a random batch) does not pay the
+        // walk's register saves.
         #[inline(always)]
-        fn test(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
-            let entry = mesh.entry(ray, range)?;
-            let root = mesh.enters_root(&entry)?;
+        fn walk(mesh: &Mesh, ray: &Ray, range: Interval, entry: MeshEntry, root: (u32, [f32; 8])) -> Option<RawHit> {
             let query = entry.query();
             let best = match query.ray.k {
                 [1, 2, 0] => mesh.closest_candidate::<1, 2, 0>(ray, range, &query, root),
@@ -776,6 +777,30 @@ impl Intersect for Mesh {
                 _ => mesh.closest_candidate::<1, 0, 2>(ray, range, &query, root),
             };
             mesh.finish(ray, range, &query, best)
+        }
+        // its own function, whichever copy runs it: inlined, the walk's stack and register
+        // saves would be paid by every ray
+        #[inline(never)]
+        fn walk_either(
+            mesh: &Mesh,
+            ray: &Ray,
+            range: Interval,
+            entry: MeshEntry,
+            root: (u32, [f32; 8]),
+        ) -> Option<RawHit> {
+            crate::with_fma!(walk(
+                mesh: &Mesh = mesh,
+                ray: &Ray = ray,
+                range: Interval = range,
+                entry: MeshEntry = entry,
+                root: (u32, [f32; 8]) = root,
+            ) -> Option<RawHit>)
+        }
+        #[inline(always)]
+        fn test(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let entry = mesh.entry(ray, range)?;
+            let root = mesh.enters_root(&entry)?;
+            walk_either(mesh, ray, range, entry, root)
         }
         crate::with_fma!(test(mesh: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }

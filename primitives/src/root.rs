@@ -50,6 +50,7 @@ pub fn budget_exhaustions() -> u64 {
 /// exhaustions ([`budget_exhaustions`]) and the interval isolation's undecided cases
 /// ([`crate::isolation::uncertain_counts`]). Read it before and after tracing one ray on a
 /// thread to learn whether that ray's answer is uncertain.
+#[inline]
 #[must_use]
 pub fn thread_uncertain_events() -> u64 {
     THREAD_UNCERTAIN_EVENTS.with(std::cell::Cell::get)
