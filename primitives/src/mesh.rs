@@ -671,11 +671,32 @@ impl Mesh {
     /// near `t_min` always, inside it only if the f64 `t` on the triangle's plane is in `range`.
     #[inline(always)]
     fn counts(&self, ray: &Ray, range: Interval, query: &MeshQuery, k: usize, t: f32) -> bool {
-        let band = *query.band.get_or_init(|| {
+        self.surely_beyond_band(ray, query, t)
+            || t > self.band(ray, query)
+            || self.plane_t(ray, k).is_some_and(|t| range.contains(t))
+    }
+
+    /// The f32 end of the band near `t_min` where hits are re-decided in f64:
+    /// `t_min + 10⁻⁵·(radius + |o − c|)/|s·d|`, worked out once per ray.
+    #[inline(always)]
+    fn band(&self, ray: &Ray, query: &MeshQuery) -> f32 {
+        *query.band.get_or_init(|| {
             let band = 1e-5 * (self.radius + (ray.origin - self.center).length());
             query.t_min + (band / (ray.dir * query.scale).length()) as f32
-        });
-        t > band || self.plane_t(ray, k).is_some_and(|t| range.contains(t))
+        })
+    }
+
+    /// A bound that decides most candidates (those far beyond the band) without the band's
+    /// square roots and division: `true` only where `t > ` [`Mesh::band`]. With
+    /// `B = 10⁻⁵·(radius + |o − c|)`, `|o − c| ≤ |o − c|₁` and `|s·d| ≥ m = max |s·dᵢ|`, the band's
+    /// f32 end is at most `(t_min + 10⁻⁵·(radius + |o − c|₁)/m)·(1 + 2⁻²³)` (two f32 roundings
+    /// up, `t_min ≥ 0`), so a `t` beyond `1 + 10⁻⁶` times that, compared multiplied through by
+    /// `m`, is beyond the band.
+    #[inline(always)]
+    fn surely_beyond_band(&self, ray: &Ray, query: &MeshQuery, t: f32) -> bool {
+        let m = (ray.dir * query.scale).abs().max_element();
+        let bound = f64::from(query.t_min) * m + 1e-5 * (self.radius + (ray.origin - self.center).abs().element_sum());
+        f64::from(t) * m > bound * (1.0 + 1e-6)
     }
 
     /// Whether a candidate at `(k, t)` replaces `best`, whose `t` is `t_far`: a nearer `t`, or the
@@ -912,6 +933,65 @@ mod tests {
             m.intersect(&ray, Interval::new(1.001, 10.0)).map(|h| h.feature),
             Some(3)
         );
+    }
+
+    /// The band's cheap bound never claims a `t` that is not beyond the band, over directions
+    /// from 10⁻³⁰⁰ to 10³⁰⁰ long, origins near and far and `t` on either side of the band's end;
+    /// and it does decide ordinary hits (a `t` of twice the band).
+    #[test]
+    fn band_bound_is_conservative() {
+        use rand::rngs::StdRng;
+        use rand::{Rng, SeedableRng};
+        let m = tetra();
+        let mut rng = StdRng::seed_from_u64(11);
+        let (mut decided, mut total) = (0, 0);
+        for _ in 0..20_000 {
+            let far = 10f64.powi(rng.random_range(-3..6));
+            let origin = DVec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            ) * far;
+            let length = 10f64.powi(rng.random_range(-300..300));
+            let dir = DVec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            ) * length;
+            let t_min = if rng.random_bool(0.5) {
+                0.0
+            } else {
+                rng.random_range(0.0..2.0) / length
+            };
+            let ray = Ray::new(origin, dir);
+            let Some(query) = m.query(&ray, Interval::new(t_min, f64::INFINITY)) else {
+                continue;
+            };
+            let band = m.band(&ray, &query);
+            let mut probes = vec![
+                band,
+                band.next_up(),
+                band.next_down(),
+                2.0 * band + f32::MIN_POSITIVE,
+                f32::MAX,
+            ];
+            probes.extend((0..8).map(|_| band * rng.random_range(0.5f32..4.0)));
+            for t in probes {
+                total += 1;
+                if m.surely_beyond_band(&ray, &query, t) {
+                    assert!(
+                        t > band,
+                        "ray {ray:?}, t_min {t_min}: bound claims {t} beyond the band's end {band}"
+                    );
+                    decided += 1;
+                }
+            }
+            let twice = 2.0 * band + f32::MIN_POSITIVE;
+            if band > 0.0 && band.is_finite() && twice.is_finite() && query.t_min == 0.0 {
+                assert!(m.surely_beyond_band(&ray, &query, 4.0 * twice), "{ray:?}: band {band}");
+            }
+        }
+        assert!(decided > total / 4, "{decided} of {total} decided");
     }
 
     #[test]
