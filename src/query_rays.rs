@@ -230,6 +230,64 @@ impl<'a> RayColumns<'a> {
         Ok(QueryRay { ray, range })
     }
 
+    /// Rays `chunk` (indices) appended to `out` as [`RayColumns::ray`] builds them, when every
+    /// one is plain: no normals and no spawned origin, origin and direction finite, direction
+    /// non-zero, `tmin ≤ tmax` (neither NaN). The checks run over the whole chunk at once, in
+    /// loops without early exits (which the compiler vectorises), so a batch of good rays skips
+    /// the per-ray error paths. `false`, with `out` untouched, where any ray is not plain: build
+    /// that chunk ray by ray, which says what is wrong.
+    #[inline]
+    fn plain_rays(&self, chunk: std::ops::Range<usize>, setup: &RaySetup, out: &mut Vec<QueryRay>) -> bool {
+        if self.normals.is_some() || setup.origin_precision.is_some() {
+            return false;
+        }
+        let values = 3 * chunk.start..3 * chunk.end;
+        let (origins, directions) = (&self.origins[values.clone()], &self.directions[values]);
+        // `|v| ≤ MAX` is false for ±∞ and NaN
+        let finite = |column: &[f64]| column.iter().fold(true, |ok, v| ok & (v.abs() <= f64::MAX));
+        let nonzero = directions
+            .chunks_exact(3)
+            .fold(true, |ok, d| ok & ((d[0] != 0.0) | (d[1] != 0.0) | (d[2] != 0.0)));
+        let at = |column: &'a [f64]| -> &'a [f64] {
+            if column.len() == 1 {
+                column
+            } else {
+                &column[chunk.clone()]
+            }
+        };
+        let (tmin, tmax) = (at(self.tmin), at(self.tmax));
+        // `a ≤ b` is false where either is NaN
+        let ordered = if tmin.len() == tmax.len() {
+            tmin.iter().zip(tmax).fold(true, |ok, (a, b)| ok & (a <= b))
+        } else if tmin.len() == 1 {
+            tmax.iter().fold(true, |ok, b| ok & (tmin[0] <= *b))
+        } else {
+            tmin.iter().fold(true, |ok, a| ok & (*a <= tmax[0]))
+        };
+        if !(finite(origins) & finite(directions) & nonzero & ordered) {
+            return false;
+        }
+        let value = |column: &[f64], k: usize| column[if column.len() == 1 { 0 } else { k }];
+        out.extend(
+            origins
+                .chunks_exact(3)
+                .zip(directions.chunks_exact(3))
+                .enumerate()
+                .map(|(k, (o, d))| {
+                    let t0 = value(tmin, k);
+                    let min = match setup.range {
+                        RangeConvention::OpenStart => t0.next_up(),
+                        RangeConvention::Closed => t0,
+                    };
+                    QueryRay {
+                        ray: Ray::new(DVec3::new(o[0], o[1], o[2]), DVec3::new(d[0], d[1], d[2])),
+                        range: Interval::new(min, value(tmax, k)),
+                    }
+                }),
+        );
+        true
+    }
+
     /// Every ray, built in parallel.
     ///
     /// # Errors
@@ -283,16 +341,19 @@ pub fn trace_columns<O: Send>(
         |rays: &mut Vec<QueryRay>, (k, mut out)| {
             let chunk = k * COLUMN_CHUNK..((k + 1) * COLUMN_CHUNK).min(n);
             rays.clear();
-            for i in chunk {
-                match columns.ray(i, setup) {
-                    Ok(ray) => rays.push(ray),
-                    Err(message) => {
-                        failed.store(true, Ordering::Relaxed);
-                        let mut first = first_error.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-                        if first.as_ref().is_none_or(|(j, _)| i < *j) {
-                            *first = Some((i, message));
+            // the chunk's rays at once where all are plain, else one by one (which finds the bad one)
+            if !columns.plain_rays(chunk.clone(), setup, rays) {
+                for i in chunk {
+                    match columns.ray(i, setup) {
+                        Ok(ray) => rays.push(ray),
+                        Err(message) => {
+                            failed.store(true, Ordering::Relaxed);
+                            let mut first = first_error.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                            if first.as_ref().is_none_or(|(j, _)| i < *j) {
+                                *first = Some((i, message));
+                            }
+                            return;
                         }
-                        return;
                     }
                 }
             }
@@ -385,6 +446,82 @@ mod tests {
             }
         }
         assert!(good > 2000 && bad > 2000, "{good} good, {bad} bad");
+    }
+
+    /// A chunk built at once ([`RayColumns::plain_rays`]) holds exactly the rays
+    /// [`RayColumns::ray`] builds one by one, and a chunk is refused exactly where one of its rays
+    /// is bad or the rays spawn from normals: per-ray and scalar `tmin`/`tmax`, both range
+    /// conventions, chunks of 1 to 40 rays with a bad value now and then.
+    #[test]
+    fn plain_chunks_equal_rays_built_one_by_one() {
+        let mut state = 99u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as usize
+        };
+        let n = 3000;
+        let special = [f64::NAN, f64::INFINITY, 0.0, -0.0, 1e300];
+        let mut value = |bad_one_in: usize| {
+            let r = next();
+            if r % bad_one_in == 0 {
+                special[r / bad_one_in % special.len()]
+            } else {
+                (r % 2001) as f64 / 100.0 - 10.0
+            }
+        };
+        let origins: Vec<f64> = (0..3 * n).map(|_| value(2500)).collect();
+        let mut directions: Vec<f64> = (0..3 * n).map(|_| value(400)).collect();
+        // a zero direction now and then (one component zero is fine)
+        for ray in (0..n).step_by(97) {
+            directions[3 * ray..3 * ray + 3].fill(if ray % 2 == 0 { 0.0 } else { -0.0 });
+        }
+        let tmin: Vec<f64> = (0..n).map(|_| value(300)).map(|t| t.abs() * 0.01).collect();
+        let tmax: Vec<f64> = (0..n).map(|_| value(300)).map(|t| t.abs()).collect();
+        let normals = [0.0, 0.0, 1.0].repeat(n);
+        let (mut built, mut refused) = (0, 0);
+        for (tmin, tmax) in [
+            (&tmin[..], &tmax[..]),
+            (&[0.0][..], &tmax[..]),
+            (&tmin[..], &[f64::INFINITY][..]),
+        ] {
+            for (range, with_normals) in [
+                (RangeConvention::OpenStart, false),
+                (RangeConvention::Closed, false),
+                (RangeConvention::OpenStart, true),
+            ] {
+                let columns =
+                    RayColumns::new(&origins, &directions, tmin, tmax, with_normals.then_some(&normals[..])).unwrap();
+                let setup = RaySetup {
+                    range,
+                    origin_precision: with_normals.then_some(PointPrecision::F32),
+                    magnitude: 10.0,
+                };
+                let mut start = 0;
+                while start < n {
+                    let chunk = start..(start + 1 + next() % 40).min(n);
+                    start = chunk.end;
+                    let one_by_one: Vec<Result<QueryRay, String>> =
+                        chunk.clone().map(|i| columns.ray(i, &setup)).collect();
+                    let mut out = vec![];
+                    if columns.plain_rays(chunk.clone(), &setup, &mut out) {
+                        built += 1;
+                        let expected: Vec<QueryRay> = one_by_one.into_iter().map(Result::unwrap).collect();
+                        // bit for bit (the rays are finite)
+                        assert_eq!(format!("{out:?}"), format!("{expected:?}"), "chunk {chunk:?}");
+                    } else {
+                        refused += 1;
+                        assert!(out.is_empty());
+                        assert!(
+                            with_normals || one_by_one.iter().any(Result::is_err),
+                            "chunk {chunk:?} refused"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(built > 100 && refused > 100, "{built} built, {refused} refused");
     }
 
     /// With bad rays on either side of the middle (the second is where a second thread starts),
