@@ -19,6 +19,8 @@ use zeroset::primitives::HitRequest;
 use zeroset::query::QueryHit;
 use zeroset::query_rays::COLUMN_CHUNK;
 
+use crate::pages::uninit_array;
+
 /// Every field, in the order of the returned dict.
 pub const FIELDS: [&str; 8] = [
     "t",
@@ -55,17 +57,17 @@ pub struct HitChunk<'a> {
     uncertain: Option<&'a mut [bool]>,
 }
 
-/// Uninitialised `(n,)` array, when `wanted`.
+/// Uninitialised `(n,)` array, when `wanted` (in memory of its own when large: [`crate::pages`]).
 fn vector<'py, T: numpy::Element>(py: Python<'py>, n: usize, wanted: bool) -> Option<Bound<'py, PyArray1<T>>> {
     // SAFETY: every element is written by `HitChunk::put` before the array reaches Python (the
     // chunks cover all rows); on an error the array is dropped unread
-    wanted.then(|| unsafe { PyArray1::new(py, [n], false) })
+    wanted.then(|| unsafe { uninit_array(py, [n]) })
 }
 
 /// Uninitialised `(n, width)` array, when `wanted`.
 fn rows<'py>(py: Python<'py>, n: usize, width: usize, wanted: bool) -> Option<Bound<'py, PyArray2<f64>>> {
     // SAFETY: as in `vector`
-    wanted.then(|| unsafe { PyArray2::new(py, [n, width], false) })
+    wanted.then(|| unsafe { uninit_array(py, [n, width]) })
 }
 
 /// The data of a new array as one mutable slice.

@@ -30,6 +30,7 @@ use zeroset::render::{render_view, Frame, RenderOptions, Window};
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
 
 mod hits;
+mod pages;
 
 use hits::{HitArrays, HitChunk};
 

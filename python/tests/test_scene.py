@@ -352,6 +352,40 @@ def test_cast_rays_outputs_asked_for_only():
         scene.cast_rays(origins, directions, outputs=["t", "depth"])
 
 
+def test_large_outputs_reused_memory_keeps_every_answer():
+    # arrays of 4 MiB and more live in memory of their own, kept for the next batch once their
+    # arrays are gone: a batch written into memory another batch left behind, a batch whose
+    # memory another one still holds, and a batch after an error all give exactly the answers
+    # of the same rays cast in small pieces (numpy's own arrays)
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    n = 200_000  # point and normal (4.8 MB) in mappings of their own, t (1.6 MB) numpy's
+    a_rays = random_rays(n, seed=21)
+    b_rays = random_rays(n, seed=22)
+
+    def pieces(rays):
+        parts = [scene.cast_rays(o, d) for o, d in zip(np.array_split(rays[0], 60), np.array_split(rays[1], 60))]
+        return {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
+
+    a_expected, b_expected = pieces(a_rays), pieces(b_rays)
+    kept = scene.cast_rays(*a_rays)
+    for _ in range(3):
+        b = scene.cast_rays(*b_rays)  # into memory B's last batch left behind, A's still held
+        for k in b_expected:
+            np.testing.assert_array_equal(b[k], b_expected[k], err_msg=k)
+        del b
+    for k in a_expected:
+        np.testing.assert_array_equal(kept[k], a_expected[k], err_msg=k)
+    bad = (a_rays[0].copy(), a_rays[1].copy())
+    bad[1][n - 3] = 0.0
+    with pytest.raises(zeroset.ZerosetError, match=f"^ray {n - 3}: direction must be non-zero"):
+        scene.cast_rays(*bad)
+    del kept
+    again = scene.cast_rays(*a_rays)
+    assert again["point"].base is not None and again["point"].flags["WRITEABLE"]
+    for k in a_expected:
+        np.testing.assert_array_equal(again[k], a_expected[k], err_msg=k)
+
+
 def test_first_bad_ray_by_index_over_chunks():
     # bad rays in the fourth chunk and in the second: the message names the earlier one
     scene = zeroset.Scene.from_ron(SPHERE_SCENE)
