@@ -56,7 +56,15 @@ const OCT_STACK: usize = 7 * (QUAD_STACK / 3) + 8;
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Octs {
     nodes: Vec<Oct>,
+    /// Whether the walk prefetches the entered children: only where the nodes outgrow a core's
+    /// L2 cache ([`PREFETCH_MIN_BYTES`]); in a smaller hierarchy they are in cache already, and
+    /// the prefetch loop's data-dependent trip count only costs mispredicted branches.
+    prefetch: bool,
 }
+
+/// Node bytes from which the walk prefetches (see [`Octs::prefetch`]): 512 KiB, the L2 cache of
+/// a Zen 2/3 core (1 MiB on Zen 4 and recent Intel cores).
+const PREFETCH_MIN_BYTES: usize = 512 << 10;
 
 /// One child slot while a node is gathered: its box, and `(child, count)` as in a node.
 #[derive(Clone, Copy)]
@@ -96,7 +104,8 @@ impl Octs {
         if !quads.is_empty() {
             emit(quads, 0, &mut nodes);
         }
-        Self { nodes }
+        let prefetch = nodes.len() * std::mem::size_of::<Oct>() >= PREFETCH_MIN_BYTES;
+        Self { nodes, prefetch }
     }
 
     /// The nodes, root first.
@@ -150,7 +159,9 @@ impl Octs {
                     (entered & o.occupied(), near)
                 }
             };
-            prefetch_children(octs, &o.child, &o.count, hits);
+            if self.prefetch {
+                prefetch_children(octs, &o.child, &o.count, hits);
+            }
             let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
             let mut next = None;
             if hits != 0 {
