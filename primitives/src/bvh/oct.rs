@@ -24,7 +24,10 @@
 //! the entered inner children's nodes are requested from memory as soon as they are known.
 
 use super::build::SlabRay;
-use super::{cull_bound, nearer_of_two, next_inner_node, prefetch_children, LeafTest, Pending, Quad, QUAD_STACK};
+use super::{
+    cull_bound, nearer_of_two, next_inner_node, prefetch_children, worth_prefetching, LeafTest, Pending, Quad,
+    QUAD_STACK,
+};
 use std::mem::MaybeUninit;
 
 /// An 8-wide node: up to eight children's f32 boxes in SoA layout (`SlabRay::entry8` tests all
@@ -56,15 +59,9 @@ const OCT_STACK: usize = 7 * (QUAD_STACK / 3) + 8;
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Octs {
     nodes: Vec<Oct>,
-    /// Whether the walk prefetches the entered children: only where the nodes outgrow a core's
-    /// L2 cache ([`PREFETCH_MIN_BYTES`]); in a smaller hierarchy they are in cache already, and
-    /// the prefetch loop's data-dependent trip count only costs mispredicted branches.
+    /// Whether the walk prefetches the entered children ([`worth_prefetching`]).
     prefetch: bool,
 }
-
-/// Node bytes from which the walk prefetches (see [`Octs::prefetch`]): 512 KiB, the L2 cache of
-/// a Zen 2/3 core (1 MiB on Zen 4 and recent Intel cores).
-const PREFETCH_MIN_BYTES: usize = 512 << 10;
 
 /// One child slot while a node is gathered: its box, and `(child, count)` as in a node.
 #[derive(Clone, Copy)]
@@ -104,7 +101,7 @@ impl Octs {
         if !quads.is_empty() {
             emit(quads, 0, &mut nodes);
         }
-        let prefetch = nodes.len() * std::mem::size_of::<Oct>() >= PREFETCH_MIN_BYTES;
+        let prefetch = worth_prefetching(&nodes);
         Self { nodes, prefetch }
     }
 
