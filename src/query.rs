@@ -129,7 +129,7 @@ pub fn trace_batch_in(scene: &Scene, rays: &[QueryRay], order: RayOrder) -> Vec<
         RayOrder::Sorted => rays.len() > 1,
     };
     let one_by_one = || rays.par_iter().with_min_len(256).map(|q| trace_one(scene, q)).collect();
-    if !sort {
+    if !sort || !sample_may_pay(rays) {
         return one_by_one();
     }
     let permutation = coherent_order(rays);
@@ -179,6 +179,23 @@ fn packets_pay(rays: &[QueryRay], permutation: &[u32]) -> bool {
         })
         .count();
     4 * coherent_count >= sampled
+}
+
+/// Rays in the sample [`sample_may_pay`] sorts (about one in `len / COHERENCE_SAMPLE`).
+const COHERENCE_SAMPLE: usize = 4096;
+
+/// Whether sorting a batch may pay, judged on an evenly spread sample of it before the batch
+/// itself is sorted: a batch of at least four samples' size whose sorted sample has no coherent
+/// packets ([`packets_pay`]) has none to recover (random rays: sorted neighbours point anywhere),
+/// so its sort (as long as tracing it, on a small mesh) is skipped. The sample is sparser than
+/// the batch, so it finds fewer coherent neighbours than the batch would: a batch it turns down
+/// is traced as given (the same answers); one it passes is sorted and judged again in full.
+fn sample_may_pay(rays: &[QueryRay]) -> bool {
+    if rays.len() < 4 * COHERENCE_SAMPLE {
+        return true;
+    }
+    let sample: Vec<QueryRay> = rays.iter().step_by(rays.len() / COHERENCE_SAMPLE).copied().collect();
+    packets_pay(&sample, &coherent_order(&sample))
 }
 
 /// Whether the rays point alike enough to be traced as a packet (see [`PACKET_COSINE`]).
@@ -1051,6 +1068,24 @@ mod tests {
             views.swap(k, rng.random_range(0..=k));
         }
         assert!(packets_pay(&views, &coherent_order(&views)));
+        // judged on a sample first: many random rays are turned down before any sort, many
+        // cameras' shuffled rays (a sample of one in ten) are still found coherent
+        let many_random: Vec<QueryRay> = rays.iter().cycle().take(40_000).copied().collect();
+        assert!(!sample_may_pay(&many_random));
+        let mut many_views: Vec<QueryRay> = (0..40_000)
+            .map(|i| {
+                let eye = DVec3::new(f64::from(i % 4) - 1.5, 0.5, -6.0);
+                let (u, v) = (f64::from(i / 4 % 100) / 100.0 - 0.5, f64::from(i / 400) / 100.0 - 0.5);
+                QueryRay {
+                    ray: Ray::new(eye, DVec3::new(u * 0.8, v * 0.8, 1.0)),
+                    range: Interval::new(0.0, f64::INFINITY),
+                }
+            })
+            .collect();
+        for k in (1..many_views.len()).rev() {
+            many_views.swap(k, rng.random_range(0..=k));
+        }
+        assert!(sample_may_pay(&many_views) && sample_may_pay(&views));
         let input = trace_batch_in(&scene, &views, RayOrder::Input);
         let sorted = trace_batch_in(&scene, &views, RayOrder::Sorted);
         assert!(input.iter().filter(|h| h.hit.is_some()).count() > 1000);
