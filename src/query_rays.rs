@@ -52,6 +52,24 @@ impl RangeConvention {
             Self::OpenStart
         }
     }
+
+    /// The accepted range of `tmin ≤ tmax` (checked by the caller) under this convention: from
+    /// the next f64 above `tmin` (`OpenStart`) or from `tmin` itself (`Closed`), to `tmax`.
+    #[inline]
+    #[must_use]
+    pub fn range(self, tmin: f64, tmax: f64) -> Interval {
+        let min = match self {
+            Self::OpenStart => tmin.next_up(),
+            Self::Closed => tmin,
+        };
+        Interval::new(min, tmax)
+    }
+}
+
+/// Element `i` of a column holding one value for every ray (`tmin`, `tmax`) or one per ray.
+#[inline(always)]
+fn per_ray(column: &[f64], i: usize) -> f64 {
+    column[if column.len() == 1 { 0 } else { i }]
 }
 
 /// How input lines become rays.
@@ -131,11 +149,7 @@ fn checked_ray(
             spawn_origin(origin, n, dir, precision, setup.magnitude)
         }
     };
-    let min = match setup.range {
-        RangeConvention::OpenStart => tmin.next_up(),
-        RangeConvention::Closed => tmin,
-    };
-    Ok((Ray::new(origin, dir), Interval::new(min, tmax)))
+    Ok((Ray::new(origin, dir), setup.range.range(tmin, tmax)))
 }
 
 /// Rays per step of [`trace_columns`]: the rays of one chunk (about 64 bytes a ray) stay in a
@@ -217,13 +231,12 @@ impl<'a> RayColumns<'a> {
     /// If `i ≥ self.len()`.
     #[inline]
     pub fn ray(&self, i: usize, setup: &RaySetup) -> Result<QueryRay, String> {
-        let at = |column: &[f64]| column[if column.len() == 1 { 0 } else { i }];
         let row = |values: &[f64]| DVec3::from_slice(&values[3 * i..3 * i + 3]);
         let (ray, range) = checked_ray(
             row(self.origins),
             row(self.directions),
-            at(self.tmin),
-            at(self.tmax),
+            per_ray(self.tmin, i),
+            per_ray(self.tmax, i),
             self.normals.map(row),
             setup,
         )?;
@@ -267,22 +280,14 @@ impl<'a> RayColumns<'a> {
         if !(finite(origins) & finite(directions) & nonzero & ordered) {
             return false;
         }
-        let value = |column: &[f64], k: usize| column[if column.len() == 1 { 0 } else { k }];
         out.extend(
             origins
                 .chunks_exact(3)
                 .zip(directions.chunks_exact(3))
                 .enumerate()
-                .map(|(k, (o, d))| {
-                    let t0 = value(tmin, k);
-                    let min = match setup.range {
-                        RangeConvention::OpenStart => t0.next_up(),
-                        RangeConvention::Closed => t0,
-                    };
-                    QueryRay {
-                        ray: Ray::new(DVec3::new(o[0], o[1], o[2]), DVec3::new(d[0], d[1], d[2])),
-                        range: Interval::new(min, value(tmax, k)),
-                    }
+                .map(|(k, (o, d))| QueryRay {
+                    ray: Ray::new(DVec3::new(o[0], o[1], o[2]), DVec3::new(d[0], d[1], d[2])),
+                    range: setup.range.range(per_ray(tmin, k), per_ray(tmax, k)),
                 }),
         );
         true

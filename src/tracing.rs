@@ -97,15 +97,10 @@ impl Scene {
         test: impl Fn(u32, &Ray, Interval) -> Option<RawHit>,
         ray: &Ray,
     ) -> Option<(u32, RawHit)> {
-        // scaled where `size` is finite and non-zero but outside `[MIN, MAX]`: for the non-negative
-        // `size` (or NaN) the bit patterns order as the values, so two integer comparisons decide
-        let size = ray.dir.abs().max_element().to_bits();
-        let scaled = size.wrapping_sub(1) < DIR_SCALE_MIN.to_bits() - 1
-            || (size > DIR_SCALE_MAX.to_bits() && size < f64::INFINITY.to_bits());
-        if !scaled {
+        let Some(size) = scaled_direction_size(ray) else {
             return self.closest_unscaled(range, |id, r| test(id, ray, r), ray);
-        }
-        let k = zeroset_primitives::math::power_of_two_scale(f64::from_bits(size));
+        };
+        let k = zeroset_primitives::math::power_of_two_scale(size);
         let scaled = Ray::new(ray.origin, ray.dir / k);
         let (object, hit) = self.closest_unscaled(
             Interval::new(range.min * k, range.max * k),
@@ -158,10 +153,7 @@ impl Scene {
     pub fn intersect_packet(&self, rays: &[Ray], ranges: &[Interval], out: &mut [Option<(u32, RawHit)>]) {
         const N: usize = zeroset_primitives::PACKET;
         for ((rays, given), out) in rays.chunks(N).zip(ranges.chunks(N)).zip(out.chunks_mut(N)) {
-            let plain = rays.iter().all(|ray| {
-                let size = ray.dir.abs().max_element();
-                (DIR_SCALE_MIN..=DIR_SCALE_MAX).contains(&size) || !(size > 0.0 && size.is_finite())
-            });
+            let plain = rays.iter().all(|ray| scaled_direction_size(ray).is_none());
             if !plain || !coherent(rays) {
                 for ((ray, range), out) in rays.iter().zip(given).zip(out.iter_mut()) {
                     *out = self.intersect(ray, *range);
@@ -208,6 +200,18 @@ impl Scene {
     pub fn occluded(&self, ray: &Ray, range: Interval) -> bool {
         self.intersect(ray, range).is_some()
     }
+}
+
+/// The largest component magnitude of `ray`'s direction where [`Scene::intersect`] scales the
+/// direction first (finite and non-zero, but outside `[DIR_SCALE_MIN, DIR_SCALE_MAX]`); `None`
+/// where the ray is traced as given. For the non-negative size (or NaN) the bit patterns order as
+/// the values, so two integer comparisons decide.
+#[inline(always)]
+fn scaled_direction_size(ray: &Ray) -> Option<f64> {
+    let size = ray.dir.abs().max_element().to_bits();
+    let scaled = size.wrapping_sub(1) < DIR_SCALE_MIN.to_bits() - 1
+        || (size > DIR_SCALE_MAX.to_bits() && size < f64::INFINITY.to_bits());
+    scaled.then(|| f64::from_bits(size))
 }
 
 /// Whether object `id`'s hit at `t` (within `range`, whose `max` is the closest hit so far)

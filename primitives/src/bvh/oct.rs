@@ -59,8 +59,6 @@ const OCT_STACK: usize = 7 * (QUAD_STACK / 3) + 8;
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Octs {
     nodes: Vec<Oct>,
-    /// Whether the walk prefetches the entered children ([`worth_prefetching`]).
-    prefetch: bool,
 }
 
 /// One child slot while a node is gathered: its box, and `(child, count)` as in a node.
@@ -101,8 +99,7 @@ impl Octs {
         if !quads.is_empty() {
             emit(quads, 0, &mut nodes);
         }
-        let prefetch = worth_prefetching(&nodes);
-        Self { nodes, prefetch }
+        Self { nodes }
     }
 
     /// The nodes, root first.
@@ -142,6 +139,7 @@ impl Octs {
         mut leaf: impl LeafTest,
     ) {
         let octs = self.nodes();
+        let prefetch = worth_prefetching(octs);
         // uninitialised: only entries below `top`, written before, are ever read
         let mut stack = [const { MaybeUninit::<Pending>::uninit() }; OCT_STACK];
         let mut top = 0usize;
@@ -156,7 +154,7 @@ impl Octs {
                     (entered & o.occupied(), near)
                 }
             };
-            if self.prefetch {
+            if prefetch {
                 prefetch_children(octs, &o.child, &o.count, hits);
             }
             let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
