@@ -16,7 +16,7 @@ mod quad_array;
 
 use crate::PACKET;
 use crate::{Aabb, Interval, Ray};
-use build::{Bb, BuildItem, QuadBvh};
+use build::{Bb, BuildItem, Leaves, QuadBvh};
 use glam::{BVec4A, Vec3A, Vec4, Vec4Swizzles};
 use std::mem::MaybeUninit;
 
@@ -418,7 +418,7 @@ impl Bvh {
         if work.is_empty() {
             return Self::default();
         }
-        let (tree, items) = QuadBvh::build_ids(work, MAX_LEAF);
+        let (tree, items) = QuadBvh::build_ids(work, Leaves::per_item(MAX_LEAF));
         Self { tree, items }
     }
 

@@ -9,11 +9,12 @@
 //!
 //! Build. Item boxes and centroids in f32; each split bins centroids into 32 bins per axis (8
 //! for nodes of at most 64 items)
-//! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 1, triangle
-//! cost 1), and partitions in place; the children's boxes are the unions of their bins' boxes
-//! and their centre boxes are gathered while partitioning, so a node costs two passes over its
-//! items. A node becomes a leaf when SAH prefers it and it holds at most the caller's
-//! `max_leaf` items; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split
+//! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 1; leaves
+//! cost what the caller's [`Leaves`] say: one per item, or one price for a whole leaf whose
+//! items are tested together, a split's sides priced as that many full leaves), and partitions
+//! in place; the children's boxes are the unions of their bins' boxes and their centre boxes are gathered while partitioning, so a node costs two passes over its
+//! items. A node becomes a leaf when SAH prefers it and it holds at most [`Leaves::max`]
+//! items; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split
 //! at the median instead, which bounds the depth to `MEDIAN_DEPTH + 32` and the traversal stack.
 //! The quads are written as the splits are decided, with no binary tree in between: a quad's
 //! children are its node's two sides, the inner one of largest surface area replaced by its own
@@ -49,11 +50,48 @@ const FEW_ITEMS: usize = 64;
 pub(crate) const PARALLEL_MIN: usize = 4096;
 /// Nodes with more triangles than this bin in parallel.
 const PARALLEL_BINNING_MIN: usize = 65536;
-/// The largest `max_leaf` a caller may ask for: a quad stores leaf sizes in 16 bits, and a leaf
-/// holds at most `max_leaf` items (or one, below the median-split depth).
+/// The largest [`Leaves::max`] a caller may ask for: a quad stores leaf sizes in 16 bits, and a
+/// leaf holds at most that many items (or one, below the median-split depth).
 pub(crate) const MAX_LEAF_ITEMS: usize = u16::MAX as usize;
 /// From this depth on, nodes are split at the median.
 const MEDIAN_DEPTH: usize = 64;
+
+/// How a hierarchy's leaves are made: at most [`Leaves::max`] items each, and what testing one
+/// costs in the SAH (in units of one item test; a traversal step costs 1).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Leaves {
+    /// The most items a leaf holds.
+    pub max: usize,
+    /// The SAH cost of a whole leaf, whatever its size (items tested together, one SIMD pass
+    /// for up to eight triangles), or `None`: one per item (items tested one by one).
+    whole: Option<f32>,
+}
+
+impl Leaves {
+    /// Leaves of at most `max` items tested one by one.
+    pub(crate) const fn per_item(max: usize) -> Self {
+        Self { max, whole: None }
+    }
+
+    /// Leaves of at most `max` items tested together at the price `cost`.
+    pub(crate) const fn tested_together(max: usize, cost: f32) -> Self {
+        Self { max, whole: Some(cost) }
+    }
+
+    /// The SAH cost of a leaf of `n ≤ max` items.
+    fn cost(self, n: usize) -> f32 {
+        self.whole.unwrap_or(n as f32)
+    }
+
+    /// The SAH estimate for testing the `n` items of one side of a split: as if in full leaves
+    /// (`⌈n / max⌉` of them; `n` tests where items are tested one by one).
+    fn side_cost(self, n: u32) -> f32 {
+        match self.whole {
+            Some(cost) => cost * n.div_ceil(self.max as u32) as f32,
+            None => n as f32,
+        }
+    }
+}
 
 /// `1 + 2γ₃` in f32 (γₙ = nε/(1 − nε), ε = 2⁻²⁴).
 pub(crate) const EXIT_PAD: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
@@ -249,10 +287,10 @@ fn bin_of<const N: usize>(c: Vec3A, lo: Vec3A, scale: Vec3A) -> [u32; 4] {
 }
 
 impl QuadBvh {
-    /// Builds over `tris` (reordered in place into leaf order), with leaves of at most
-    /// `max_leaf` items. `tris` must not be empty.
-    pub fn build(tris: &mut [BuildItem], max_leaf: usize) -> Self {
-        assert!(max_leaf <= MAX_LEAF_ITEMS, "leaves of at most {MAX_LEAF_ITEMS} items");
+    /// Builds over `tris` (reordered in place into leaf order), with leaves as `leaves` says.
+    /// `tris` must not be empty.
+    pub fn build(tris: &mut [BuildItem], leaves: Leaves) -> Self {
+        assert!(leaves.max <= MAX_LEAF_ITEMS, "leaves of at most {MAX_LEAF_ITEMS} items");
         let (bounds, centroids) = if tris.len() > PARALLEL_BINNING_MIN {
             tris.par_chunks(16384)
                 .map(boxes_of)
@@ -260,7 +298,7 @@ impl QuadBvh {
         } else {
             boxes_of(tris)
         };
-        let root = decide(tris, 0, bounds, centroids, 0, max_leaf);
+        let root = decide(tris, 0, bounds, centroids, 0, leaves);
         let node = |first, count| Node {
             lo: bounds.lo.to_array(),
             first,
@@ -279,7 +317,7 @@ impl QuadBvh {
             };
         }
         let mut quads = QuadArray::zeroed(node_bound(root.count));
-        let (span, used) = build_quad(tris, &root, &mut quads, 0, max_leaf);
+        let (span, used) = build_quad(tris, &root, &mut quads, 0, leaves);
         quads.truncate(span as usize);
         Self {
             root: node(0, 0),
@@ -290,8 +328,8 @@ impl QuadBvh {
 
     /// [`QuadBvh::build`] taking the items and giving their ids in leaf order (the items are
     /// dropped before returning).
-    pub fn build_ids(mut tris: Vec<BuildItem>, max_leaf: usize) -> (Self, Vec<u32>) {
-        let bvh = Self::build(&mut tris, max_leaf);
+    pub fn build_ids(mut tris: Vec<BuildItem>, leaves: Leaves) -> (Self, Vec<u32>) {
+        let bvh = Self::build(&mut tris, leaves);
         let ids = tris.iter().map(|t| t.id).collect();
         (bvh, ids)
     }
@@ -446,11 +484,11 @@ fn boxes_of(tris: &[BuildItem]) -> (Bb, Bb) {
 
 /// Decides how the node over `tris` (items `start..` of the leaf order), whose boxes span
 /// `bounds` and whose centres span `centroids`, is split, and partitions its items
-/// accordingly: SAH over binned centres, a leaf where SAH prefers one of at most `max_leaf`
-/// items, the median along the widest centre axis from depth [`MEDIAN_DEPTH`] on or where
+/// accordingly: SAH over binned centres, a leaf where SAH prefers one of at most
+/// [`Leaves::max`] items, the median along the widest centre axis from depth [`MEDIAN_DEPTH`] on or where
 /// every centre coincides. The sides' boxes come from the bins and their centre boxes from the
 /// partition pass, so a node costs two passes over its items.
-fn decide(tris: &mut [BuildItem], start: u32, bounds: Bb, centroids: Bb, depth: usize, max_leaf: usize) -> Decided {
+fn decide(tris: &mut [BuildItem], start: u32, bounds: Bb, centroids: Bb, depth: usize, leaves: Leaves) -> Decided {
     let n = tris.len();
     let decided = |split| Decided {
         bounds,
@@ -466,7 +504,7 @@ fn decide(tris: &mut [BuildItem], start: u32, bounds: Bb, centroids: Bb, depth: 
     let split = if depth >= MEDIAN_DEPTH || extent.max_element() <= 0.0 {
         None
     } else {
-        sah_split(tris, bounds, centroids, max_leaf)
+        sah_split(tris, bounds, centroids, leaves)
     };
     match split {
         Some(Split::Leaf) => decided(None),
@@ -489,7 +527,7 @@ fn decide(tris: &mut [BuildItem], start: u32, bounds: Bb, centroids: Bb, depth: 
 
 /// The two children of the inner node `node`, whose items are `tris`, decided (in parallel
 /// for a node of more than [`PARALLEL_MIN`] items).
-fn children_of(tris: &mut [BuildItem], node: &Decided, max_leaf: usize) -> [Decided; 2] {
+fn children_of(tris: &mut [BuildItem], node: &Decided, leaves: Leaves) -> [Decided; 2] {
     let Children {
         mid,
         bounds: [lb, rb],
@@ -499,14 +537,14 @@ fn children_of(tris: &mut [BuildItem], node: &Decided, max_leaf: usize) -> [Deci
     let (start, rstart, depth) = (node.start, node.start + mid as u32, node.depth + 1);
     if node.count as usize > PARALLEL_MIN {
         let (l, r) = rayon::join(
-            || decide(left, start, lb, lc, depth, max_leaf),
-            || decide(right, rstart, rb, rc, depth, max_leaf),
+            || decide(left, start, lb, lc, depth, leaves),
+            || decide(right, rstart, rb, rc, depth, leaves),
         );
         [l, r]
     } else {
         [
-            decide(left, start, lb, lc, depth, max_leaf),
-            decide(right, rstart, rb, rc, depth, max_leaf),
+            decide(left, start, lb, lc, depth, leaves),
+            decide(right, rstart, rb, rc, depth, leaves),
         ]
     }
 }
@@ -534,8 +572,8 @@ fn set_slot(quad: &mut Quad, slot: usize, node: &Decided) {
 /// for a node of at most [`PARALLEL_MIN`] items, otherwise built in parallel, each in a range
 /// of its bound, leaving the unused rest of each range zero. Returns the slots spanned and the
 /// nodes written.
-fn build_quad(tris: &mut [BuildItem], node: &Decided, slots: &mut [Quad], index: u32, max_leaf: usize) -> (u32, u32) {
-    let [first, second] = children_of(tris, node, max_leaf);
+fn build_quad(tris: &mut [BuildItem], node: &Decided, slots: &mut [Quad], index: u32, leaves: Leaves) -> (u32, u32) {
+    let [first, second] = children_of(tris, node, leaves);
     let mut members = [Some(first), Some(second), None, None];
     let mut len = 2;
     while len < 4 {
@@ -552,7 +590,7 @@ fn build_quad(tris: &mut [BuildItem], node: &Decided, slots: &mut [Quad], index:
         }
         let Some((i, _)) = widest else { break };
         let opened = members[i].take().expect("set");
-        let [a, b] = children_of(&mut tris[opened.range(node.start)], &opened, max_leaf);
+        let [a, b] = children_of(&mut tris[opened.range(node.start)], &opened, leaves);
         members[i] = Some(a);
         members[len] = Some(b);
         len += 1;
@@ -577,13 +615,7 @@ fn build_quad(tris: &mut [BuildItem], node: &Decided, slots: &mut [Quad], index:
                 continue;
             }
             quad.child[slot] = index + span;
-            let (s, u) = build_quad(
-                &mut tris[member.range(node.start)],
-                member,
-                rest,
-                index + span,
-                max_leaf,
-            );
+            let (s, u) = build_quad(&mut tris[member.range(node.start)], member, rest, index + span, leaves);
             rest = &mut std::mem::take(&mut rest)[s as usize..];
             span += s;
             used += u;
@@ -614,7 +646,7 @@ fn build_quad(tris: &mut [BuildItem], node: &Decided, slots: &mut [Quad], index:
         }
         used += work
             .into_par_iter()
-            .map(|(items, member, own, at)| build_quad(items, member, own, at, max_leaf).1)
+            .map(|(items, member, own, at)| build_quad(items, member, own, at, leaves).1)
             .sum::<u32>();
     }
     *head = quad;
@@ -634,11 +666,11 @@ struct Children {
     centroids: [Bb; 2],
 }
 
-fn sah_split(tris: &mut [BuildItem], bounds: Bb, centroids: Bb, max_leaf: usize) -> Option<Split> {
+fn sah_split(tris: &mut [BuildItem], bounds: Bb, centroids: Bb, leaves: Leaves) -> Option<Split> {
     if tris.len() <= FEW_ITEMS {
-        sah_split_binned::<FEW_BINS>(tris, bounds, centroids, max_leaf)
+        sah_split_binned::<FEW_BINS>(tris, bounds, centroids, leaves)
     } else {
-        sah_split_binned::<BINS>(tris, bounds, centroids, max_leaf)
+        sah_split_binned::<BINS>(tris, bounds, centroids, leaves)
     }
 }
 
@@ -647,7 +679,7 @@ fn sah_split_binned<const N: usize>(
     tris: &mut [BuildItem],
     bounds: Bb,
     centroids: Bb,
-    max_leaf: usize,
+    leaves: Leaves,
 ) -> Option<Split> {
     let n = tris.len();
     let extent = centroids.hi - centroids.lo;
@@ -705,14 +737,16 @@ fn sah_split_binned<const N: usize>(
                 continue;
             }
             let cost = TRAVERSAL_COST
-                + (acc.half_area() * count as f32 + right_area[split] * right_count[split] as f32) / parent;
+                + (acc.half_area() * leaves.side_cost(count)
+                    + right_area[split] * leaves.side_cost(right_count[split]))
+                    / parent;
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, split));
             }
         }
     }
     let (cost, axis, split) = best?;
-    if n <= max_leaf && cost >= n as f32 {
+    if n <= leaves.max && cost >= leaves.cost(n) {
         return Some(Split::Leaf);
     }
     // the sides' boxes are the unions of their bins' boxes (each bin's box is the union of its
@@ -798,8 +832,12 @@ mod tests {
                     BuildItem::new(bounds, id)
                 })
                 .collect();
-            for max_leaf in [2, 6] {
-                let bvh = QuadBvh::build(&mut items, max_leaf);
+            for leaves in [
+                Leaves::per_item(2),
+                Leaves::per_item(6),
+                Leaves::tested_together(8, 3.0),
+            ] {
+                let bvh = QuadBvh::build(&mut items, leaves);
                 assert!(!bvh.quads.is_empty());
                 assert!(bvh.quads.len() <= node_bound(n));
                 // every quad reached once, children after their parent (depth first), and
@@ -825,7 +863,7 @@ mod tests {
                 }
                 assert_eq!(reached.iter().filter(|&&r| r == 1).count(), bvh.quad_count());
                 for (quad, &r) in bvh.quads.iter().zip(&reached) {
-                    assert!(r <= 1, "{n} items, leaf {max_leaf}");
+                    assert!(r <= 1, "{n} items, {leaves:?}");
                     if r == 0 {
                         assert!(quad.len == 0 && quad.child == [0; 4] && quad.count == [0; 4]);
                     }
@@ -833,7 +871,7 @@ mod tests {
                 if n <= PARALLEL_MIN as u32 {
                     assert_eq!(bvh.quads.len(), bvh.quad_count(), "packed: {n} items");
                 }
-                assert!(covered.iter().all(|&c| c == 1), "{n} items, leaf {max_leaf}");
+                assert!(covered.iter().all(|&c| c == 1), "{n} items, {leaves:?}");
             }
         }
     }

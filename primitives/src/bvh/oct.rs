@@ -249,11 +249,11 @@ fn emit(quads: &[Quad], q: usize, nodes: &mut Vec<Oct>) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::build::{Bb, BuildItem, QuadBvh};
+    use crate::bvh::build::{Bb, BuildItem, Leaves, QuadBvh};
     use glam::Vec3A;
     use rand::{Rng, SeedableRng};
 
-    /// The quads over `count` random boxes (leaves of at most 6, as a mesh's).
+    /// The quads over `count` random boxes (leaves of at most 6 items).
     fn quads(count: usize, seed: u64) -> QuadBvh {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let mut items: Vec<BuildItem> = (0..count as u32)
@@ -271,7 +271,7 @@ mod tests {
                 BuildItem::new(Bb { lo: c - h, hi: c + h }, id)
             })
             .collect();
-        QuadBvh::build(&mut items, 6)
+        QuadBvh::build(&mut items, Leaves::per_item(6))
     }
 
     /// A leaf as a node holds it: `(first, count, lo, hi)`.

@@ -21,7 +21,7 @@
     reason = "lane loops index several per-lane arrays by the lane; the form the compiler vectorises"
 )]
 
-use super::{permuted, Candidate, Mesh, MeshQuery};
+use super::{permuted, splat3, watertight_lanes, Candidate, Lanes, Mesh, MeshQuery};
 use crate::bvh::build::EXIT_PAD;
 use crate::bvh::{
     lane_mask, lanes_of, max_f32, min_f32, traverse_quads_from, walk_packet, PacketVisitor, Quad, SlabsFrom,
@@ -30,9 +30,6 @@ use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::Intersect;
 use crate::PACKET;
-
-/// One f32 per lane.
-type Lanes = [f32; PACKET];
 
 /// Below this many lanes, a leaf's triangles are tested lane by lane (the SIMD test costs the
 /// same for one lane as for eight).
@@ -210,22 +207,20 @@ impl PacketQuery<'_> {
     /// The leaf's triangles for lane `l` alone, its closest hit so far at `t_far`: the single-ray
     /// leaf test. Returns the new `t_far`.
     #[inline(always)]
-    fn leaf_lane(&mut self, l: usize, first: u32, count: u32, mut t_far: f32) -> f32 {
+    fn leaf_lane(&mut self, l: usize, first: u32, count: u32, t_far: f32) -> f32 {
         let Some(q) = &self.queries[l] else { return t_far };
-        let mesh = self.mesh;
-        for k in first as usize..(first + count) as usize {
-            let [a, b, c] = mesh.corners(k);
-            if let Some((t, u, v)) = q.ray.triangle(a, b, c, q.t_min, t_far) {
-                if !Mesh::beats(self.best[l].as_ref(), k, t, t_far)
-                    || !mesh.counts(&self.rays[l], self.ranges[l], q, k, t)
-                {
-                    continue;
-                }
-                t_far = t;
-                self.best[l] = Some((k, t, u, v));
-            }
-        }
-        t_far
+        self.mesh
+            .leaf_closest(
+                &self.rays[l],
+                self.ranges[l],
+                q,
+                q.ray.k,
+                first,
+                count,
+                t_far,
+                &mut self.best[l],
+            )
+            .unwrap_or(t_far)
     }
 
     /// The leaf's triangles for the lanes of `lanes`, eight lanes per SIMD operation.
@@ -233,53 +228,38 @@ impl PacketQuery<'_> {
     fn leaf_packet(&mut self, first: u32, count: u32, lanes: u32, t_max: &mut Lanes) {
         let mesh = self.mesh;
         let packet = self.packet;
-        let [kx, ky, kz] = packet.k;
-        for k in first as usize..(first + count) as usize {
-            let [a, b, c] = mesh.corners(k);
-            // the corners' components in the order (kx, ky, kz), read from registers
-            let [pa, pb, pc] = [a, b, c].map(|v| permuted(v, packet.k));
-            let mut t = [0.0f32; PACKET];
-            let mut e = [[0.0f32; PACKET]; 2];
-            let mut det = [0.0f32; PACKET];
-            let mut zero = [0i32; PACKET];
-            let mut pass = [0i32; PACKET];
-            for l in 0..PACKET {
-                let [ox, oy, oz] = [packet.origin[kx][l], packet.origin[ky][l], packet.origin[kz][l]];
-                let [sx, sy, sz] = [packet.shear[0][l], packet.shear[1][l], packet.shear[2][l]];
-                let (az, bz, cz) = (pa[2] - oz, pb[2] - oz, pc[2] - oz);
-                let ax = (pa[0] - ox) - sx * az;
-                let ay = (pa[1] - oy) - sy * az;
-                let bx = (pb[0] - ox) - sx * bz;
-                let by = (pb[1] - oy) - sy * bz;
-                let cx = (pc[0] - ox) - sx * cz;
-                let cy = (pc[1] - oy) - sy * cz;
-                let e0 = cx * by - cy * bx;
-                let e1 = ax * cy - ay * cx;
-                let e2 = bx * ay - by * ax;
-                zero[l] = -i32::from(e0 == 0.0 || e1 == 0.0 || e2 == 0.0);
-                let d = e0 + e1 + e2;
-                let tl = (e0 * (sz * az) + e1 * (sz * bz) + e2 * (sz * cz)) / d;
-                let mixed = (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0);
-                pass[l] = -i32::from(!mixed && d != 0.0 && tl >= packet.t_min[l] && tl <= t_max[l]);
-                t[l] = tl;
-                e[0][l] = e1;
-                e[1][l] = e2;
-                det[l] = d;
-            }
-            let zero = lane_mask(&zero) & lanes;
-            let found = lane_mask(&pass) & lanes & !zero;
+        let k = packet.k;
+        let leaf = mesh.leaf(first, count);
+        let origin = [packet.origin[k[0]], packet.origin[k[1]], packet.origin[k[2]]];
+        for i in 0..count as usize {
+            // the corners' components in the order (kx, ky, kz), the same in every lane
+            let corners = leaf.permuted_corners(i, k);
+            let test = watertight_lanes(
+                [splat3(corners[0]), splat3(corners[1]), splat3(corners[2])],
+                &origin,
+                &packet.shear,
+                &packet.t_min,
+                t_max,
+            );
+            let zero = test.zero & lanes;
+            let found = test.pass & lanes & !zero;
             // lanes with an edge function of exactly zero: the single-ray test, f64
             // recomputation included
             for l in lanes_of(zero | found) {
                 let Some(q) = &self.queries[l] else { continue };
                 let hit = if zero & (1 << l) != 0 {
-                    match q.ray.triangle(a, b, c, q.t_min, t_max[l]) {
+                    let [a, b, c] = corners;
+                    match q
+                        .ray
+                        .permuted_triangle(a, b, c, permuted(q.ray.origin, k), q.t_min, t_max[l])
+                    {
                         Some(hit) => hit,
                         None => continue,
                     }
                 } else {
-                    (t[l], e[0][l] / det[l], e[1][l] / det[l])
+                    (test.t[l], test.e1[l] / test.det[l], test.e2[l] / test.det[l])
                 };
+                let k = first as usize + i;
                 if !Mesh::beats(self.best[l].as_ref(), k, hit.0, t_max[l])
                     || !mesh.counts(&self.rays[l], self.ranges[l], q, k, hit.0)
                 {
