@@ -128,6 +128,11 @@ impl NodeTest for SlabsFrom<'_, SlabRay> {
 /// called from the walk's loop may be left out of line, its ray data spilled around each call).
 pub(crate) trait LeafTest {
     fn test(&mut self, first: u32, count: u32, t_max: f32) -> Option<f32>;
+
+    /// Asks memory for what testing the leaf of `count` items from `first` will read (called
+    /// by walks that prefetch, see [`worth_prefetching`], as soon as the leaf is entered).
+    #[inline(always)]
+    fn prefetch(&self, _first: u32, _count: u32) {}
 }
 
 impl<F: FnMut(u32, u32, f32) -> Option<f32>> LeafTest for F {
