@@ -1118,6 +1118,23 @@ impl Intersect for Mesh {
 mod tests {
     use super::*;
 
+    /// The height field of `n × n` vertices `(i, height(i, j), j)` on the unit grid, two
+    /// triangles a cell.
+    fn height_field(n: usize, height: impl Fn(usize, usize) -> f32) -> Mesh {
+        let vertices: Vec<[f32; 3]> = (0..n * n)
+            .map(|k| [(k % n) as f32, height(k % n, k / n), (k / n) as f32])
+            .collect();
+        let mut indices = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let k = (j * n + i) as u32;
+                indices.push([k, k + n as u32, k + 1]);
+                indices.push([k + 1, k + n as u32, k + n as u32 + 1]);
+            }
+        }
+        Mesh::new(vertices, indices, None).unwrap()
+    }
+
     fn tetra() -> Mesh {
         let v = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         // counter-clockwise seen from outside
@@ -1132,20 +1149,7 @@ mod tests {
     fn phi_is_the_distance_to_the_nearest_triangle() {
         use rand::rngs::StdRng;
         use rand::{Rng, SeedableRng};
-        let n = 25usize;
-        let height = |i: usize, j: usize| ((i * 7 + j * 13) % 11) as f32 * 0.05;
-        let vertices: Vec<[f32; 3]> = (0..n * n)
-            .map(|k| [(k % n) as f32, height(k % n, k / n), (k / n) as f32])
-            .collect();
-        let mut indices = Vec::new();
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let k = (j * n + i) as u32;
-                indices.push([k, k + n as u32, k + 1]);
-                indices.push([k + 1, k + n as u32, k + n as u32 + 1]);
-            }
-        }
-        let m = Mesh::new(vertices, indices, None).unwrap();
+        let m = height_field(25, |i, j| ((i * 7 + j * 13) % 11) as f32 * 0.05);
         assert!(m.node_count() > 20);
         let mut rng = StdRng::seed_from_u64(7);
         for _ in 0..2000 {
@@ -1172,19 +1176,7 @@ mod tests {
     /// row readable as eight lanes, and the leaves' blocks tile the buffer in leaf order.
     #[test]
     fn leaf_rows_hold_each_leaf_s_corners() {
-        let n = 40usize;
-        let vertices: Vec<[f32; 3]> = (0..n * n)
-            .map(|k| [(k % n) as f32, ((k * 7919) % 13) as f32 * 0.1, (k / n) as f32])
-            .collect();
-        let mut indices = Vec::new();
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let k = (j * n + i) as u32;
-                indices.push([k, k + n as u32, k + 1]);
-                indices.push([k + 1, k + n as u32, k + n as u32 + 1]);
-            }
-        }
-        let m = Mesh::new(vertices, indices, None).unwrap();
+        let m = height_field(40, |i, j| (((j * 40 + i) * 7919) % 13) as f32 * 0.1);
         assert_eq!(m.leaf_corners.len(), 9 * m.in_bvh + ROW_PAD);
         let (mut pending, mut covered, mut sizes) = (vec![0usize], vec![0u32; m.in_bvh], [0usize; 9]);
         while let Some(q) = pending.pop() {
