@@ -77,6 +77,12 @@ pub const ANSWER: HitRequest = HitRequest {
     error: false,
 };
 
+/// A miss, certain: the answer before a ray is traced.
+pub const MISS: QueryHit = QueryHit {
+    hit: None,
+    uncertain: false,
+};
+
 /// The answer for one query ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct QueryHit {
@@ -128,7 +134,17 @@ pub fn trace_batch_in(scene: &Scene, rays: &[QueryRay], order: RayOrder) -> Vec<
         RayOrder::Input => false,
         RayOrder::Sorted => rays.len() > 1,
     };
-    let one_by_one = || rays.par_iter().with_min_len(256).map(|q| trace_one(scene, q)).collect();
+    // each ray on its own, handed to the scene 256 at a time
+    let one_by_one = || {
+        let mut answers = vec![MISS; rays.len()];
+        answers.par_chunks_mut(256).zip(rays.par_chunks(256)).for_each_init(
+            TraceWork::default,
+            |work, (answers, rays)| {
+                trace_many_for(scene, rays, ANSWER, work, answers);
+            },
+        );
+        answers
+    };
     if !sort || !sample_may_pay(rays) {
         return one_by_one();
     }
@@ -273,6 +289,51 @@ pub fn trace_one_for(scene: &Scene, q: &QueryRay, request: HitRequest) -> QueryH
     QueryHit {
         hit,
         uncertain: thread_uncertain_events() != exhausted_before,
+    }
+}
+
+/// Room reused from batch to batch by [`trace_many_for`].
+#[derive(Debug, Default)]
+pub struct TraceWork {
+    rays: Vec<Ray>,
+    ranges: Vec<Interval>,
+    hits: Vec<Option<(u32, zeroset_primitives::RawHit)>>,
+    uncertain: Vec<bool>,
+}
+
+/// [`trace_one_for`] of every ray of `rays`, into `answers` (of the same length): the same
+/// answers, `uncertain` flags included, the rays handed to the scene together
+/// ([`Scene::intersect_each`]) and the hits completed after.
+pub fn trace_many_for(
+    scene: &Scene,
+    rays: &[QueryRay],
+    request: HitRequest,
+    work: &mut TraceWork,
+    answers: &mut [QueryHit],
+) {
+    work.rays.clear();
+    work.rays.extend(rays.iter().map(|q| q.ray));
+    work.ranges.clear();
+    work.ranges.extend(rays.iter().map(|q| q.range));
+    work.hits.clear();
+    work.hits.resize(rays.len(), None);
+    work.uncertain.clear();
+    work.uncertain.resize(rays.len(), false);
+    scene.intersect_each(&work.rays, &work.ranges, &mut work.hits, &mut work.uncertain);
+    for (((q, hit), &uncertain), answer) in rays.iter().zip(&work.hits).zip(&work.uncertain).zip(answers) {
+        *answer = match hit {
+            None => QueryHit { hit: None, uncertain },
+            Some((object, raw)) => {
+                // as in `trace_one_for`, completing the hit counts too
+                let before = thread_uncertain_events();
+                let primitive = &*scene.objects[*object as usize].primitive;
+                let hit = SurfaceHit::complete(primitive, &q.ray, raw, request);
+                QueryHit {
+                    hit: Some((*object, hit)),
+                    uncertain: uncertain || thread_uncertain_events() != before,
+                }
+            }
+        };
     }
 }
 
@@ -1011,6 +1072,54 @@ pub fn parse_rays_with(text: &str, path: &str, setup: &RaySetup) -> Result<Vec<Q
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Rays handed to the scene together ([`trace_many_for`]) get exactly the answers they get
+    /// one by one, `uncertain` flags included: a lone object (the batch handed to it in one
+    /// call), a lone `Function` whose budget of 4 evaluations runs out on the rays through its
+    /// sphere (flagged ray by ray), and three objects; in each, some directions 10⁻³⁰⁰ or 10³⁰⁰
+    /// long (rescaled, so not handed over together).
+    #[test]
+    fn rays_traced_together_equal_rays_traced_one_by_one() {
+        use rand::{Rng, SeedableRng};
+        let scenes = [
+            "Scene(camera: (), objects: [(shape: Sphere(center: (0, 0, 0), radius: 1))])",
+            "Scene(camera: (), objects: [(shape: Function(phi: \"sqrt(x^2 + y^2 + z^2) - 1\", \
+             min: (-2, -2, -2), max: (2, 2, 2), budget: 4))])",
+            "Scene(camera: (), objects: [(shape: Sphere(center: (0, 0, 0), radius: 1)), \
+             (shape: Box(min: (2, -1, -1), max: (3, 1, 1))), (shape: Plane(normal: (0, 1, 0), point: (0, -2, 0)))])",
+        ];
+        let mut rng = rand::rngs::StdRng::seed_from_u64(14);
+        for (which, text) in scenes.iter().enumerate() {
+            let scene = Scene::from_ron(text, "t.ron").unwrap();
+            let rays: Vec<QueryRay> = (0..3000)
+                .map(|i| {
+                    let o = DVec3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), -4.0);
+                    let aim = DVec3::new(rng.random_range(-1.5..1.5), rng.random_range(-1.5..1.5), 0.0);
+                    let scale = match i % 97 {
+                        0 => 1e-300,
+                        1 => 1e300,
+                        _ => 1.0,
+                    };
+                    QueryRay {
+                        ray: Ray::new(o, (aim - o) * scale),
+                        range: Interval::POSITIVE,
+                    }
+                })
+                .collect();
+            let one_by_one: Vec<QueryHit> = rays.iter().map(|q| trace_one(&scene, q)).collect();
+            let mut work = TraceWork::default();
+            let mut together = vec![MISS; rays.len()];
+            for (rays, answers) in rays.chunks(256).zip(together.chunks_mut(256)) {
+                trace_many_for(&scene, rays, ANSWER, &mut work, answers);
+            }
+            assert_eq!(together, one_by_one, "scene {which}");
+            assert_eq!(trace_batch(&scene, &rays), one_by_one, "scene {which}");
+            let hits = one_by_one.iter().filter(|a| a.hit.is_some()).count();
+            let uncertain = one_by_one.iter().filter(|a| a.uncertain).count();
+            assert!(hits > 300, "scene {which}: {hits} hits");
+            assert_eq!(uncertain > 100, which == 1, "scene {which}: {uncertain} uncertain");
+        }
+    }
 
     /// Tracing in the coherent order gives every ray the same answer as the input order, in
     /// input order, and the order is a permutation.

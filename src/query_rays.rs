@@ -23,7 +23,7 @@
 //! ever exist for the chunks in flight (cache-sized), hit records only one at a time, and the
 //! caller writes each answer straight into its own output buffers.
 
-use crate::query::{trace_one_for, QueryHit, QueryRay};
+use crate::query::{trace_many_for, QueryHit, QueryRay, TraceWork, MISS};
 use crate::scene::Scene;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -280,16 +280,20 @@ impl<'a> RayColumns<'a> {
         if !(finite(origins) & finite(directions) & nonzero & ordered) {
             return false;
         }
-        out.extend(
-            origins
-                .chunks_exact(3)
-                .zip(directions.chunks_exact(3))
-                .enumerate()
-                .map(|(k, (o, d))| QueryRay {
-                    ray: Ray::new(DVec3::new(o[0], o[1], o[2]), DVec3::new(d[0], d[1], d[2])),
-                    range: setup.range.range(per_ray(tmin, k), per_ray(tmax, k)),
-                }),
-        );
+        let rays = origins
+            .chunks_exact(3)
+            .zip(directions.chunks_exact(3))
+            .map(|(o, d)| Ray::new(DVec3::new(o[0], o[1], o[2]), DVec3::new(d[0], d[1], d[2])));
+        if let ([tmin], [tmax]) = (tmin, tmax) {
+            // one range for every ray (the common call): made once
+            let range = setup.range.range(*tmin, *tmax);
+            out.extend(rays.map(|ray| QueryRay { ray, range }));
+        } else {
+            out.extend(rays.enumerate().map(|(k, ray)| QueryRay {
+                ray,
+                range: setup.range.range(per_ray(tmin, k), per_ray(tmax, k)),
+            }));
+        }
         true
     }
 
@@ -313,14 +317,15 @@ impl<'a> RayColumns<'a> {
     }
 }
 
-/// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, each traced by
-/// [`trace_one_for`] and completed as far as `request` asks), handed to `put(out, row, hit)` one
-/// ray at a time: `outputs[k]` receives the hits of rays `k·COLUMN_CHUNK ..` (up to
-/// [`COLUMN_CHUNK`] of them, in ray order, `row` counting from 0 in each chunk). Chunks run in
-/// parallel on rayon's pool, each built, then traced and handed over ray by ray while in cache
-/// (no hit record is kept beyond the ray's own); with the full request ([`crate::query::ANSWER`])
-/// the hits equal [`crate::query::trace_batch`] on all the rays at once (every ray is traced on
-/// its own).
+/// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, traced as
+/// [`crate::query::trace_one_for`] traces each, completed as far as `request` asks), handed to
+/// `put(out, row, hit)` one ray at a time: `outputs[k]` receives the hits of rays
+/// `k·COLUMN_CHUNK ..` (up to [`COLUMN_CHUNK`] of them, in ray order, `row` counting from 0 in
+/// each chunk). Chunks run in parallel on rayon's pool, each built, traced
+/// ([`crate::query::trace_many_for`]: handed to the scene together) and handed over while in
+/// cache (no hit record is kept beyond the chunk's); with the full request
+/// ([`crate::query::ANSWER`]) the hits equal [`crate::query::trace_batch`] on all the rays at
+/// once (every ray is traced on its own).
 ///
 /// # Errors
 /// The first bad ray by index, `(index, what is wrong)`; every ray is still checked (so the
@@ -342,8 +347,14 @@ pub fn trace_columns<O: Send>(
     let failed = AtomicBool::new(false);
     let first_error: Mutex<Option<(usize, String)>> = Mutex::new(None);
     outputs.into_par_iter().enumerate().for_each_init(
-        || Vec::with_capacity(COLUMN_CHUNK),
-        |rays: &mut Vec<QueryRay>, (k, mut out)| {
+        || {
+            (
+                Vec::with_capacity(COLUMN_CHUNK),
+                TraceWork::default(),
+                Vec::with_capacity(COLUMN_CHUNK),
+            )
+        },
+        |(rays, work, answers): &mut (Vec<QueryRay>, TraceWork, Vec<QueryHit>), (k, mut out)| {
             let chunk = k * COLUMN_CHUNK..((k + 1) * COLUMN_CHUNK).min(n);
             rays.clear();
             // the chunk's rays at once where all are plain, else one by one (which finds the bad one)
@@ -363,8 +374,10 @@ pub fn trace_columns<O: Send>(
                 }
             }
             if !failed.load(Ordering::Relaxed) {
-                for (row, ray) in rays.iter().enumerate() {
-                    put(&mut out, row, &trace_one_for(scene, ray, request));
+                answers.resize(rays.len(), MISS);
+                trace_many_for(scene, rays, request, work, answers);
+                for (row, answer) in answers.iter().enumerate() {
+                    put(&mut out, row, answer);
                 }
             }
         },

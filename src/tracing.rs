@@ -1,6 +1,7 @@
 //! Tracing rays through a loaded [`Scene`]: the hierarchy over its objects and the closest-hit
 //! and occlusion queries that walk it. The render loop, `query` and Python all come here.
 
+use zeroset_primitives::root::thread_uncertain_events;
 use zeroset_primitives::{Bvh, Interval, RawHit, Ray};
 
 use crate::scene::{Object, Scene};
@@ -80,6 +81,50 @@ impl Scene {
             |id, ray, r| self.objects[id as usize].primitive.intersect(ray, r),
             ray,
         )
+    }
+
+    /// [`Scene::intersect`] of every ray of `rays` over its range in `ranges`, into `out`, and
+    /// into `uncertain` whether a root finder ran out of budget on that ray (this thread's
+    /// [`zeroset_primitives::root::thread_uncertain_events`] moved meanwhile); the four slices
+    /// have the same length. The same answers: a scene of one object (a lone mesh, the common
+    /// query) hands the rays to it in one call
+    /// ([`zeroset_primitives::Intersect::intersect_each`]: what a call costs around the test is
+    /// paid once) where no direction needs rescaling (see [`Scene::intersect`]); other scenes
+    /// trace ray after ray.
+    pub fn intersect_each(
+        &self,
+        rays: &[Ray],
+        ranges: &[Interval],
+        out: &mut [Option<(u32, RawHit)>],
+        uncertain: &mut [bool],
+    ) {
+        const BATCH: usize = 64;
+        let lone = match self.hierarchy.unbounded[..] {
+            [only] if self.hierarchy.bvh.is_empty() => Some(only),
+            _ => None,
+        };
+        let batches = rays.chunks(BATCH).zip(ranges.chunks(BATCH));
+        for ((rays, ranges), (out, uncertain)) in batches.zip(out.chunks_mut(BATCH).zip(uncertain.chunks_mut(BATCH))) {
+            match lone {
+                Some(object) if rays.iter().all(|ray| scaled_direction_size(ray).is_none()) => {
+                    let mut hits = [None; BATCH];
+                    let hits = &mut hits[..rays.len()];
+                    self.objects[object as usize]
+                        .primitive
+                        .intersect_each(rays, ranges, hits, uncertain);
+                    for (out, hit) in out.iter_mut().zip(hits) {
+                        *out = hit.map(|raw| (object, raw));
+                    }
+                }
+                _ => {
+                    for (((ray, range), out), uncertain) in rays.iter().zip(ranges).zip(out).zip(uncertain) {
+                        let before = thread_uncertain_events();
+                        *out = self.intersect(ray, *range);
+                        *uncertain = thread_uncertain_events() != before;
+                    }
+                }
+            }
+        }
     }
 
     /// The closest hit of `test(object, ray, range)` over the always-tested objects and the BVH,

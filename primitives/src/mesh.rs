@@ -1038,50 +1038,64 @@ impl Mesh {
     }
 }
 
+/// The single-ray walk of a ray whose set-up `entry` is made and which enters the root's children
+/// `root` ([`Mesh::enters_root`]): the axes' copy of the walk chosen, the closest candidate
+/// finished.
+#[inline(always)]
+fn walk(mesh: &Mesh, ray: &Ray, range: Interval, entry: MeshEntry, root: (u32, [f32; 8])) -> Option<RawHit> {
+    let query = entry.query();
+    let best = match query.ray.k {
+        [1, 2, 0] => mesh.closest_candidate::<1, 2, 0>(ray, range, &query, root),
+        [2, 1, 0] => mesh.closest_candidate::<2, 1, 0>(ray, range, &query, root),
+        [2, 0, 1] => mesh.closest_candidate::<2, 0, 1>(ray, range, &query, root),
+        [0, 2, 1] => mesh.closest_candidate::<0, 2, 1>(ray, range, &query, root),
+        [0, 1, 2] => mesh.closest_candidate::<0, 1, 2>(ray, range, &query, root),
+        _ => mesh.closest_candidate::<1, 0, 2>(ray, range, &query, root),
+    };
+    mesh.finish(ray, range, &query, best)
+}
+
+/// [`walk`] in its own function (its AVX2+FMA copy where the CPU has them), whichever copy calls
+/// it: inlined, the walk's stack and register saves would be paid by every ray, also by those
+/// passing the mesh by (most of a random batch).
+#[inline(never)]
+fn walk_either(mesh: &Mesh, ray: &Ray, range: Interval, entry: MeshEntry, root: (u32, [f32; 8])) -> Option<RawHit> {
+    crate::with_fma!(walk(
+        mesh: &Mesh = mesh,
+        ray: &Ray = ray,
+        range: Interval = range,
+        entry: MeshEntry = entry,
+        root: (u32, [f32; 8]) = root,
+    ) -> Option<RawHit>)
+}
+
+/// A single ray's test: the set-up and the root's test, then, for a ray entering one of the
+/// root's children, the walk ([`walk_either`]).
+#[inline(always)]
+fn single_ray(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
+    let entry = mesh.entry(ray, range)?;
+    let root = mesh.enters_root(&entry)?;
+    walk_either(mesh, ray, range, entry, root)
+}
+
 impl Intersect for Mesh {
+    /// [`single_ray`] in its AVX2+FMA copy where the CPU has them.
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
-        // The set-up and the root's test, then, for a ray entering one of the root's children,
-        // the walk: both in AVX2+FMA copies where the CPU has them, the walk in its own (not
-        // inlined), so that a ray passing the mesh by (most of a random batch) does not pay the
-        // walk's register saves.
+        crate::with_fma!(single_ray(mesh: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
+    }
+
+    /// [`single_ray`] for every ray inside one AVX2+FMA copy (the CPU's features checked once for
+    /// the batch): the same answers as [`Mesh::intersect`] ray by ray. A mesh has no root finder,
+    /// so no answer is uncertain.
+    fn intersect_each(&self, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>], uncertain: &mut [bool]) {
+        uncertain.fill(false);
         #[inline(always)]
-        fn walk(mesh: &Mesh, ray: &Ray, range: Interval, entry: MeshEntry, root: (u32, [f32; 8])) -> Option<RawHit> {
-            let query = entry.query();
-            let best = match query.ray.k {
-                [1, 2, 0] => mesh.closest_candidate::<1, 2, 0>(ray, range, &query, root),
-                [2, 1, 0] => mesh.closest_candidate::<2, 1, 0>(ray, range, &query, root),
-                [2, 0, 1] => mesh.closest_candidate::<2, 0, 1>(ray, range, &query, root),
-                [0, 2, 1] => mesh.closest_candidate::<0, 2, 1>(ray, range, &query, root),
-                [0, 1, 2] => mesh.closest_candidate::<0, 1, 2>(ray, range, &query, root),
-                _ => mesh.closest_candidate::<1, 0, 2>(ray, range, &query, root),
-            };
-            mesh.finish(ray, range, &query, best)
+        fn each(mesh: &Mesh, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>]) {
+            for ((ray, &range), hit) in rays.iter().zip(ranges).zip(hits.iter_mut()) {
+                *hit = single_ray(mesh, ray, range);
+            }
         }
-        // its own function, whichever copy runs it: inlined, the walk's stack and register
-        // saves would be paid by every ray
-        #[inline(never)]
-        fn walk_either(
-            mesh: &Mesh,
-            ray: &Ray,
-            range: Interval,
-            entry: MeshEntry,
-            root: (u32, [f32; 8]),
-        ) -> Option<RawHit> {
-            crate::with_fma!(walk(
-                mesh: &Mesh = mesh,
-                ray: &Ray = ray,
-                range: Interval = range,
-                entry: MeshEntry = entry,
-                root: (u32, [f32; 8]) = root,
-            ) -> Option<RawHit>)
-        }
-        #[inline(always)]
-        fn test(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
-            let entry = mesh.entry(ray, range)?;
-            let root = mesh.enters_root(&entry)?;
-            walk_either(mesh, ray, range, entry, root)
-        }
-        crate::with_fma!(test(mesh: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
+        crate::with_fma!(each(mesh: &Mesh = self, rays: &[Ray] = rays, ranges: &[Interval] = ranges, hits: &mut [Option<RawHit>] = hits) -> ())
     }
 
     /// Walks the hierarchy once for the whole packet (see `mesh/packet.rs`); the same answers
@@ -1170,6 +1184,47 @@ mod tests {
                 "{p}: |Φ| {phi}, nearest {brute}"
             );
         }
+    }
+
+    /// The batch entry point gives each ray exactly its single-ray answer: rays entering the
+    /// height field, passing it by, and without a direction.
+    #[test]
+    fn intersect_each_equals_intersect() {
+        use rand::rngs::StdRng;
+        use rand::{Rng, SeedableRng};
+        let m = height_field(30, |i, j| ((i * 5 + j * 11) % 7) as f32 * 0.1);
+        let mut rng = StdRng::seed_from_u64(21);
+        let rays: Vec<Ray> = (0..2000)
+            .map(|i| {
+                let o = DVec3::new(
+                    rng.random_range(-5.0..35.0),
+                    rng.random_range(-2.0..3.0),
+                    rng.random_range(-5.0..35.0),
+                );
+                let d = DVec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                Ray::new(o, if i % 101 == 0 { DVec3::ZERO } else { d })
+            })
+            .collect();
+        let ranges: Vec<Interval> = (0..rays.len())
+            .map(|i| {
+                if i % 3 == 0 {
+                    Interval::new(0.5, 20.0)
+                } else {
+                    Interval::POSITIVE
+                }
+            })
+            .collect();
+        let (mut hits, mut uncertain) = (vec![None; rays.len()], vec![true; rays.len()]);
+        m.intersect_each(&rays, &ranges, &mut hits, &mut uncertain);
+        assert!(uncertain.iter().all(|u| !u));
+        let single: Vec<Option<RawHit>> = rays.iter().zip(&ranges).map(|(r, g)| m.intersect(r, *g)).collect();
+        assert_eq!(hits, single);
+        let found = single.iter().flatten().count();
+        assert!(found > 200 && found < 1800, "{found} hits");
     }
 
     /// Every leaf's rows hold its triangles' corners (as the index triples give them), each

@@ -137,6 +137,22 @@ pub trait Intersect: Implicit {
         root::first_root(self, ray, range, &self.root_options()).hit
     }
 
+    /// Closest hits of many unrelated rays (a query batch, in any order): `hits[i]` becomes
+    /// exactly [`Intersect::intersect`]`(&rays[i], ranges[i])`, and `uncertain[i]` whether a
+    /// root finder ran out of budget on that ray (this thread's
+    /// [`crate::root::thread_uncertain_events`] moved while it was traced). The four slices have
+    /// the same length.
+    ///
+    /// The default calls `intersect` ray after ray; a type whose test runs in a copy chosen at
+    /// run time overrides it to choose once for the whole batch (a mesh), with the same answers.
+    fn intersect_each(&self, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>], uncertain: &mut [bool]) {
+        for (((ray, range), hit), uncertain) in rays.iter().zip(ranges).zip(hits).zip(uncertain) {
+            let before = crate::root::thread_uncertain_events();
+            *hit = self.intersect(ray, *range);
+            *uncertain = crate::root::thread_uncertain_events() != before;
+        }
+    }
+
     /// Closest hits of several rays at once (a packet of at most [`crate::PACKET`] coherent
     /// rays, such as neighbouring pixels): for each lane `i`, exactly
     /// [`Intersect::intersect`]`(&rays[i], ranges[i])`; where that is a hit, `hits[i]` is set to
@@ -220,6 +236,7 @@ macro_rules! forward_through_pointer {
         impl<P: Intersect + ?Sized> Intersect for $($ptr)::+<P> {
             fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> { (**self).intersect(ray, range) }
             fn intersect_packet(&self, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) { (**self).intersect_packet(rays, ranges, hits) }
+            fn intersect_each(&self, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>], uncertain: &mut [bool]) { (**self).intersect_each(rays, ranges, hits, uncertain) }
             fn root_options(&self) -> RootOptions { (**self).root_options() }
             fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 { (**self).normal_at(ray, raw) }
             fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> { (**self).uv_at(ray, raw) }
