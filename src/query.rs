@@ -43,8 +43,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::io::{BufRead, Read, Seek, SeekFrom, Write};
-use zeroset_primitives::root::thread_uncertain_events;
-use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit, PACKET};
+use zeroset_primitives::root::{thread_uncertain_events, uncertain_while};
+use zeroset_primitives::{HitRequest, Interval, RawHit, Ray, SurfaceHit, PACKET};
 
 /// Rays read, traced and written per step of the batch loop.
 pub const CHUNK_RAYS: usize = 1 << 16;
@@ -253,10 +253,7 @@ fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> [QueryHit; 
     };
     if together {
         for l in 0..n {
-            out[l].hit = found[l].map(|(object, raw)| {
-                let primitive = &*scene.objects[object as usize].primitive;
-                (object, SurfaceHit::complete(primitive, &lanes[l], &raw, ANSWER))
-            });
+            out[l].hit = found[l].map(|hit| completed(scene, &lanes[l], hit, ANSWER));
         }
     } else {
         for (l, &i) in packet[..n].iter().enumerate() {
@@ -279,17 +276,18 @@ pub fn trace_one(scene: &Scene, q: &QueryRay) -> QueryHit {
 #[inline]
 #[must_use]
 pub fn trace_one_for(scene: &Scene, q: &QueryRay, request: HitRequest) -> QueryHit {
-    let exhausted_before = thread_uncertain_events();
-    let hit = scene.intersect(&q.ray, q.range).map(|(object, raw)| {
-        (
-            object,
-            SurfaceHit::complete(&*scene.objects[object as usize].primitive, &q.ray, &raw, request),
-        )
+    let (hit, uncertain) = uncertain_while(|| {
+        let hit = scene.intersect(&q.ray, q.range)?;
+        Some(completed(scene, &q.ray, hit, request))
     });
-    QueryHit {
-        hit,
-        uncertain: thread_uncertain_events() != exhausted_before,
-    }
+    QueryHit { hit, uncertain }
+}
+
+/// The hit `(object, raw)` of `ray`, completed as far as `request` asks.
+#[inline]
+fn completed(scene: &Scene, ray: &Ray, (object, raw): (u32, RawHit), request: HitRequest) -> (u32, SurfaceHit) {
+    let primitive = &*scene.objects[object as usize].primitive;
+    (object, SurfaceHit::complete(primitive, ray, &raw, request))
 }
 
 /// Room reused from batch to batch by [`trace_many_for`].
@@ -297,7 +295,7 @@ pub fn trace_one_for(scene: &Scene, q: &QueryRay, request: HitRequest) -> QueryH
 pub struct TraceWork {
     rays: Vec<Ray>,
     ranges: Vec<Interval>,
-    hits: Vec<Option<(u32, zeroset_primitives::RawHit)>>,
+    hits: Vec<Option<(u32, RawHit)>>,
     uncertain: Vec<bool>,
 }
 
@@ -320,17 +318,18 @@ pub fn trace_many_for(
     work.uncertain.clear();
     work.uncertain.resize(rays.len(), false);
     scene.intersect_each(&work.rays, &work.ranges, &mut work.hits, &mut work.uncertain);
-    for (((q, hit), &uncertain), answer) in rays.iter().zip(&work.hits).zip(&work.uncertain).zip(answers) {
+    for (((q, &hit), &traced_uncertain), answer) in rays.iter().zip(&work.hits).zip(&work.uncertain).zip(answers) {
         *answer = match hit {
-            None => QueryHit { hit: None, uncertain },
-            Some((object, raw)) => {
+            None => QueryHit {
+                hit: None,
+                uncertain: traced_uncertain,
+            },
+            Some(hit) => {
                 // as in `trace_one_for`, completing the hit counts too
-                let before = thread_uncertain_events();
-                let primitive = &*scene.objects[*object as usize].primitive;
-                let hit = SurfaceHit::complete(primitive, &q.ray, raw, request);
+                let (hit, completed_uncertain) = uncertain_while(|| completed(scene, &q.ray, hit, request));
                 QueryHit {
-                    hit: Some((*object, hit)),
-                    uncertain: uncertain || thread_uncertain_events() != before,
+                    hit: Some(hit),
+                    uncertain: traced_uncertain || completed_uncertain,
                 }
             }
         };

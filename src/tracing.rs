@@ -1,7 +1,7 @@
 //! Tracing rays through a loaded [`Scene`]: the hierarchy over its objects and the closest-hit
 //! and occlusion queries that walk it. The render loop, `query` and Python all come here.
 
-use zeroset_primitives::root::thread_uncertain_events;
+use zeroset_primitives::root::uncertain_while;
 use zeroset_primitives::{Bvh, Interval, RawHit, Ray};
 
 use crate::scene::{Object, Scene};
@@ -118,9 +118,7 @@ impl Scene {
                 }
                 _ => {
                     for (((ray, range), out), uncertain) in rays.iter().zip(ranges).zip(out).zip(uncertain) {
-                        let before = thread_uncertain_events();
-                        *out = self.intersect(ray, *range);
-                        *uncertain = thread_uncertain_events() != before;
+                        (*out, *uncertain) = uncertain_while(|| self.intersect(ray, *range));
                     }
                 }
             }

@@ -164,7 +164,7 @@ pub(crate) fn traverse_quads_from(
         let (hits, near) = nodes.entry4(q, cull_bound(t_max));
         let hits = hits & q.occupied();
         if prefetch {
-            prefetch_children(quads, &q.child, &q.count, hits);
+            prefetch_children(quads, &q.child, &q.count, hits, &leaf);
         }
         let mut next = None;
         if hits != 0 {
@@ -268,9 +268,10 @@ pub(crate) fn worth_prefetching<N>(nodes: &[N]) -> bool {
 /// the entered inner children (bits of `entered`) of a node whose slots refer to `child` and
 /// `count`, as soon as they are known: the walk visits one next and pushes the others, and in a
 /// hierarchy larger than the cache each visit would otherwise wait on memory in turn. A leaf slot
-/// asks for `nodes[0]` (no branch on the slot's kind).
+/// asks for `nodes[0]` (no branch on the slot's kind), and for what `leaf` will read
+/// ([`LeafTest::prefetch`]; nothing, and no branch, for a leaf test without a prefetch).
 #[inline(always)]
-pub(crate) fn prefetch_children<N>(nodes: &[N], child: &[u32], count: &[u16], entered: u32) {
+pub(crate) fn prefetch_children<N>(nodes: &[N], child: &[u32], count: &[u16], entered: u32, leaf: &impl LeafTest) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
@@ -284,10 +285,13 @@ pub(crate) fn prefetch_children<N>(nodes: &[N], child: &[u32], count: &[u16], en
                 // SAFETY: a prefetch never faults, whatever the address
                 unsafe { _mm_prefetch::<_MM_HINT_T0>(bytes.wrapping_add(64 * line)) };
             }
+            if count[slot] != 0 {
+                leaf.prefetch(child[slot], u32::from(count[slot]));
+            }
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = (nodes, child, count, entered);
+    let _ = (nodes, child, count, entered, leaf);
 }
 
 /// The slots of a node, the entered ones (bits of `entered`) first, sorted farthest first by

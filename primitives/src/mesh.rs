@@ -49,7 +49,7 @@
 use crate::bounds::Aabb;
 use crate::bvh::build::{Bb, BuildItem, Leaves, Node, QuadBvh, SlabRay};
 use crate::bvh::oct::Octs;
-use crate::bvh::{lane_mask, lanes_of, round_down, round_up, LeafTest, Quad};
+use crate::bvh::{lane_mask, lanes_of, round_down, round_up, LeafTest};
 use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
@@ -120,26 +120,15 @@ pub fn is_degenerate_triangle(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> bool {
 /// inside the buffer.
 const ROW_PAD: usize = 8;
 
-/// The corners of the triangles of every leaf of the hierarchy `quads` (root `quads[0]`) whose
-/// leaf positions index `tris`, laid out leaf by leaf in rows: the leaf of `count` triangles from
+/// The corners of the triangles of every leaf of `bvh` ([`QuadBvh::leaves`]), whose leaf
+/// positions index `tris`, laid out leaf by leaf in rows: the leaf of `count` triangles from
 /// leaf position `first` owns the floats `9·first .. 9·(first + count)`, row `r = 3·corner + axis`
 /// (corners `a, b, c`, axes `x, y, z`) starting at `9·first + r·count`, one float per triangle
 /// in leaf order; [`ROW_PAD`] zeros follow. A leaf's rows are one contiguous block (at most
 /// `9·8·4 = 288` bytes), and any row loads as one 8-lane vector whose lanes from `count` on
 /// hold the next row's values (ignored).
-fn leaf_rows(quads: &[Quad], tris: &[[u32; 3]], vertices: &[[f32; 3]]) -> Vec<f32> {
-    let mut leaves = Vec::new();
-    let mut pending = vec![0usize];
-    while let Some(q) = pending.pop() {
-        let quad = &quads[q];
-        for s in 0..quad.len as usize {
-            match quad.count[s] {
-                0 => pending.push(quad.child[s] as usize),
-                count => leaves.push((quad.child[s] as usize, usize::from(count))),
-            }
-        }
-    }
-    leaves.sort_unstable();
+fn leaf_rows(bvh: &QuadBvh, tris: &[[u32; 3]], vertices: &[[f32; 3]]) -> Vec<f32> {
+    let leaves = bvh.leaves();
     let mut rows = vec![0.0f32; 9 * tris.len() + ROW_PAD];
     // each leaf's block, in leaf order (the leaves partition the leaf positions)
     let mut blocks = Vec::with_capacity(leaves.len());
@@ -232,6 +221,15 @@ struct WatertightLanes {
     zero: u32,
     /// Lanes whose triangle is hit at a `t` in their range (meaningless where `zero`).
     pass: u32,
+}
+
+impl WatertightLanes {
+    /// Lane `l`'s hit `(t, u, v)`, as the single test gives it (for a lane in `pass`, not in
+    /// `zero`).
+    #[inline(always)]
+    fn hit(&self, l: usize) -> (f32, f32, f32) {
+        (self.t[l], self.e1[l] / self.det[l], self.e2[l] / self.det[l])
+    }
 }
 
 /// The watertight test of [`MeshRay::permuted_triangle`], eight lanes at once, in exactly its
@@ -529,7 +527,7 @@ impl Mesh {
         }
         let tris: Vec<[u32; 3]> = leaf_to_file.par_iter().map(|&f| indices[f as usize]).collect();
         drop(indices);
-        let leaf_corners = leaf_rows(bvh.quads(), &tris[..in_bvh], &vertices);
+        let leaf_corners = leaf_rows(&bvh, &tris[..in_bvh], &vertices);
         let bounds = Aabb::new(v64(bvh.root.lo), v64(bvh.root.hi));
         Ok(Self {
             center: bounds.center(),
@@ -1022,7 +1020,7 @@ impl Mesh {
                     None => continue,
                 }
             } else if lanes.t[i] <= t_far {
-                (lanes.t[i], lanes.e1[i] / lanes.det[i], lanes.e2[i] / lanes.det[i])
+                lanes.hit(i)
             } else {
                 continue;
             };
@@ -1233,29 +1231,21 @@ mod tests {
     fn leaf_rows_hold_each_leaf_s_corners() {
         let m = height_field(40, |i, j| (((j * 40 + i) * 7919) % 13) as f32 * 0.1);
         assert_eq!(m.leaf_corners.len(), 9 * m.in_bvh + ROW_PAD);
-        let (mut pending, mut covered, mut sizes) = (vec![0usize], vec![0u32; m.in_bvh], [0usize; 9]);
-        while let Some(q) = pending.pop() {
-            let quad = &m.bvh.quads()[q];
-            for s in 0..quad.len as usize {
-                let (first, count) = (quad.child[s], u32::from(quad.count[s]));
-                if count == 0 {
-                    pending.push(first as usize);
-                    continue;
-                }
-                sizes[count as usize] += 1;
-                let leaf = m.leaf(first, count);
-                for i in 0..count as usize {
-                    let k = first as usize + i;
-                    covered[k] += 1;
-                    let corners = m.corners(k);
-                    assert_eq!(leaf.permuted_corners(i, [0, 1, 2]), corners, "leaf triangle {k}");
-                    assert_eq!(
-                        leaf.permuted_corners(i, [2, 0, 1])[1],
-                        [corners[1][2], corners[1][0], corners[1][1]]
-                    );
-                    for r in 0..9 {
-                        assert_eq!(leaf.row(r)[i], corners[r / 3][r % 3], "triangle {k}, row {r}");
-                    }
+        let (mut covered, mut sizes) = (vec![0u32; m.in_bvh], [0usize; 9]);
+        for (first, count) in m.bvh.leaves() {
+            sizes[count] += 1;
+            let leaf = m.leaf(first as u32, count as u32);
+            for i in 0..count {
+                let k = first + i;
+                covered[k] += 1;
+                let corners = m.corners(k);
+                assert_eq!(leaf.permuted_corners(i, [0, 1, 2]), corners, "leaf triangle {k}");
+                assert_eq!(
+                    leaf.permuted_corners(i, [2, 0, 1])[1],
+                    [corners[1][2], corners[1][0], corners[1][1]]
+                );
+                for r in 0..9 {
+                    assert_eq!(leaf.row(r)[i], corners[r / 3][r % 3], "triangle {k}, row {r}");
                 }
             }
         }

@@ -56,6 +56,15 @@ pub fn thread_uncertain_events() -> u64 {
     THREAD_UNCERTAIN_EVENTS.with(std::cell::Cell::get)
 }
 
+/// Runs `f` and says whether an uncertain event ([`thread_uncertain_events`]) happened on the
+/// calling thread meanwhile: whether the answer `f` traced is uncertain.
+#[inline]
+pub fn uncertain_while<T>(f: impl FnOnce() -> T) -> (T, bool) {
+    let before = thread_uncertain_events();
+    let value = f();
+    (value, thread_uncertain_events() != before)
+}
+
 /// Counts one uncertain event on the calling thread (see [`thread_uncertain_events`]).
 pub(crate) fn note_uncertain_on_thread() {
     THREAD_UNCERTAIN_EVENTS.with(|c| c.set(c.get() + 1));

@@ -147,9 +147,7 @@ pub trait Intersect: Implicit {
     /// run time overrides it to choose once for the whole batch (a mesh), with the same answers.
     fn intersect_each(&self, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>], uncertain: &mut [bool]) {
         for (((ray, range), hit), uncertain) in rays.iter().zip(ranges).zip(hits).zip(uncertain) {
-            let before = crate::root::thread_uncertain_events();
-            *hit = self.intersect(ray, *range);
-            *uncertain = crate::root::thread_uncertain_events() != before;
+            (*hit, *uncertain) = crate::root::uncertain_while(|| self.intersect(ray, *range));
         }
     }
 

@@ -12,8 +12,8 @@
 //! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 1; leaves
 //! cost what the caller's [`Leaves`] say: one per item, or one price for a whole leaf whose
 //! items are tested together, a split's sides priced as that many full leaves), and partitions
-//! in place; the children's boxes are the unions of their bins' boxes and their centre boxes are gathered while partitioning, so a node costs two passes over its
-//! items. A node becomes a leaf when SAH prefers it and it holds at most [`Leaves::max`]
+//! in place; the children's boxes are the unions of their bins' boxes and their centre boxes
+//! are gathered while partitioning, so a node costs two passes over its items. A node becomes a leaf when SAH prefers it and it holds at most [`Leaves::max`]
 //! items; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split
 //! at the median instead, which bounds the depth to `MEDIAN_DEPTH + 32` and the traversal stack.
 //! The quads are written as the splits are decided, with no binary tree in between: a quad's
@@ -78,14 +78,10 @@ impl Leaves {
         Self { max, whole: Some(cost) }
     }
 
-    /// The SAH cost of a leaf of `n ≤ max` items.
-    fn cost(self, n: usize) -> f32 {
-        self.whole.unwrap_or(n as f32)
-    }
-
-    /// The SAH estimate for testing the `n` items of one side of a split: as if in full leaves
-    /// (`⌈n / max⌉` of them; `n` tests where items are tested one by one).
-    fn side_cost(self, n: u32) -> f32 {
+    /// The SAH cost of testing `n` items: `n` tests where items are tested one by one, else as
+    /// if in full leaves (`⌈n / max⌉` of them: one leaf's price for a leaf of `n ≤ max`, a
+    /// split's side priced as that many leaves).
+    fn cost(self, n: u32) -> f32 {
         match self.whole {
             Some(cost) => cost * n.div_ceil(self.max as u32) as f32,
             None => n as f32,
@@ -332,6 +328,24 @@ impl QuadBvh {
         let bvh = Self::build(&mut tris, leaves);
         let ids = tris.iter().map(|t| t.id).collect();
         (bvh, ids)
+    }
+
+    /// Every leaf reached from the root, as `(first, count)` (items `first..first + count` of
+    /// the leaf order), in leaf order: they partition the items.
+    pub fn leaves(&self) -> Vec<(usize, usize)> {
+        let mut leaves = Vec::new();
+        let mut pending = vec![0usize];
+        while let Some(q) = pending.pop() {
+            let quad = &self.quads[q];
+            for s in 0..quad.len as usize {
+                match quad.count[s] {
+                    0 => pending.push(quad.child[s] as usize),
+                    count => leaves.push((quad.child[s] as usize, usize::from(count))),
+                }
+            }
+        }
+        leaves.sort_unstable();
+        leaves
     }
 
     /// The 4-wide nodes, root first.
@@ -737,16 +751,14 @@ fn sah_split_binned<const N: usize>(
                 continue;
             }
             let cost = TRAVERSAL_COST
-                + (acc.half_area() * leaves.side_cost(count)
-                    + right_area[split] * leaves.side_cost(right_count[split]))
-                    / parent;
+                + (acc.half_area() * leaves.cost(count) + right_area[split] * leaves.cost(right_count[split])) / parent;
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, split));
             }
         }
     }
     let (cost, axis, split) = best?;
-    if n <= leaves.max && cost >= leaves.cost(n) {
+    if n <= leaves.max && cost >= leaves.cost(n as u32) {
         return Some(Split::Leaf);
     }
     // the sides' boxes are the unions of their bins' boxes (each bin's box is the union of its

@@ -155,15 +155,7 @@ impl Octs {
                 }
             };
             if prefetch {
-                prefetch_children(octs, &o.child, &o.count, hits);
-                let mut slots = hits;
-                while slots != 0 {
-                    let s = slots.trailing_zeros() as usize;
-                    slots &= slots - 1;
-                    if o.count[s] != 0 {
-                        leaf.prefetch(o.child[s], u32::from(o.count[s]));
-                    }
-                }
+                prefetch_children(octs, &o.child, &o.count, hits, &leaf);
             }
             let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
             let mut next = None;

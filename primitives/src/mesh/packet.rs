@@ -228,12 +228,12 @@ impl PacketQuery<'_> {
     fn leaf_packet(&mut self, first: u32, count: u32, lanes: u32, t_max: &mut Lanes) {
         let mesh = self.mesh;
         let packet = self.packet;
-        let k = packet.k;
+        let axes = packet.k;
         let leaf = mesh.leaf(first, count);
-        let origin = [packet.origin[k[0]], packet.origin[k[1]], packet.origin[k[2]]];
+        let origin = [packet.origin[axes[0]], packet.origin[axes[1]], packet.origin[axes[2]]];
         for i in 0..count as usize {
             // the corners' components in the order (kx, ky, kz), the same in every lane
-            let corners = leaf.permuted_corners(i, k);
+            let corners = leaf.permuted_corners(i, axes);
             let test = watertight_lanes(
                 [splat3(corners[0]), splat3(corners[1]), splat3(corners[2])],
                 &origin,
@@ -251,13 +251,13 @@ impl PacketQuery<'_> {
                     let [a, b, c] = corners;
                     match q
                         .ray
-                        .permuted_triangle(a, b, c, permuted(q.ray.origin, k), q.t_min, t_max[l])
+                        .permuted_triangle(a, b, c, permuted(q.ray.origin, axes), q.t_min, t_max[l])
                     {
                         Some(hit) => hit,
                         None => continue,
                     }
                 } else {
-                    (test.t[l], test.e1[l] / test.det[l], test.e2[l] / test.det[l])
+                    test.hit(l)
                 };
                 let k = first as usize + i;
                 if !Mesh::beats(self.best[l].as_ref(), k, hit.0, t_max[l])
