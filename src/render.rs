@@ -31,6 +31,7 @@
 //! [`Scene::intersect_at`]) and [`SurfaceHit::complete`].
 
 use crate::aov::Aov;
+use crate::camera::footprint::ImageRect;
 use crate::camera::{Camera, NoRay};
 use crate::sampling::{pixel_samples, PixelSample};
 use crate::scene::{Light, Scene};
@@ -342,6 +343,7 @@ impl<'a> Tracer<'a> {
                 let at = aovs.iter().position(|a| *a == Aov::Uncertain);
                 at.map(|k| aovs[..k].iter().map(|a| a.channels().len()).sum())
             },
+            seen: camera.footprint(&scene.bounds()),
             miss_colour: if options.background {
                 scene.background
             } else {
@@ -468,7 +470,12 @@ fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: us
         let mut n = 0;
         for (row, lanes) in lane.iter_mut().enumerate().take(height) {
             for (column, slot) in lanes.iter_mut().enumerate().take(columns) {
-                match camera.pixel_ray(x0 + (first + column) as u32, y + row as u32) {
+                let (i, j) = (x0 + (first + column) as u32, y + row as u32);
+                // a pixel whose ray provably misses every object gets the miss values untraced
+                if context.seen.is_some_and(|seen| !seen.holds_pixel(i, j)) {
+                    continue;
+                }
+                match camera.pixel_ray(i, j) {
                     Ok(ray) => {
                         rays[n] = ray;
                         *slot = n;
@@ -479,7 +486,9 @@ fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: us
             }
         }
         let mut hits = [None; N];
-        scene.intersect_packet(&rays[..n], &[Interval::POSITIVE; N][..n], &mut hits[..n]);
+        if n > 0 {
+            scene.intersect_packet(&rays[..n], &[Interval::POSITIVE; N][..n], &mut hits[..n]);
+        }
         for (row, lanes) in lane.iter().enumerate().take(height) {
             for (column, &lane) in lanes.iter().enumerate().take(columns) {
                 let at = row * row_len + (first + column) * channels;
@@ -555,6 +564,9 @@ struct RowContext<'a> {
     miss_colour: DVec3,
     /// Where the `Uncertain` channel is in a pixel, if it was asked for.
     uncertain_offset: Option<usize>,
+    /// The pixel centres whose rays can meet an object ([`Camera::footprint`] of the scene's
+    /// bounds), if the camera can say; the others see nothing and are not traced.
+    seen: Option<ImageRect>,
 }
 
 /// Sets the pixel's `Uncertain` channel (if rendered) to 1 if this thread's root finder ran out of

@@ -2,7 +2,7 @@
 //! and occlusion queries that walk it. The render loop, `query` and Python all come here.
 
 use zeroset_primitives::root::uncertain_while;
-use zeroset_primitives::{Bvh, Interval, RawHit, Ray};
+use zeroset_primitives::{Aabb, Bvh, Interval, RawHit, Ray};
 
 use crate::scene::{Object, Scene};
 
@@ -13,10 +13,12 @@ const DIR_SCALE_MAX: f64 = (1u64 << 60) as f64;
 
 /// The objects' acceleration structure: a BVH over the bounded ones, plus the objects tested on
 /// every ray (those with infinite bounds, and a lone bounded object).
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub(crate) struct Hierarchy {
     unbounded: Vec<u32>,
     bvh: Bvh,
+    /// The box around every object (infinite if one is unbounded; empty for no objects).
+    bounds: Aabb,
 }
 
 impl Hierarchy {
@@ -28,12 +30,16 @@ impl Hierarchy {
         };
         let mut unbounded = Vec::new();
         let (mut bounded, mut last_bounded) = (0usize, 0u32);
+        let mut all = Aabb::EMPTY;
         for (i, o) in objects.iter().enumerate() {
-            if bounds(o).is_finite() {
+            let b = bounds(o);
+            if b.is_finite() {
                 bounded += 1;
                 last_bounded = i as u32;
+                all = all.union(b);
             } else {
                 unbounded.push(i as u32);
+                all = Aabb::EVERYTHING;
             }
         }
         // a lone bounded object is tested directly: a scene of one primitive pays nothing for the BVH
@@ -42,6 +48,7 @@ impl Hierarchy {
             return Self {
                 unbounded,
                 bvh: Bvh::default(),
+                bounds: all,
             };
         }
         // the boxes are computed again as the builder takes them, not held in a list meanwhile
@@ -50,11 +57,22 @@ impl Hierarchy {
             b.is_finite().then_some((b, i as u32))
         });
         let bvh = Bvh::build_from(boxes);
-        Self { unbounded, bvh }
+        Self {
+            unbounded,
+            bvh,
+            bounds: all,
+        }
     }
 }
 
 impl Scene {
+    /// A box around every object (a moving one's over its motion): infinite if an object is
+    /// unbounded (a plane), empty for a scene of no objects. No ray that misses it hits anything.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        self.hierarchy.bounds
+    }
+
     /// The closest hit along `ray` at frame time `time` with `t` in `range`: like
     /// [`Scene::intersect`], with moving objects placed at `time`. A scene without moving objects
     /// gives exactly [`Scene::intersect`]'s answer.

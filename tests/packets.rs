@@ -99,3 +99,47 @@ fn packets_equal_single_rays_on_every_scene() {
     assert!(tested >= 20, "only {tested} scenes loaded");
     assert!(total_hits > 10_000, "{total_hits}");
 }
+
+/// A render leaves out the pixels outside the camera's footprint of the scene's bounds
+/// (`Camera::footprint`): on every scene whose camera gives one, at the scene's own resolution,
+/// every such pixel within three pixels of the footprint and every 7th one beyond sees nothing
+/// (`Scene::intersect` of its ray), and the pixels left out are a real part of some frames.
+#[test]
+fn pixels_outside_the_footprint_see_nothing_on_every_scene() {
+    let (mut scenes_with_footprint, mut checked) = (0, 0);
+    for path in scenes() {
+        let Ok(scene) = Scene::load(&path) else {
+            continue;
+        };
+        let camera = &scene.camera;
+        let Some(rect) = camera.footprint(&scene.bounds()) else {
+            continue;
+        };
+        scenes_with_footprint += 1;
+        for j in 0..camera.height {
+            for i in 0..camera.width {
+                let (x, y) = (f64::from(i) + 0.5, f64::from(j) + 0.5);
+                if rect.holds_pixel(i, j) {
+                    continue;
+                }
+                let near = x > rect.x0 - 3.0 && x < rect.x1 + 3.0 && y > rect.y0 - 3.0 && y < rect.y1 + 3.0;
+                if !near && (i + j * camera.width) % 7 != 0 {
+                    continue;
+                }
+                let ray = camera.pixel_ray(i, j).unwrap();
+                assert_eq!(
+                    scene.intersect(&ray, Interval::POSITIVE),
+                    None,
+                    "{}: pixel ({i}, {j}) outside {rect:?}",
+                    path.display()
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(
+        scenes_with_footprint >= 5,
+        "{scenes_with_footprint} scenes with a footprint"
+    );
+    assert!(checked > 100_000, "{checked} pixels checked");
+}

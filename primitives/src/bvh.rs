@@ -67,6 +67,20 @@ pub(crate) struct Quad {
 }
 
 impl Quad {
+    /// The box around its slots' boxes, `(lo, hi)` per axis: it holds every box below this
+    /// node, so a ray that [`build::SlabRay::enters`] none of it enters none of theirs.
+    #[inline(always)]
+    pub(crate) fn box_of_slots(&self) -> ([f32; 3], [f32; 3]) {
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for slot in 0..(self.len as usize).min(4) {
+            for axis in 0..3 {
+                lo[axis] = min_f32(lo[axis], self.lo[axis][slot]);
+                hi[axis] = max_f32(hi[axis], self.hi[axis][slot]);
+            }
+        }
+        (lo, hi)
+    }
+
     /// A bit for each slot in use (`0..len`).
     #[inline(always)]
     pub(crate) fn occupied(&self) -> u32 {

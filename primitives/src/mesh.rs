@@ -199,14 +199,30 @@ impl LeafRows<'_> {
     }
 }
 
-/// Eight lanes of each of `v`'s three values.
-#[inline(always)]
-fn splat3(v: [f32; 3]) -> [Lanes; 3] {
-    [[v[0]; PACKET], [v[1]; PACKET], [v[2]; PACKET]]
-}
-
 /// One f32 per SIMD lane.
 type Lanes = [f32; PACKET];
+
+/// An operand of the lane kernels ([`watertight_lanes`]): a value per lane ([`Lanes`]) or one
+/// value shared by every lane (`f32`), which the compiler broadcasts once rather than reading
+/// eight equal lanes from memory.
+trait PerLane: Copy {
+    /// The value in lane `l`.
+    fn lane(&self, l: usize) -> f32;
+}
+
+impl PerLane for Lanes {
+    #[inline(always)]
+    fn lane(&self, l: usize) -> f32 {
+        self[l]
+    }
+}
+
+impl PerLane for f32 {
+    #[inline(always)]
+    fn lane(&self, _: usize) -> f32 {
+        *self
+    }
+}
 
 /// Eight watertight tests at once ([`watertight_lanes`]), lane by lane.
 struct WatertightLanes {
@@ -236,19 +252,21 @@ impl WatertightLanes {
 /// f32 arithmetic but without the f64 recomputation (lanes that need it are marked `zero`):
 /// lane `l` tests the triangle of corners `a, b, c` (`[axis][lane]`, components in the ray's
 /// order `(k_x, k_y, k_z)`) against the ray of origin `origin` (same order) and shear constants
-/// `shear`, over `[t_min, t_max]`. One ray against eight triangles or eight rays against one
-/// triangle: the values shared by all lanes are given as eight equal lanes.
+/// `shear`, over `[t_min, t_max]`. One ray against eight triangles (the corners per lane, the
+/// ray's values shared) or eight rays against one triangle (the other way round): a value shared
+/// by all lanes is given as one `f32` ([`PerLane`]), the same in every lane, so both forms give
+/// the lanes bit for bit the same answers.
 #[inline(always)]
 #[allow(
     clippy::needless_range_loop,
     reason = "lane loops index several arrays by the lane; the form the compiler vectorises"
 )]
-fn watertight_lanes(
-    [a, b, c]: [[Lanes; 3]; 3],
-    origin: &[Lanes; 3],
-    shear: &[Lanes; 3],
-    t_min: &Lanes,
-    t_max: &Lanes,
+fn watertight_lanes<C: PerLane, R: PerLane>(
+    [a, b, c]: &[[C; 3]; 3],
+    origin: &[R; 3],
+    shear: &[R; 3],
+    t_min: R,
+    t_max: R,
 ) -> WatertightLanes {
     let mut out = WatertightLanes {
         t: [0.0; PACKET],
@@ -261,15 +279,15 @@ fn watertight_lanes(
     let mut zero = [0i32; PACKET];
     let mut pass = [0i32; PACKET];
     for l in 0..PACKET {
-        let [ox, oy, oz] = [origin[0][l], origin[1][l], origin[2][l]];
-        let [sx, sy, sz] = [shear[0][l], shear[1][l], shear[2][l]];
-        let (az, bz, cz) = (a[2][l] - oz, b[2][l] - oz, c[2][l] - oz);
-        let ax = (a[0][l] - ox) - sx * az;
-        let ay = (a[1][l] - oy) - sy * az;
-        let bx = (b[0][l] - ox) - sx * bz;
-        let by = (b[1][l] - oy) - sy * bz;
-        let cx = (c[0][l] - ox) - sx * cz;
-        let cy = (c[1][l] - oy) - sy * cz;
+        let [ox, oy, oz] = [origin[0].lane(l), origin[1].lane(l), origin[2].lane(l)];
+        let [sx, sy, sz] = [shear[0].lane(l), shear[1].lane(l), shear[2].lane(l)];
+        let (az, bz, cz) = (a[2].lane(l) - oz, b[2].lane(l) - oz, c[2].lane(l) - oz);
+        let ax = (a[0].lane(l) - ox) - sx * az;
+        let ay = (a[1].lane(l) - oy) - sy * az;
+        let bx = (b[0].lane(l) - ox) - sx * bz;
+        let by = (b[1].lane(l) - oy) - sy * bz;
+        let cx = (c[0].lane(l) - ox) - sx * cz;
+        let cy = (c[1].lane(l) - oy) - sy * cz;
         let e0 = cx * by - cy * bx;
         let e1 = ax * cy - ay * cx;
         let e2 = bx * ay - by * ax;
@@ -277,7 +295,7 @@ fn watertight_lanes(
         let det = e0 + e1 + e2;
         let t = (e0 * (sz * az) + e1 * (sz * bz) + e2 * (sz * cz)) / det;
         let mixed = ((e0 < 0.0) | (e1 < 0.0) | (e2 < 0.0)) & ((e0 > 0.0) | (e1 > 0.0) | (e2 > 0.0));
-        pass[l] = -i32::from(!mixed & (det != 0.0) & (t >= t_min[l]) & (t <= t_max[l]));
+        pass[l] = -i32::from(!mixed & (det != 0.0) & (t >= t_min.lane(l)) & (t <= t_max.lane(l)));
         out.t[l] = t;
         out.e1[l] = e1;
         out.e2[l] = e2;
@@ -1004,13 +1022,7 @@ impl Mesh {
         let leaf = self.leaf(first, count);
         let mesh_ray = &query.ray;
         let origin = permuted(mesh_ray.origin, k);
-        let lanes = watertight_lanes(
-            leaf.all_corner_rows(k),
-            &splat3(origin),
-            &splat3(mesh_ray.shear),
-            &[query.t_min; PACKET],
-            &[t_far; PACKET],
-        );
+        let lanes = watertight_lanes(&leaf.all_corner_rows(k), &origin, &mesh_ray.shear, query.t_min, t_far);
         let mut found = None;
         for i in lanes_of((lanes.pass | lanes.zero) & ((1 << count) - 1)) {
             let hit = if lanes.zero & (1 << i) != 0 {
@@ -1305,13 +1317,7 @@ mod tests {
                 std::array::from_fn(|c| std::array::from_fn(|a| std::array::from_fn(|l| permuted_corners[l][c][a])));
             let origin = permuted(q.ray.origin, k);
             let t_max = rng.random_range(0.5f32..4.0);
-            let lanes = watertight_lanes(
-                rows,
-                &splat3(origin),
-                &splat3(q.ray.shear),
-                &[q.t_min; PACKET],
-                &[t_max; PACKET],
-            );
+            let lanes = watertight_lanes(&rows, &origin, &q.ray.shear, q.t_min, t_max);
             for l in 0..PACKET {
                 let [a, b, c] = permuted_corners[l];
                 let single = q.ray.permuted_triangle(a, b, c, origin, q.t_min, t_max);

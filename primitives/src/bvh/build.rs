@@ -452,6 +452,22 @@ impl SlabRay {
         (near.cmple(far).bitmask(), near.to_array())
     }
 
+    /// Whether the ray enters the box `lo..hi` within `[t0, t1]`: the arithmetic of
+    /// [`SlabRay::entry8`] for one box. Rounding is monotonic, so a ray that does not enter a
+    /// box by this test enters none of the boxes inside it by `entry4` or `entry8` (each
+    /// slab's entry can only be later and its exit earlier).
+    #[inline(always)]
+    pub(crate) fn enters(&self, lo: [f32; 3], hi: [f32; 3], t0: f32, t1: f32) -> bool {
+        let (mut n, mut f) = (t0, f32::INFINITY);
+        for axis in 0..3 {
+            let a = (lo[axis] - self.origin[axis]) * self.inv[axis];
+            let b = (hi[axis] - self.origin[axis]) * self.inv[axis];
+            n = max_f32(n, min_f32(a, b));
+            f = min_f32(f, max_f32(a, b));
+        }
+        n <= min_f32(f * EXIT_PAD, t1)
+    }
+
     /// [`SlabRay::entry4`] for the eight boxes of `oct` (the same operations on each box), one
     /// loop over the slots that the compiler turns into 8-wide AVX in the AVX2 copy.
     #[inline(always)]

@@ -21,10 +21,10 @@
     reason = "lane loops index several per-lane arrays by the lane; the form the compiler vectorises"
 )]
 
-use super::{permuted, splat3, watertight_lanes, Candidate, Lanes, Mesh, MeshQuery};
+use super::{permuted, watertight_lanes, Candidate, Lanes, Mesh, MeshQuery};
 use crate::bvh::build::EXIT_PAD;
 use crate::bvh::{
-    lane_mask, lanes_of, max_f32, min_f32, traverse_quads_from, walk_packet, PacketVisitor, Quad, SlabsFrom,
+    cull_bound, lane_mask, lanes_of, max_f32, min_f32, traverse_quads_from, walk_packet, PacketVisitor, Quad, SlabsFrom,
 };
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
@@ -63,10 +63,21 @@ pub(super) fn intersect(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits
 #[inline(always)]
 fn trace(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) {
     let n = rays.len().min(PACKET);
-    // a loop rather than `array::from_fn`, whose closure would not be inlined into the AVX2 copy
+    let Some(root) = mesh.bvh.quads().first() else {
+        return;
+    };
+    // only the lanes entering the box around the root's children are set up: the others would
+    // enter none of the children (`SlabRay::enters`), and a packet beside the mesh (half a
+    // camera's packets on the bench meshes) costs the f32 rays and one box test
+    let (lo, hi) = root.box_of_slots();
+    // loops rather than `array::from_fn`, whose closure would not be inlined into the AVX2 copy
     let mut queries: [Option<MeshQuery>; PACKET] = [const { None }; PACKET];
     for l in 0..n {
-        queries[l] = mesh.query(&rays[l], ranges[l]);
+        if let Some(entry) = mesh.entry(&rays[l], ranges[l]) {
+            if entry.slab.enters(lo, hi, entry.t_min, cull_bound(entry.t_max)) {
+                queries[l] = Some(entry.query());
+            }
+        }
     }
     let Some(first) = queries.iter().flatten().next() else {
         return;
@@ -74,6 +85,9 @@ fn trace(mesh: &Mesh, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<
     let k = first.ray.k;
     if queries.iter().flatten().any(|q| q.ray.k != k) {
         for l in 0..n {
+            if queries[l].is_none() {
+                continue;
+            }
             if let Some(hit) = mesh.intersect(&rays[l], ranges[l]) {
                 ranges[l].max = hit.t;
                 hits[l] = Some(hit);
@@ -234,13 +248,7 @@ impl PacketQuery<'_> {
         for i in 0..count as usize {
             // the corners' components in the order (kx, ky, kz), the same in every lane
             let corners = leaf.permuted_corners(i, axes);
-            let test = watertight_lanes(
-                [splat3(corners[0]), splat3(corners[1]), splat3(corners[2])],
-                &origin,
-                &packet.shear,
-                &packet.t_min,
-                t_max,
-            );
+            let test = watertight_lanes(&corners, &origin, &packet.shear, packet.t_min, *t_max);
             let zero = test.zero & lanes;
             let found = test.pass & lanes & !zero;
             // lanes with an edge function of exactly zero: the single-ray test, f64

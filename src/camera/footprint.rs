@@ -1,0 +1,175 @@
+//! Where on the image a box can be seen: the rectangle of image positions outside which the ray
+//! through a position ([`Camera::ray_through`], the pinhole's ray) provably misses the box. The renderer skips the pixels outside it (their
+//! rays are never made): they see nothing, so they get the miss values without being traced.
+//!
+//! Maths. The box is first enlarged by `δ = 10⁻⁴·(|diagonal| + |centre − eye|)` on every side.
+//! A ray meets a point `p` exactly when `p` is seen at the ray's image position
+//! ([`Camera::project`]). For the models whose projection maps segments to segments (the
+//! pinhole, wholly in front of the eye plane, and the orthographic camera), the image of the
+//! enlarged box is the convex hull of its eight corners' images, so a position outside their
+//! bounding rectangle sees no point of the enlarged box: its exact ray passes the original box
+//! at a distance of at least `δ`, a million times what rounding moves a ray (the f64 ray's
+//! set-up, a mesh's f32 copy of it) or puts a hit off its surface. The rectangle is widened by
+//! one pixel more for the rounding of the projection itself.
+//!
+//! Other models (panoramas, fisheyes, distortion) and boxes reaching behind a pinhole's eye
+//! plane get no rectangle: every pixel is traced.
+
+use super::{Camera, Model};
+use glam::DVec3;
+use zeroset_primitives::Aabb;
+
+/// A closed rectangle `[x0, x1] × [y0, y1]` of image positions (pixel units, `y` down).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImageRect {
+    pub x0: f64,
+    pub x1: f64,
+    pub y0: f64,
+    pub y1: f64,
+}
+
+impl ImageRect {
+    /// Whether the centre of pixel `(i, j)` lies in the rectangle.
+    #[inline(always)]
+    #[must_use]
+    pub fn holds_pixel(&self, i: u32, j: u32) -> bool {
+        let (x, y) = (f64::from(i) + 0.5, f64::from(j) + 0.5);
+        x >= self.x0 && x <= self.x1 && y >= self.y0 && y <= self.y1
+    }
+}
+
+/// Relative enlargement of the box (module docs).
+const MARGIN: f64 = 1e-4;
+
+impl Camera {
+    /// The image positions whose rays can meet `bounds` (module docs), or `None` where this
+    /// camera cannot say (every position may).
+    #[must_use]
+    pub fn footprint(&self, bounds: &Aabb) -> Option<ImageRect> {
+        if !bounds.is_finite() || bounds.is_empty() || !self.eye.is_finite() {
+            return None;
+        }
+        let delta = MARGIN * (bounds.diagonal_length() + (bounds.center() - self.eye).length());
+        let enlarged = bounds.expanded(delta);
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        for corner in 0..8 {
+            let pick = |bit: usize, lo: f64, hi: f64| if corner & bit == 0 { lo } else { hi };
+            let p = DVec3::new(
+                pick(1, enlarged.min.x, enlarged.max.x),
+                pick(2, enlarged.min.y, enlarged.max.y),
+                pick(4, enlarged.min.z, enlarged.max.z),
+            );
+            let local = self.world_to_local(p);
+            let seen = match &self.model {
+                // strictly in front, by more than rounding could move the corner across the plane
+                Model::Perspective(_) if local.z > delta => self.project(p)?,
+                Model::Orthographic(_) => self.project(p)?,
+                _ => return None,
+            };
+            x0 = x0.min(seen.x);
+            x1 = x1.max(seen.x);
+            y0 = y0.min(seen.y);
+            y1 = y1.max(seen.y);
+        }
+        let rect = ImageRect {
+            x0: x0 - 1.0,
+            x1: x1 + 1.0,
+            y0: y0 - 1.0,
+            y1: y1 + 1.0,
+        };
+        [rect.x0, rect.x1, rect.y0, rect.y1]
+            .iter()
+            .all(|v| v.is_finite())
+            .then_some(rect)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Orthographic, Perspective};
+    use glam::DVec2;
+    use rand::{Rng, SeedableRng};
+    use zeroset_primitives::Interval;
+
+    /// Over random pinhole (principal offsets included) and orthographic cameras and random
+    /// boxes, near and far, in view and beside it: every pixel whose centre is outside the
+    /// footprint has a ray that misses the box grown by half the margin (the f64 slab test of
+    /// `Aabb::clip`), and the footprint leaves pixels out in most trials.
+    #[test]
+    fn pixels_outside_the_footprint_miss_the_box() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(71);
+        let (width, height) = (48u32, 32u32);
+        let (mut culled, mut rects, mut hits) = (0usize, 0usize, 0usize);
+        for trial in 0..400 {
+            let eye = DVec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), -10.0);
+            let direction = DVec3::new(rng.random_range(-0.3..0.3), rng.random_range(-0.3..0.3), 1.0);
+            let mut camera =
+                Camera::new(eye, direction, DVec3::Y, rng.random_range(10.0..90.0), width, height).unwrap();
+            camera.model = if trial % 3 == 0 {
+                Model::Orthographic(Orthographic {
+                    width: rng.random_range(2.0..30.0),
+                })
+            } else {
+                Model::Perspective(Perspective {
+                    principal_offset: DVec2::new(rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0)),
+                })
+            };
+            let centre = DVec3::new(
+                rng.random_range(-8.0..8.0),
+                rng.random_range(-8.0..8.0),
+                rng.random_range(-12.0..20.0),
+            );
+            let half = DVec3::new(
+                rng.random_range(0.01..3.0),
+                rng.random_range(0.01..3.0),
+                rng.random_range(0.01..3.0),
+            );
+            let bounds = Aabb::new(centre - half, centre + half);
+            let Some(rect) = camera.footprint(&bounds) else {
+                continue;
+            };
+            rects += 1;
+            let delta = MARGIN * (bounds.diagonal_length() + (bounds.center() - camera.eye).length());
+            let grown = bounds.expanded(0.5 * delta);
+            for j in 0..height {
+                for i in 0..width {
+                    let ray = camera.pixel_ray(i, j).unwrap();
+                    let meets = grown.clip(&ray, Interval::POSITIVE).is_some();
+                    if rect.holds_pixel(i, j) {
+                        hits += usize::from(meets);
+                    } else {
+                        culled += 1;
+                        assert!(
+                            !meets,
+                            "trial {trial}: pixel ({i}, {j}) outside {rect:?} meets {grown:?}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(rects > 200, "{rects} footprints");
+        assert!(culled > 100 * rects, "{culled} pixels left out over {rects} footprints");
+        assert!(hits > 20 * rects, "{hits} pixels meeting their boxes");
+    }
+
+    /// No footprint where the camera cannot give one: a box reaching behind the pinhole's eye
+    /// plane, an unbounded or empty box, a panorama.
+    #[test]
+    fn no_footprint_where_rays_are_not_confined() {
+        let camera = Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 40.0, 64, 48).unwrap();
+        let in_front = Aabb::new(DVec3::new(-1.0, -1.0, 4.0), DVec3::new(1.0, 1.0, 6.0));
+        let rect = camera.footprint(&in_front).expect("a box in front has a footprint");
+        assert!(rect.holds_pixel(32, 24) && !rect.holds_pixel(0, 0));
+        let behind = Aabb::new(DVec3::new(-1.0, -1.0, -1.0), DVec3::new(1.0, 1.0, 6.0));
+        assert_eq!(camera.footprint(&behind), None);
+        assert_eq!(camera.footprint(&Aabb::EVERYTHING), None);
+        assert_eq!(camera.footprint(&Aabb::EMPTY), None);
+        let mut panorama = camera.clone();
+        panorama.model = Model::Equirectangular(crate::camera::Equirectangular {
+            azimuth: (-3.0, 3.0),
+            elevation: (-1.5, 1.5),
+        });
+        assert_eq!(panorama.footprint(&in_front), None);
+    }
+}
