@@ -321,8 +321,9 @@ impl<'a> Tracer<'a> {
                 .iter()
                 .any(|a| matches!(a, Aov::Beauty | Aov::Normal | Aov::CameraNormal | Aov::ShadingNormal)),
             uv: aovs.contains(&Aov::Uv),
-            // shadow rays start from beauty's hits
-            error: aovs.contains(&Aov::Beauty),
+            // shadow rays start from beauty's hits; the headlight of a scene without lights
+            // casts none
+            error: aovs.contains(&Aov::Beauty) && !scene.lights.is_empty(),
         };
         let bar = ProgressBar::with_draw_target(Some(u64::from(layout.window.height())), ProgressDrawTarget::hidden());
         bar.set_style(
