@@ -31,7 +31,7 @@
 //! [`Scene::intersect_at`]) and [`SurfaceHit::complete`].
 
 use crate::aov::Aov;
-use crate::camera::footprint::ImageRect;
+use crate::camera::footprint::Coverage;
 use crate::camera::{Camera, NoRay};
 use crate::sampling::{pixel_samples, PixelSample};
 use crate::scene::{Light, Scene};
@@ -344,7 +344,7 @@ impl<'a> Tracer<'a> {
                 let at = aovs.iter().position(|a| *a == Aov::Uncertain);
                 at.map(|k| aovs[..k].iter().map(|a| a.channels().len()).sum())
             },
-            seen: camera.footprint(&scene.bounds()),
+            seen: camera.coverage(&scene.bounds_parts()),
             miss_colour: if options.background {
                 scene.background
             } else {
@@ -473,7 +473,7 @@ fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: us
             for (column, slot) in lanes.iter_mut().enumerate().take(columns) {
                 let (i, j) = (x0 + (first + column) as u32, y + row as u32);
                 // a pixel whose ray provably misses every object gets the miss values untraced
-                if context.seen.is_some_and(|seen| !seen.holds_pixel(i, j)) {
+                if context.seen.as_ref().is_some_and(|seen| !seen.holds_pixel(i, j)) {
                     continue;
                 }
                 match camera.pixel_ray(i, j) {
@@ -565,9 +565,10 @@ struct RowContext<'a> {
     miss_colour: DVec3,
     /// Where the `Uncertain` channel is in a pixel, if it was asked for.
     uncertain_offset: Option<usize>,
-    /// The pixel centres whose rays can meet an object ([`Camera::footprint`] of the scene's
-    /// bounds), if the camera can say; the others see nothing and are not traced.
-    seen: Option<ImageRect>,
+    /// The pixel centres whose rays can meet an object ([`Camera::coverage`] of the scene's
+    /// [`Scene::bounds_parts`]), if the camera can say; the others see nothing and are not
+    /// traced.
+    seen: Option<Coverage>,
 }
 
 /// Sets the pixel's `Uncertain` channel (if rendered) to 1 if this thread's root finder ran out of

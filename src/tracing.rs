@@ -73,6 +73,21 @@ impl Scene {
         self.hierarchy.bounds
     }
 
+    /// Boxes whose union holds every object ([`zeroset_primitives::Implicit::bounds_parts`] of
+    /// each; a moving object's box over its motion): tighter than [`Scene::bounds`] around a
+    /// mesh. Some box is infinite where an object is unbounded.
+    #[must_use]
+    pub fn bounds_parts(&self) -> Vec<Aabb> {
+        let mut parts = Vec::new();
+        for object in &self.objects {
+            match &object.motion {
+                Some(motion) => parts.push(motion.bounds()),
+                None => object.primitive.bounds_parts(&mut parts),
+            }
+        }
+        parts
+    }
+
     /// The closest hit along `ray` at frame time `time` with `t` in `range`: like
     /// [`Scene::intersect`], with moving objects placed at `time`. A scene without moving objects
     /// gives exactly [`Scene::intersect`]'s answer.

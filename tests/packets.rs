@@ -101,17 +101,20 @@ fn packets_equal_single_rays_on_every_scene() {
     assert!(total_hits > 10_000, "{total_hits}");
 }
 
-/// The pixels of `camera` outside its footprint of `scene`'s bounds (`Camera::footprint`), if it
-/// has one: every such pixel within three pixels of the footprint and every 7th one beyond sees
-/// nothing (`Scene::intersect` of its ray). Returns the number of pixels checked, or `None`
+/// The pixels of `camera` outside its coverage of `scene`'s parts (`Camera::coverage` of
+/// `Scene::bounds_parts`, what a render skips), if it has one: every such pixel inside the
+/// footprint of the scene's whole box or within three pixels of it, and every 7th one beyond,
+/// sees nothing (`Scene::intersect` of its ray). Returns the number of pixels checked, or `None`
 /// where the camera gives no footprint.
 fn assert_outside_sees_nothing(scene: &Scene, camera: &Camera, what: &str) -> Option<usize> {
+    // what the renderer skips: the coverage of the scene's parts (a mesh's upper boxes)
     let rect = camera.footprint(&scene.bounds())?;
+    let seen = camera.coverage(&scene.bounds_parts())?;
     let mut checked = 0;
     for j in 0..camera.height {
         for i in 0..camera.width {
             let (x, y) = (f64::from(i) + 0.5, f64::from(j) + 0.5);
-            if rect.holds_pixel(i, j) {
+            if seen.holds_pixel(i, j) {
                 continue;
             }
             let near = x > rect.x0 - 3.0 && x < rect.x1 + 3.0 && y > rect.y0 - 3.0 && y < rect.y1 + 3.0;

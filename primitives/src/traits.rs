@@ -29,6 +29,15 @@ pub trait Implicit {
     /// A box containing every point of the surface (may be infinite for unbounded surfaces).
     fn bounds(&self) -> Aabb;
 
+    /// Boxes whose union contains every point of the surface, appended to `parts`: [`bounds`]
+    /// alone by default. A mesh gives the boxes of its hierarchy's upper nodes, which follow its
+    /// shape more closely (a renderer skips the pixels that can see none of them).
+    ///
+    /// [`bounds`]: Implicit::bounds
+    fn bounds_parts(&self, parts: &mut Vec<Aabb>) {
+        parts.push(self.bounds());
+    }
+
     /// ∇Φ at `p`. The default is a central difference with step `6·10⁻⁶ ×` the bounds' diagonal
     /// (≈ ∛ε, the optimal step for an O(h²) formula in f64), or `6·10⁻⁶·max(1, |p|)` for unbounded
     /// surfaces. Built-ins override it with the analytic gradient.
@@ -225,6 +234,7 @@ macro_rules! forward_through_pointer {
         impl<P: Implicit + ?Sized> Implicit for $($ptr)::+<P> {
             fn phi(&self, p: DVec3) -> f64 { (**self).phi(p) }
             fn bounds(&self) -> Aabb { (**self).bounds() }
+            fn bounds_parts(&self, parts: &mut Vec<Aabb>) { (**self).bounds_parts(parts) }
             fn gradient(&self, p: DVec3) -> DVec3 { (**self).gradient(p) }
             fn lipschitz(&self) -> Option<f64> { (**self).lipschitz() }
             fn within_boundary(&self, p: DVec3) -> bool { (**self).within_boundary(p) }

@@ -41,7 +41,85 @@ impl ImageRect {
 /// Relative enlargement of the box (module docs).
 const MARGIN: f64 = 1e-4;
 
+/// The most boxes [`Camera::coverage`] projects one by one (about 3 ms for a 2160-row image);
+/// beyond, it projects the box around them.
+const MOST_PARTS: usize = 1024;
+
+/// The pixel centres that can see any of several boxes: per image row, the column spans
+/// `[x0, x1]` (image positions, merged, in increasing order) of the boxes' footprints that
+/// cover the row's centre line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Coverage {
+    /// Spans of row `j`: `spans[starts[j]..starts[j + 1]]`.
+    starts: Vec<u32>,
+    spans: Vec<(f64, f64)>,
+}
+
+impl Coverage {
+    /// Whether the centre of pixel `(i, j)` lies in a footprint (rows beyond the image: yes).
+    #[inline]
+    #[must_use]
+    pub fn holds_pixel(&self, i: u32, j: u32) -> bool {
+        let j = j as usize;
+        if j + 1 >= self.starts.len() {
+            return true;
+        }
+        let x = f64::from(i) + 0.5;
+        self.spans[self.starts[j] as usize..self.starts[j + 1] as usize]
+            .iter()
+            .any(|&(x0, x1)| x >= x0 && x <= x1)
+    }
+
+    /// The fraction of the image's pixels held.
+    #[must_use]
+    pub fn fraction_held(&self, width: u32) -> f64 {
+        let rows = self.starts.len().saturating_sub(1);
+        let held: usize = (0..rows as u32)
+            .map(|j| (0..width).filter(|&i| self.holds_pixel(i, j)).count())
+            .sum();
+        held as f64 / (rows.max(1) * width.max(1) as usize) as f64
+    }
+}
+
 impl Camera {
+    /// The pixels whose rays can meet any of `parts` (the [`Camera::footprint`] of each), or
+    /// `None` where this camera cannot say for one of them (every pixel may).
+    #[must_use]
+    pub fn coverage(&self, parts: &[Aabb]) -> Option<Coverage> {
+        if parts.len() > MOST_PARTS {
+            // one box around them all: the spans are made row by row over every box
+            let all = parts.iter().fold(Aabb::EMPTY, |all, part| all.union(*part));
+            return self.coverage(&[all]);
+        }
+        let mut rects = Vec::with_capacity(parts.len());
+        for part in parts {
+            if part.is_empty() {
+                continue;
+            }
+            rects.push(self.footprint(part)?);
+        }
+        let mut starts = Vec::with_capacity(self.height as usize + 1);
+        let mut spans: Vec<(f64, f64)> = Vec::new();
+        let mut row: Vec<(f64, f64)> = Vec::new();
+        for j in 0..self.height {
+            let first = spans.len();
+            starts.push(first as u32);
+            let y = f64::from(j) + 0.5;
+            row.clear();
+            row.extend(rects.iter().filter(|r| y >= r.y0 && y <= r.y1).map(|r| (r.x0, r.x1)));
+            row.sort_by(|a, b| a.0.total_cmp(&b.0));
+            // merged: each span starts after the one before ends
+            for &(x0, x1) in &row {
+                match spans[first..].last_mut() {
+                    Some(last) if x0 <= last.1 => last.1 = last.1.max(x1),
+                    _ => spans.push((x0, x1)),
+                }
+            }
+        }
+        starts.push(spans.len() as u32);
+        Some(Coverage { starts, spans })
+    }
+
     /// The image positions whose rays can meet `bounds` (module docs), or `None` where this
     /// camera cannot say (every position may).
     #[must_use]
@@ -151,6 +229,72 @@ mod tests {
         assert!(rects > 200, "{rects} footprints");
         assert!(culled > 100 * rects, "{culled} pixels left out over {rects} footprints");
         assert!(hits > 20 * rects, "{hits} pixels meeting their boxes");
+    }
+
+    /// Over random cameras and random sets of up to 40 boxes: every pixel the coverage leaves
+    /// out has a ray that misses every box grown by half its margin, every pixel some box's
+    /// footprint holds is held, and the coverage leaves out pixels the single box around them all
+    /// would hold.
+    #[test]
+    fn pixels_outside_the_coverage_miss_every_box() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(72);
+        let (width, height) = (48u32, 32u32);
+        let (mut covered, mut finer) = (0usize, 0usize);
+        for trial in 0..200 {
+            let eye = DVec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), -12.0);
+            let mut camera = Camera::new(eye, DVec3::Z, DVec3::Y, rng.random_range(20.0..70.0), width, height).unwrap();
+            if trial % 4 == 0 {
+                camera.model = Model::Orthographic(Orthographic {
+                    width: rng.random_range(5.0..30.0),
+                });
+            }
+            let boxes: Vec<Aabb> = (0..rng.random_range(1..=40))
+                .map(|_| {
+                    let c = DVec3::new(
+                        rng.random_range(-6.0..6.0),
+                        rng.random_range(-4.0..4.0),
+                        rng.random_range(-2.0..8.0),
+                    );
+                    let h = DVec3::new(
+                        rng.random_range(0.01..1.0),
+                        rng.random_range(0.01..1.0),
+                        rng.random_range(0.01..1.0),
+                    );
+                    Aabb::new(c - h, c + h)
+                })
+                .collect();
+            let Some(coverage) = camera.coverage(&boxes) else {
+                continue;
+            };
+            covered += 1;
+            let all = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
+            let whole = camera.footprint(&all).unwrap();
+            let rects: Vec<ImageRect> = boxes.iter().map(|b| camera.footprint(b).unwrap()).collect();
+            for j in 0..height {
+                for i in 0..width {
+                    let held = coverage.holds_pixel(i, j);
+                    assert_eq!(
+                        held,
+                        rects.iter().any(|r| r.holds_pixel(i, j)),
+                        "trial {trial}, pixel ({i}, {j})"
+                    );
+                    if held {
+                        continue;
+                    }
+                    finer += usize::from(whole.holds_pixel(i, j));
+                    let ray = camera.pixel_ray(i, j).unwrap();
+                    for b in &boxes {
+                        let delta = MARGIN * (b.diagonal_length() + (b.center() - camera.eye).length());
+                        assert!(
+                            b.expanded(0.5 * delta).clip(&ray, Interval::POSITIVE).is_none(),
+                            "trial {trial}: pixel ({i}, {j}) meets {b:?}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(covered > 150, "{covered} coverages");
+        assert!(finer > 1000, "{finer} pixels left out inside the whole box's footprint");
     }
 
     /// No footprint where the camera cannot give one: a box reaching behind the pinhole's eye
