@@ -13,12 +13,10 @@ const DIR_SCALE_MAX: f64 = (1u64 << 60) as f64;
 
 /// The objects' acceleration structure: a BVH over the bounded ones, plus the objects tested on
 /// every ray (those with infinite bounds, and a lone bounded object).
-#[derive(Debug)]
+#[derive(Debug, Default)]
 pub(crate) struct Hierarchy {
     unbounded: Vec<u32>,
     bvh: Bvh,
-    /// The box around every object (infinite if one is unbounded; empty for no objects).
-    bounds: Aabb,
 }
 
 impl Hierarchy {
@@ -30,16 +28,12 @@ impl Hierarchy {
         };
         let mut unbounded = Vec::new();
         let (mut bounded, mut last_bounded) = (0usize, 0u32);
-        let mut all = Aabb::EMPTY;
         for (i, o) in objects.iter().enumerate() {
-            let b = bounds(o);
-            if b.is_finite() {
+            if bounds(o).is_finite() {
                 bounded += 1;
                 last_bounded = i as u32;
-                all = all.union(b);
             } else {
                 unbounded.push(i as u32);
-                all = Aabb::EVERYTHING;
             }
         }
         // a lone bounded object is tested directly: a scene of one primitive pays nothing for the BVH
@@ -48,7 +42,6 @@ impl Hierarchy {
             return Self {
                 unbounded,
                 bvh: Bvh::default(),
-                bounds: all,
             };
         }
         // the boxes are computed again as the builder takes them, not held in a list meanwhile
@@ -57,11 +50,7 @@ impl Hierarchy {
             b.is_finite().then_some((b, i as u32))
         });
         let bvh = Bvh::build_from(boxes);
-        Self {
-            unbounded,
-            bvh,
-            bounds: all,
-        }
+        Self { unbounded, bvh }
     }
 }
 
@@ -70,7 +59,7 @@ impl Scene {
     /// unbounded (a plane), empty for a scene of no objects. No ray that misses it hits anything.
     #[must_use]
     pub fn bounds(&self) -> Aabb {
-        self.hierarchy.bounds
+        self.bounds_parts().into_iter().fold(Aabb::EMPTY, Aabb::union)
     }
 
     /// Boxes whose union holds every object ([`zeroset_primitives::Implicit::bounds_parts`] of

@@ -118,14 +118,20 @@ impl Aabb {
         }
         let mut out = Self::EMPTY;
         for i in 0..8 {
-            let corner = DVec3::new(
-                if i & 1 == 0 { self.min.x } else { self.max.x },
-                if i & 2 == 0 { self.min.y } else { self.max.y },
-                if i & 4 == 0 { self.min.z } else { self.max.z },
-            );
-            out = out.including(m.transform_point3(corner));
+            out = out.including(m.transform_point3(self.corner(i)));
         }
         out
+    }
+
+    /// Corner `i` of the box (`0..8`): bit 0 of `i` picks `max.x` over `min.x`, bit 1 `max.y`,
+    /// bit 2 `max.z`.
+    #[must_use]
+    pub fn corner(&self, i: usize) -> DVec3 {
+        DVec3::new(
+            if i & 1 == 0 { self.min.x } else { self.max.x },
+            if i & 2 == 0 { self.min.y } else { self.max.y },
+            if i & 4 == 0 { self.min.z } else { self.max.z },
+        )
     }
 
     /// The part of `range` where the ray is inside the box (robust slab test), or `None`.

@@ -67,6 +67,15 @@ pub(crate) struct Quad {
 }
 
 impl Quad {
+    /// Slot `s`'s box, `(lo, hi)` per axis.
+    #[inline(always)]
+    pub(crate) fn slot_bounds(&self, s: usize) -> ([f32; 3], [f32; 3]) {
+        (
+            [self.lo[0][s], self.lo[1][s], self.lo[2][s]],
+            [self.hi[0][s], self.hi[1][s], self.hi[2][s]],
+        )
+    }
+
     /// The box around its slots' boxes, `(lo, hi)` per axis: it holds every box below this
     /// node, so a ray that [`build::SlabRay::enters`] none of it enters none of theirs.
     #[inline(always)]

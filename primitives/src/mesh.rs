@@ -49,7 +49,7 @@
 use crate::bounds::Aabb;
 use crate::bvh::build::{Bb, BuildItem, Leaves, Node, QuadBvh, SlabRay};
 use crate::bvh::oct::Octs;
-use crate::bvh::{lane_mask, lanes_of, round_down, round_up, LeafTest, Quad};
+use crate::bvh::{lane_mask, lanes_of, round_down, round_up, LeafTest};
 use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
@@ -61,10 +61,10 @@ use crate::PACKET;
 /// entering the bench meshes' boxes: 13 %, 16 % and 20 % faster on levels 4, 6 and 8, with a
 /// quarter of the nodes (0.07 N quads for N triangles, against 0.28 N).
 const LEAVES: Leaves = Leaves::tested_together(8, 3.0);
+const _: () = assert!(LEAVES.max <= PACKET, "a leaf's triangles fit in the lanes of one test");
 
 /// How many levels below the root [`Implicit::bounds_parts`] takes the boxes from.
 const PART_LEVELS: u32 = 4;
-const _: () = assert!(LEAVES.max <= PACKET, "a leaf's triangles fit in the lanes of one test");
 use glam::{DVec2, DVec3, Vec3A};
 use rayon::prelude::*;
 use std::fmt;
@@ -744,29 +744,12 @@ impl Implicit for Mesh {
     /// The boxes [`PART_LEVELS`] levels below the hierarchy's root (at most `4^PART_LEVELS`; a
     /// leaf met on the way gives its own box): together they hold every triangle.
     fn bounds_parts(&self, parts: &mut Vec<Aabb>) {
-        let quads = self.bvh.quads();
-        if quads.is_empty() {
+        if self.bvh.quads().is_empty() {
             parts.push(self.bounds);
             return;
         }
-        let slot_box = |quad: &Quad, s: usize| {
-            Aabb::new(
-                DVec3::new(quad.lo[0][s].into(), quad.lo[1][s].into(), quad.lo[2][s].into()),
-                DVec3::new(quad.hi[0][s].into(), quad.hi[1][s].into(), quad.hi[2][s].into()),
-            )
-        };
-        // (quad, its level: the root's slots are level 1)
-        let mut pending = vec![(0usize, 1u32)];
-        while let Some((q, level)) = pending.pop() {
-            let quad = &quads[q];
-            for s in 0..quad.len as usize {
-                if quad.count[s] > 0 || level == PART_LEVELS {
-                    parts.push(slot_box(quad, s));
-                } else {
-                    pending.push((quad.child[s] as usize, level + 1));
-                }
-            }
-        }
+        let boxes = self.bvh.boxes_below(PART_LEVELS);
+        parts.extend(boxes.into_iter().map(|(lo, hi)| Aabb::new(v64(lo), v64(hi))));
     }
 
     /// `±(p − q)/|p − q|` towards `Φ > 0`, or the nearest triangle's normal on the surface.

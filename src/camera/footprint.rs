@@ -1,6 +1,8 @@
 //! Where on the image a box can be seen: the rectangle of image positions outside which the ray
-//! through a position ([`Camera::ray_through`], the pinhole's ray) provably misses the box. The renderer skips the pixels outside it (their
-//! rays are never made): they see nothing, so they get the miss values without being traced.
+//! through a position ([`Camera::ray_through`], the pinhole's ray) provably misses the box
+//! ([`Camera::footprint`]), and the union of such rectangles for several boxes
+//! ([`Camera::coverage`]). The renderer skips the pixels outside the coverage of the scene's
+//! parts (their rays are never made): they see nothing, so they get the miss values untraced.
 //!
 //! Maths. The box is first enlarged by `δ = 10⁻⁴·(|diagonal| + |centre − eye|)` on every side.
 //! A ray meets a point `p` exactly when `p` is seen at the ray's image position
@@ -16,7 +18,6 @@
 //! plane get no rectangle: every pixel is traced.
 
 use super::{Camera, Model};
-use glam::DVec3;
 use zeroset_primitives::Aabb;
 
 /// A closed rectangle `[x0, x1] × [y0, y1]` of image positions (pixel units, `y` down).
@@ -68,16 +69,6 @@ impl Coverage {
         self.spans[self.starts[j] as usize..self.starts[j + 1] as usize]
             .iter()
             .any(|&(x0, x1)| x >= x0 && x <= x1)
-    }
-
-    /// The fraction of the image's pixels held.
-    #[must_use]
-    pub fn fraction_held(&self, width: u32) -> f64 {
-        let rows = self.starts.len().saturating_sub(1);
-        let held: usize = (0..rows as u32)
-            .map(|j| (0..width).filter(|&i| self.holds_pixel(i, j)).count())
-            .sum();
-        held as f64 / (rows.max(1) * width.max(1) as usize) as f64
     }
 }
 
@@ -131,12 +122,7 @@ impl Camera {
         let enlarged = bounds.expanded(delta);
         let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
         for corner in 0..8 {
-            let pick = |bit: usize, lo: f64, hi: f64| if corner & bit == 0 { lo } else { hi };
-            let p = DVec3::new(
-                pick(1, enlarged.min.x, enlarged.max.x),
-                pick(2, enlarged.min.y, enlarged.max.y),
-                pick(4, enlarged.min.z, enlarged.max.z),
-            );
+            let p = enlarged.corner(corner);
             let local = self.world_to_local(p);
             let seen = match &self.model {
                 // strictly in front, by more than rounding could move the corner across the plane
@@ -166,9 +152,22 @@ impl Camera {
 mod tests {
     use super::*;
     use crate::camera::{Orthographic, Perspective};
-    use glam::DVec2;
+    use glam::{DVec2, DVec3};
     use rand::{Rng, SeedableRng};
+    use std::ops::Range;
     use zeroset_primitives::Interval;
+
+    /// A random box: its centre's coordinates drawn from `centre`, its half-extents from `half`.
+    fn random_box(rng: &mut impl Rng, centre: [Range<f64>; 3], half: Range<f64>) -> Aabb {
+        let [x, y, z] = centre;
+        let c = DVec3::new(rng.random_range(x), rng.random_range(y), rng.random_range(z));
+        let h = DVec3::new(
+            rng.random_range(half.clone()),
+            rng.random_range(half.clone()),
+            rng.random_range(half),
+        );
+        Aabb::new(c - h, c + h)
+    }
 
     /// Over random pinhole (principal offsets included) and orthographic cameras and random
     /// boxes, near and far, in view and beside it: every pixel whose centre is outside the
@@ -193,17 +192,7 @@ mod tests {
                     principal_offset: DVec2::new(rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0)),
                 })
             };
-            let centre = DVec3::new(
-                rng.random_range(-8.0..8.0),
-                rng.random_range(-8.0..8.0),
-                rng.random_range(-12.0..20.0),
-            );
-            let half = DVec3::new(
-                rng.random_range(0.01..3.0),
-                rng.random_range(0.01..3.0),
-                rng.random_range(0.01..3.0),
-            );
-            let bounds = Aabb::new(centre - half, centre + half);
+            let bounds = random_box(&mut rng, [-8.0..8.0, -8.0..8.0, -12.0..20.0], 0.01..3.0);
             let Some(rect) = camera.footprint(&bounds) else {
                 continue;
             };
@@ -249,19 +238,7 @@ mod tests {
                 });
             }
             let boxes: Vec<Aabb> = (0..rng.random_range(1..=40))
-                .map(|_| {
-                    let c = DVec3::new(
-                        rng.random_range(-6.0..6.0),
-                        rng.random_range(-4.0..4.0),
-                        rng.random_range(-2.0..8.0),
-                    );
-                    let h = DVec3::new(
-                        rng.random_range(0.01..1.0),
-                        rng.random_range(0.01..1.0),
-                        rng.random_range(0.01..1.0),
-                    );
-                    Aabb::new(c - h, c + h)
-                })
+                .map(|_| random_box(&mut rng, [-6.0..6.0, -4.0..4.0, -2.0..8.0], 0.01..1.0))
                 .collect();
             let Some(coverage) = camera.coverage(&boxes) else {
                 continue;

@@ -334,18 +334,46 @@ impl QuadBvh {
     /// the leaf order), in leaf order: they partition the items.
     pub fn leaves(&self) -> Vec<(usize, usize)> {
         let mut leaves = Vec::new();
-        let mut pending = vec![0usize];
-        while let Some(q) = pending.pop() {
+        self.walk_slots(|quad, s, _| match quad.count[s] {
+            0 => true,
+            count => {
+                leaves.push((quad.child[s] as usize, usize::from(count)));
+                false
+            }
+        });
+        leaves.sort_unstable();
+        leaves
+    }
+
+    /// The boxes of the slots `levels` levels below the root (the root's own slots are level 1),
+    /// and of the leaves met above that level, `(lo, hi)` per axis: they hold every item.
+    pub fn boxes_below(&self, levels: u32) -> Vec<([f32; 3], [f32; 3])> {
+        let mut boxes = Vec::new();
+        self.walk_slots(|quad, s, level| {
+            let descend = quad.count[s] == 0 && level < levels;
+            if !descend {
+                boxes.push(quad.slot_bounds(s));
+            }
+            descend
+        });
+        boxes
+    }
+
+    /// Visits the slots reached from the root, each with its level (the root's slots are level
+    /// 1); `visit(quad, slot, level)` says whether to descend into an inner slot's node.
+    fn walk_slots(&self, mut visit: impl FnMut(&Quad, usize, u32) -> bool) {
+        if self.quads.is_empty() {
+            return;
+        }
+        let mut pending = vec![(0usize, 1u32)];
+        while let Some((q, level)) = pending.pop() {
             let quad = &self.quads[q];
             for s in 0..quad.len as usize {
-                match quad.count[s] {
-                    0 => pending.push(quad.child[s] as usize),
-                    count => leaves.push((quad.child[s] as usize, usize::from(count))),
+                if visit(quad, s, level) && quad.count[s] == 0 {
+                    pending.push((quad.child[s] as usize, level + 1));
                 }
             }
         }
-        leaves.sort_unstable();
-        leaves
     }
 
     /// The 4-wide nodes, root first.
@@ -377,11 +405,14 @@ impl QuadBvh {
             leaf(self.root.first, self.root.count);
             return;
         }
-        let slot = |quad: &Quad, s: usize| Node {
-            lo: [quad.lo[0][s], quad.lo[1][s], quad.lo[2][s]],
-            first: quad.child[s],
-            hi: [quad.hi[0][s], quad.hi[1][s], quad.hi[2][s]],
-            count: u32::from(quad.count[s]),
+        let slot = |quad: &Quad, s: usize| {
+            let (lo, hi) = quad.slot_bounds(s);
+            Node {
+                lo,
+                first: quad.child[s],
+                hi,
+                count: u32::from(quad.count[s]),
+            }
         };
         let mut stack: Vec<(Node, f64)> = Vec::with_capacity(64);
         let mut quad = &self.quads[0];

@@ -73,9 +73,10 @@ struct Slot {
 impl Slot {
     /// Slot `s` of `quad`.
     fn of(quad: &Quad, s: usize) -> Self {
+        let (lo, hi) = quad.slot_bounds(s);
         Self {
-            lo: [quad.lo[0][s], quad.lo[1][s], quad.lo[2][s]],
-            hi: [quad.hi[0][s], quad.hi[1][s], quad.hi[2][s]],
+            lo,
+            hi,
             child: quad.child[s],
             count: quad.count[s],
         }
