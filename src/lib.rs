@@ -45,6 +45,7 @@ pub mod motion;
 pub mod objects;
 pub mod output;
 mod parallel_parse;
+mod piece_bins;
 pub mod pixels;
 pub mod query;
 pub mod query_rays;

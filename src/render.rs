@@ -20,7 +20,7 @@
 //! converge) sees nothing, like a miss, and is counted in [`Frame`]. [`render`] traces the
 //! scene's camera, [`render_view`] any other (such as one of the scene's `views`).
 //!
-//! Rows are traced on rayon's threads ([`render_view`]: one task per row, into a [`Frame`];
+//! Rows are traced on rayon's threads ([`render_view`]: one task per 16 rows, into a [`Frame`];
 //! [`crate::stream`]: bands of rows handed in order to the output files as they finish); every
 //! pixel is computed independently from the scene and its own samples (a hash of
 //! seed, pixel and sample index), so the image is bit-identical whatever the thread count. With
@@ -33,6 +33,7 @@
 use crate::aov::Aov;
 use crate::camera::footprint::Coverage;
 use crate::camera::{Camera, NoRay};
+use crate::piece_bins::{BandBins, PieceBins, RowBins};
 use crate::sampling::{pixel_samples, PixelSample};
 use crate::scene::{Light, Scene};
 use glam::DVec3;
@@ -315,7 +316,25 @@ pub(crate) struct Tracer<'a> {
 impl<'a> Tracer<'a> {
     /// Starts the clock of a render of `layout` through `camera`.
     pub(crate) fn new(scene: &'a Scene, camera: &'a Camera, options: &RenderOptions, layout: &'a FrameLayout) -> Self {
+        // what is worked out for the view before the first ray (pixel bins, coverage) counts
+        let start = Instant::now();
         let aovs = &layout.aovs;
+        let sampled = scene.sampling.spp > 1 || scene.has_motion();
+        let uncertain_offset = {
+            let at = aovs.iter().position(|a| *a == Aov::Uncertain);
+            at.map(|k| aovs[..k].iter().map(|a| a.channels().len()).sum())
+        };
+        // the paths that trace pixel by pixel (samples, the Uncertain flag) keep their own
+        let bins = if sampled || uncertain_offset.is_some() {
+            None
+        } else {
+            PieceBins::new(scene, camera, &layout.window)
+        };
+        let seen = if sampled || bins.is_some() {
+            None
+        } else {
+            camera.coverage(&scene.bounds_parts(), scene.origin_rounding(camera.eye))
+        };
         let request = HitRequest {
             normal: aovs
                 .iter()
@@ -340,11 +359,9 @@ impl<'a> Tracer<'a> {
             depth_miss: options.depth_miss,
             camera,
             no_ray: NoRayCounts::default(),
-            uncertain_offset: {
-                let at = aovs.iter().position(|a| *a == Aov::Uncertain);
-                at.map(|k| aovs[..k].iter().map(|a| a.channels().len()).sum())
-            },
-            seen: camera.coverage(&scene.bounds_parts()),
+            uncertain_offset,
+            seen,
+            bins,
             miss_colour: if options.background {
                 scene.background
             } else {
@@ -354,13 +371,13 @@ impl<'a> Tracer<'a> {
         Self {
             scene,
             context,
-            sampled: scene.sampling.spp > 1 || scene.has_motion(),
+            sampled,
             x0: layout.window.x0,
             row_len: layout.row_len(),
             progress: options.progress,
             bar,
             bar_shown: AtomicBool::new(false),
-            start: Instant::now(),
+            start,
         }
     }
 
@@ -373,6 +390,9 @@ impl<'a> Tracer<'a> {
                 render_row_sampled(self.scene, &self.context, self.x0, y0 + k as u32, row);
                 rows += 1;
             }
+        } else if let Some(bins) = &self.context.bins {
+            render_rows_binned(self.scene, &self.context, bins, self.x0, y0, self.row_len, out);
+            rows = (out.len() / self.row_len.max(1)) as u64;
         } else {
             // pairs of rows, traced in packets of 4 × 2 pixels
             for (k, pair) in out.chunks_mut(2 * self.row_len.max(1)).enumerate() {
@@ -415,6 +435,16 @@ impl<'a> Tracer<'a> {
     }
 }
 
+/// Whether a render of `scene` through `camera` (whole frame, one sample per pixel, no
+/// `Uncertain` AOV) tests each pixel's ray against the pieces it can see (`piece_bins`) rather
+/// than tracing packets: for tests.
+#[doc(hidden)]
+#[must_use]
+pub fn uses_piece_bins(scene: &Scene, camera: &Camera) -> bool {
+    let layout = FrameLayout::new(camera, &RenderOptions::default());
+    scene.sampling.spp <= 1 && PieceBins::new(scene, camera, &layout.window).is_some()
+}
+
 /// Renders `scene` through `camera` (one of its views, or any other camera) as `options` ask.
 #[must_use]
 pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> Frame {
@@ -422,11 +452,13 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
     let row_len = layout.row_len();
     let mut samples = vec![0.0f32; row_len * layout.window.height() as usize];
     let tracer = Tracer::new(scene, camera, options, &layout);
+    // sixteen rows a task: the bucket of pixel bins, eight packets' pairs of rows
+    const ROWS_PER_TASK: usize = 16;
     samples
-        .par_chunks_mut(row_len.max(1))
+        .par_chunks_mut(ROWS_PER_TASK * row_len.max(1))
         .enumerate()
-        .for_each(|(row, out)| {
-            tracer.rows(layout.window.y0 + row as u32, out);
+        .for_each(|(task, out)| {
+            tracer.rows(layout.window.y0 + (ROWS_PER_TASK * task) as u32, out);
         });
     let elapsed = tracer.elapsed();
     let stats = tracer.finish(elapsed);
@@ -504,6 +536,48 @@ fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: us
     }
 }
 
+/// Renders the rows in `out` (whole rows of `row_len` samples) from row `y` and column `x0` on,
+/// each pixel's ray tested against the pieces it can see ([`PieceBins`]): the same values as
+/// [`render_rows`].
+fn render_rows_binned(
+    scene: &Scene,
+    context: &RowContext,
+    bins: &PieceBins,
+    x0: u32,
+    y: u32,
+    row_len: usize,
+    out: &mut [f32],
+) {
+    let channels = context.channels;
+    let width = row_len / channels;
+    let rows = out.len() / row_len.max(1);
+    let camera = context.camera;
+    let (mut band, mut row_bins) = (BandBins::default(), RowBins::default());
+    bins.band(y, rows, x0, width, &mut band);
+    for (k, row) in out.chunks_exact_mut(row_len.max(1)).enumerate() {
+        let j = y + k as u32;
+        band.row(k, width, &mut row_bins);
+        for (column, pixel) in row.chunks_exact_mut(channels).enumerate() {
+            let candidates = row_bins.pixel(column);
+            // a pixel that can see no piece gets the miss values untraced
+            if candidates.is_empty() {
+                write_miss(pixel, scene, context);
+                continue;
+            }
+            match camera.pixel_ray(x0 + column as u32, j) {
+                Ok(ray) => {
+                    let hit = bins.intersect(scene, &ray, Interval::POSITIVE, candidates);
+                    write_pixel(pixel, scene, context, &ray, hit);
+                }
+                Err(reason) => {
+                    context.no_ray.add(reason);
+                    write_miss(pixel, scene, context);
+                }
+            }
+        }
+    }
+}
+
 /// Traces and writes one pixel (the one-ray-at-a-time path of [`render_rows`]).
 fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut [f32]) {
     let exhausted_before = thread_uncertain_events();
@@ -569,6 +643,9 @@ struct RowContext<'a> {
     /// [`Scene::bounds_parts`]), if the camera can say; the others see nothing and are not
     /// traced.
     seen: Option<Coverage>,
+    /// The pieces each pixel can see, where the scene is one object with pieces
+    /// ([`PieceBins`]): its pixels are traced against those alone, instead of in packets.
+    bins: Option<PieceBins<'a>>,
 }
 
 /// Sets the pixel's `Uncertain` channel (if rendered) to 1 if this thread's root finder ran out of

@@ -121,10 +121,7 @@ impl Scene {
         uncertain: &mut [bool],
     ) {
         const BATCH: usize = 64;
-        let lone = match self.hierarchy.unbounded[..] {
-            [only] if self.hierarchy.bvh.is_empty() => Some(only),
-            _ => None,
-        };
+        let lone = self.lone_object();
         let batches = rays.chunks(BATCH).zip(ranges.chunks(BATCH));
         for ((rays, ranges), (out, uncertain)) in batches.zip(out.chunks_mut(BATCH).zip(uncertain.chunks_mut(BATCH))) {
             match lone {
@@ -145,6 +142,44 @@ impl Scene {
                 }
             }
         }
+    }
+
+    /// How far off the exact ray from `origin` a hit may lie for the way the objects store its
+    /// origin: the largest of their [`zeroset_primitives::Intersect::origin_rounding`] (moving
+    /// objects placed at time 0).
+    #[must_use]
+    pub fn origin_rounding(&self, origin: glam::DVec3) -> f64 {
+        self.objects
+            .iter()
+            .map(|o| o.primitive.origin_rounding(origin))
+            .fold(0.0, f64::max)
+    }
+
+    /// The scene's one object, if it has exactly one (what every ray is tested against).
+    pub(crate) fn lone_object(&self) -> Option<u32> {
+        match self.hierarchy.unbounded[..] {
+            [only] if self.hierarchy.bvh.is_empty() => Some(only),
+            _ => None,
+        }
+    }
+
+    /// [`Scene::intersect`] in a scene whose lone object `object` has the `pieces`, for a ray
+    /// that can only meet the pieces `candidates` (see [`zeroset_primitives::Pieces`]). A
+    /// direction that needs rescaling takes [`Scene::intersect`] itself.
+    #[inline]
+    pub(crate) fn intersect_lone_pieces(
+        &self,
+        object: u32,
+        pieces: &dyn zeroset_primitives::Pieces,
+        ray: &Ray,
+        range: Interval,
+        candidates: &[u32],
+    ) -> Option<(u32, RawHit)> {
+        debug_assert_eq!(self.lone_object(), Some(object));
+        if scaled_direction_size(ray).is_some() {
+            return self.intersect(ray, range);
+        }
+        pieces.intersect_pieces(ray, range, candidates).map(|raw| (object, raw))
     }
 
     /// The closest hit of `test(object, ray, range)` over the always-tested objects and the BVH,

@@ -109,7 +109,7 @@ fn packets_equal_single_rays_on_every_scene() {
 fn assert_outside_sees_nothing(scene: &Scene, camera: &Camera, what: &str) -> Option<usize> {
     // what the renderer skips: the coverage of the scene's parts (a mesh's upper boxes)
     let rect = camera.footprint(&scene.bounds())?;
-    let seen = camera.coverage(&scene.bounds_parts())?;
+    let seen = camera.coverage(&scene.bounds_parts(), scene.origin_rounding(camera.eye))?;
     let mut checked = 0;
     for j in 0..camera.height {
         for i in 0..camera.width {

@@ -282,6 +282,14 @@ impl Intersect for Csg {
         self.crossings(ray, range).next().map(|c| c.hit)
     }
 
+    /// The largest of the children's.
+    fn origin_rounding(&self, origin: DVec3) -> f64 {
+        self.children
+            .iter()
+            .map(|c| c.origin_rounding(origin))
+            .fold(0.0, f64::max)
+    }
+
     /// The children's crossing streams merged in order of `t`. A child whose bounds the ray
     /// misses in `range` has no crossing there: only its state at the start counts, which is
     /// "outside" when the start lies outside its finite bounds (children are closed, their inside

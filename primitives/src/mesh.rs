@@ -70,6 +70,7 @@ use rayon::prelude::*;
 use std::fmt;
 
 mod packet;
+mod pieces;
 
 /// A triangle mesh (see the module docs for its conventions).
 #[derive(Clone)]
@@ -1149,6 +1150,17 @@ impl Intersect for Mesh {
 
     fn shading_normal_at(&self, _ray: &Ray, raw: &RawHit) -> Option<DVec3> {
         self.shading_normal(raw)
+    }
+
+    /// The hierarchy's leaves (see `mesh/pieces.rs`).
+    fn pieces(&self) -> Option<&dyn crate::Pieces> {
+        Some(self)
+    }
+
+    /// The f32 copy of the origin is off by up to `2⁻²⁴` of each component's size: at most
+    /// `√3·2⁻²⁴·max |oᵢ| < 2⁻²³·max |oᵢ|` in all.
+    fn origin_rounding(&self, origin: DVec3) -> f64 {
+        f64::from(f32::EPSILON) * origin.abs().max_element()
     }
 }
 

@@ -221,6 +221,43 @@ pub trait Intersect: Implicit {
     fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> {
         crossings::repeated_intersection(self, ray, range)
     }
+
+    /// How far from the exact ray `origin + t·dir` a hit this type reports may lie because of
+    /// how it stores the ray's origin, beyond rounding proportional to the distance travelled:
+    /// 0 for tests in f64 (the default); a mesh, which tests an f32 copy of the ray,
+    /// `2⁻²³·max |origin component|`. What skips pixels by geometry (footprints of boxes) must
+    /// allow for it.
+    fn origin_rounding(&self, origin: DVec3) -> f64 {
+        let _ = origin;
+        0.0
+    }
+
+    /// The surface cut into boxed pieces that can be tested on their own ([`Pieces`]), where
+    /// the type has such a cut (a mesh: its hierarchy's leaves). The default has none.
+    fn pieces(&self) -> Option<&dyn Pieces> {
+        None
+    }
+}
+
+/// A surface cut into pieces, each inside a box, whose closest hit can be found among a few of
+/// them: a renderer that knows beforehand which boxes a ray can meet (the boxes whose image
+/// covers a pixel) hands those to [`Pieces::intersect_pieces`] and skips the hierarchy walk.
+pub trait Pieces: Sync {
+    /// The numbers of the pieces, each once (in an order that keeps neighbours in space mostly
+    /// together). Other numbers name no piece.
+    fn piece_numbers(&self) -> Vec<u32>;
+
+    /// The box of the piece numbered `number` (finite), or `None` if no piece has that number.
+    /// Every point of the surface lies in at least one piece's box.
+    fn piece_box(&self, number: u32) -> Option<Aabb>;
+
+    /// Exactly [`Intersect::intersect`]`(ray, range)`, given that `candidates` (piece numbers,
+    /// in any order, repeats allowed, numbers of no piece ignored) holds every piece whose box the
+    /// ray passes within `10⁻⁶·(|box diagonal| + |box centre − ray origin|)` plus four times
+    /// [`Intersect::origin_rounding`] of inside `range`: no other piece can hold the closest
+    /// hit. Nearer pieces first make it faster (farther
+    /// ones are then dismissed by their box).
+    fn intersect_pieces(&self, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<RawHit>;
 }
 
 /// What a scene stores: anything that intersects, is printable and can be shared across threads.
@@ -251,6 +288,8 @@ macro_rules! forward_through_pointer {
             fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 { (**self).hit_error(ray, raw) }
             fn shading_normal_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec3> { (**self).shading_normal_at(ray, raw) }
             fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> { (**self).crossings(ray, range) }
+            fn pieces(&self) -> Option<&dyn Pieces> { (**self).pieces() }
+            fn origin_rounding(&self, origin: DVec3) -> f64 { (**self).origin_rounding(origin) }
         }
     };
 }

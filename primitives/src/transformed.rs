@@ -167,6 +167,17 @@ impl<P: Intersect> Intersect for Transformed<P> {
 
     /// The inner bound mapped to the world by `‖W‖_F`, plus the rounding of the maps themselves:
     /// `γ₃₂·κ_F·(‖p‖∞ + ‖o‖∞ + ‖translation‖∞)`, `κ_F = ‖W‖_F·‖W⁻¹‖_F` (see [`crate::offset`]).
+    /// The inner primitive's, at the local origin, mapped back to world lengths.
+    fn origin_rounding(&self, origin: glam::DVec3) -> f64 {
+        let inner = self
+            .inner
+            .origin_rounding(self.local_from_world.transform_point3(origin));
+        if inner == 0.0 {
+            return 0.0;
+        }
+        frobenius(&self.world_from_local.matrix3) * inner
+    }
+
     fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
         let w = frobenius(&self.world_from_local.matrix3);
         let kappa = w * frobenius(&self.local_from_world.matrix3);

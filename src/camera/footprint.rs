@@ -4,20 +4,25 @@
 //! ([`Camera::coverage`]). The renderer skips the pixels outside the coverage of the scene's
 //! parts (their rays are never made): they see nothing, so they get the miss values untraced.
 //!
-//! Maths. The box is first enlarged by `δ = 10⁻⁴·(|diagonal| + |centre − eye|)` on every side.
+//! Maths. The box is first enlarged by `δ = 10⁻⁴·(|diagonal| + |centre − eye|)` on every side,
+//! plus a hundred times how far a hit may lie off the exact ray for the way the surface stores
+//! the ray's origin (a mesh's f32 copy of it, [`zeroset_primitives::Intersect::origin_rounding`]).
 //! A ray meets a point `p` exactly when `p` is seen at the ray's image position
 //! ([`Camera::project`]). For the models whose projection maps segments to segments (the
 //! pinhole, wholly in front of the eye plane, and the orthographic camera), the image of the
 //! enlarged box is the convex hull of its eight corners' images, so a position outside their
 //! bounding rectangle sees no point of the enlarged box: its exact ray passes the original box
-//! at a distance of at least `δ`, a million times what rounding moves a ray (the f64 ray's
-//! set-up, a mesh's f32 copy of it) or puts a hit off its surface. The rectangle is widened by
-//! one pixel more for the rounding of the projection itself.
+//! at a distance of at least `δ`, a million times what rounding moves a ray in proportion to
+//! its length (the f64 ray's set-up, a mesh's f32 copy of it) or puts a hit off its surface, a
+//! hundred times what the origin's storage does. The rectangle is widened by one pixel more for
+//! the rounding of the projection itself ([`TIGHT_WIDENING`] for the pixel bins of a mesh's
+//! leaves, boxes only a few pixels wide).
 //!
 //! Other models (panoramas, fisheyes, distortion) and boxes reaching behind a pinhole's eye
 //! plane get no rectangle: every pixel is traced.
 
 use super::{Camera, Model};
+use glam::DVec3;
 use zeroset_primitives::Aabb;
 
 /// A closed rectangle `[x0, x1] × [y0, y1]` of image positions (pixel units, `y` down).
@@ -41,6 +46,18 @@ impl ImageRect {
 
 /// Relative enlargement of the box (module docs).
 const MARGIN: f64 = 1e-4;
+
+/// How much a box is enlarged before its corners are projected: `10⁻⁴·(|diagonal| +
+/// |centre − eye|) + 100·r`, `r` how far off the exact ray a hit may lie for the way the
+/// surface stores the ray's origin (a mesh's f32 copy: `2⁻²³·max |eyeᵢ|`, however near the box).
+fn enlargement(bounds: &Aabb, eye: DVec3, origin_rounding: f64) -> f64 {
+    MARGIN * (bounds.diagonal_length() + (bounds.center() - eye).length()) + 100.0 * origin_rounding
+}
+
+/// Pixels a footprint of the pixel bins is widened by: the projection's own rounding, below
+/// `10⁻⁹` pixels on images up to `10⁶` pixels wide, with room to spare. The rounding of rays and
+/// hits is covered by the box's enlargement.
+pub const TIGHT_WIDENING: f64 = 1e-3;
 
 /// The most boxes [`Camera::coverage`] projects one by one (about 3 ms for a 2160-row image);
 /// beyond, it projects the box around them.
@@ -73,21 +90,23 @@ impl Coverage {
 }
 
 impl Camera {
-    /// The pixels whose rays can meet any of `parts` (the [`Camera::footprint`] of each), or
-    /// `None` where this camera cannot say for one of them (every pixel may).
+    /// The pixels whose rays can meet any of `parts` (the [`Camera::footprint`] of each, a
+    /// hit allowed `origin_rounding` off the exact ray besides: see [`BoxProjector`]), or `None`
+    /// where this camera cannot say for one of them (every pixel may).
     #[must_use]
-    pub fn coverage(&self, parts: &[Aabb]) -> Option<Coverage> {
+    pub fn coverage(&self, parts: &[Aabb], origin_rounding: f64) -> Option<Coverage> {
         if parts.len() > MOST_PARTS {
             // one box around them all: the spans are made row by row over every box
             let all = parts.iter().fold(Aabb::EMPTY, |all, part| all.union(*part));
-            return self.coverage(&[all]);
+            return self.coverage(&[all], origin_rounding);
         }
+        let projector = self.box_projector(origin_rounding);
         let mut rects = Vec::with_capacity(parts.len());
         for part in parts {
             if part.is_empty() {
                 continue;
             }
-            rects.push(self.footprint(part)?);
+            rects.push(projector.footprint(part, 1.0)?);
         }
         let mut starts = Vec::with_capacity(self.height as usize + 1);
         let mut spans: Vec<(f64, f64)> = Vec::new();
@@ -111,35 +130,122 @@ impl Camera {
         Some(Coverage { starts, spans })
     }
 
-    /// The image positions whose rays can meet `bounds` (module docs), or `None` where this
-    /// camera cannot say (every position may).
+    /// The image positions whose rays can meet `bounds` (module docs) on a surface tested in
+    /// f64 arithmetic (else see [`Camera::box_projector`]), or `None` where this camera cannot
+    /// say (every position may).
     #[must_use]
     pub fn footprint(&self, bounds: &Aabb) -> Option<ImageRect> {
-        if !bounds.is_finite() || bounds.is_empty() || !self.eye.is_finite() {
+        self.box_projector(0.0).footprint(bounds, 1.0)
+    }
+
+    /// What projecting many boxes through this camera shares ([`BoxProjector`]), for surfaces
+    /// whose hits may lie up to `origin_rounding` off the exact ray besides the rounding
+    /// proportional to distance ([`zeroset_primitives::Intersect::origin_rounding`] at the eye).
+    #[must_use]
+    pub fn box_projector(&self, origin_rounding: f64) -> BoxProjector<'_> {
+        let pinhole = match &self.model {
+            Model::Perspective(m) => {
+                let (w, h) = (f64::from(self.width), f64::from(self.height));
+                Some(PinholeScales {
+                    ax: 0.5 * w / self.tan_half_hfov(),
+                    ay: 0.5 * h / self.tan_half_vfov,
+                    cx: 0.5 * w + m.principal_offset.x,
+                    cy: 0.5 * h + m.principal_offset.y,
+                })
+            }
+            _ => None,
+        };
+        BoxProjector {
+            camera: self,
+            pinhole,
+            origin_rounding,
+        }
+    }
+}
+
+/// The pinhole's projection `x = cx + ax·a/c`, `y = cy − ay·b/c` of camera-local `(a, b, c)`:
+/// [`crate::camera::Perspective::project`]'s formula with its constants worked out once.
+#[derive(Clone, Copy, Debug)]
+struct PinholeScales {
+    ax: f64,
+    ay: f64,
+    cx: f64,
+    cy: f64,
+}
+
+/// Projects boxes through one camera ([`Camera::box_projector`]): the footprints of
+/// [`Camera::footprint`] and [`Camera::tight_footprint`], with the camera's constants worked
+/// out once for all of them.
+#[derive(Clone, Copy, Debug)]
+pub struct BoxProjector<'a> {
+    camera: &'a Camera,
+    pinhole: Option<PinholeScales>,
+    /// How far off the exact ray a hit may lie for the way its origin is stored.
+    origin_rounding: f64,
+}
+
+impl BoxProjector<'_> {
+    /// The bounding rectangle of the images of the enlarged box's corners (module docs),
+    /// widened by `widening` pixels on every side. The corners' camera-local coordinates are
+    /// the first corner's plus the box's edges mapped once (sums of f64 terms: their rounding,
+    /// like the projection's, is covered by the enlargement `δ`).
+    #[must_use]
+    pub fn footprint(&self, bounds: &Aabb, widening: f64) -> Option<ImageRect> {
+        let camera = self.camera;
+        if !bounds.is_finite() || bounds.is_empty() || !camera.eye.is_finite() {
             return None;
         }
-        let delta = MARGIN * (bounds.diagonal_length() + (bounds.center() - self.eye).length());
+        let delta = enlargement(bounds, camera.eye, self.origin_rounding);
         let enlarged = bounds.expanded(delta);
-        let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-        for corner in 0..8 {
-            let p = enlarged.corner(corner);
-            let local = self.world_to_local(p);
-            let seen = match &self.model {
-                // strictly in front, by more than rounding could move the corner across the plane
-                Model::Perspective(_) if local.z > delta => self.project(p)?,
-                Model::Orthographic(_) => self.project(p)?,
-                _ => return None,
-            };
-            x0 = x0.min(seen.x);
-            x1 = x1.max(seen.x);
-            y0 = y0.min(seen.y);
-            y1 = y1.max(seen.y);
+        let first = camera.world_to_local(enlarged.min);
+        let size = enlarged.max - enlarged.min;
+        let edges = [
+            size.x * DVec3::new(camera.right.x, camera.up.x, camera.forward.x),
+            size.y * DVec3::new(camera.right.y, camera.up.y, camera.forward.y),
+            size.z * DVec3::new(camera.right.z, camera.up.z, camera.forward.z),
+        ];
+        // the corners' coordinates, one array per axis (corner `c` adds edge `a` if bit `a` is set)
+        let mut local = [[first.x; 8], [first.y; 8], [first.z; 8]];
+        for (axis, values) in local.iter_mut().enumerate() {
+            for (c, value) in values.iter_mut().enumerate() {
+                for (a, edge) in edges.iter().enumerate() {
+                    if c & (1 << a) != 0 {
+                        *value += edge[axis];
+                    }
+                }
+            }
         }
+        let [lx, ly, lz] = local;
+        let (mut xs, mut ys) = ([0.0; 8], [0.0; 8]);
+        match (&camera.model, self.pinhole) {
+            (Model::Perspective(_), Some(p)) => {
+                // strictly in front, by more than rounding could move a corner across the plane
+                if !lz.iter().all(|&z| z > delta) {
+                    return None;
+                }
+                for c in 0..8 {
+                    let inverse = 1.0 / lz[c];
+                    xs[c] = p.cx + p.ax * (lx[c] * inverse);
+                    ys[c] = p.cy - p.ay * (ly[c] * inverse);
+                }
+            }
+            (Model::Orthographic(m), _) => {
+                for c in 0..8 {
+                    let seen = m.project(camera, DVec3::new(lx[c], ly[c], lz[c]));
+                    (xs[c], ys[c]) = (seen.x, seen.y);
+                }
+            }
+            _ => return None,
+        }
+        // plain comparisons: every value here is finite or ±∞, never NaN (checked below)
+        let lowest = |v: &[f64; 8]| v.iter().fold(f64::INFINITY, |m, &x| if x < m { x } else { m });
+        let highest = |v: &[f64; 8]| v.iter().fold(f64::NEG_INFINITY, |m, &x| if x > m { x } else { m });
+        let (x0, x1, y0, y1) = (lowest(&xs), highest(&xs), lowest(&ys), highest(&ys));
         let rect = ImageRect {
-            x0: x0 - 1.0,
-            x1: x1 + 1.0,
-            y0: y0 - 1.0,
-            y1: y1 + 1.0,
+            x0: x0 - widening,
+            x1: x1 + widening,
+            y0: y0 - widening,
+            y1: y1 + widening,
         };
         [rect.x0, rect.x1, rect.y0, rect.y1]
             .iter()
@@ -197,7 +303,7 @@ mod tests {
                 continue;
             };
             rects += 1;
-            let delta = MARGIN * (bounds.diagonal_length() + (bounds.center() - camera.eye).length());
+            let delta = enlargement(&bounds, camera.eye, 0.0);
             let grown = bounds.expanded(0.5 * delta);
             for j in 0..height {
                 for i in 0..width {
@@ -240,7 +346,7 @@ mod tests {
             let boxes: Vec<Aabb> = (0..rng.random_range(1..=40))
                 .map(|_| random_box(&mut rng, [-6.0..6.0, -4.0..4.0, -2.0..8.0], 0.01..1.0))
                 .collect();
-            let Some(coverage) = camera.coverage(&boxes) else {
+            let Some(coverage) = camera.coverage(&boxes, 0.0) else {
                 continue;
             };
             covered += 1;
@@ -261,7 +367,7 @@ mod tests {
                     finer += usize::from(whole.holds_pixel(i, j));
                     let ray = camera.pixel_ray(i, j).unwrap();
                     for b in &boxes {
-                        let delta = MARGIN * (b.diagonal_length() + (b.center() - camera.eye).length());
+                        let delta = enlargement(b, camera.eye, 0.0);
                         assert!(
                             b.expanded(0.5 * delta).clip(&ray, Interval::POSITIVE).is_none(),
                             "trial {trial}: pixel ({i}, {j}) meets {b:?}"

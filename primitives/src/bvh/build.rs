@@ -359,9 +359,29 @@ impl QuadBvh {
         boxes
     }
 
+    /// The numbers `4·q + s` of the slots holding leaves (slot `s` of node `q`), in the order
+    /// of a depth-first walk. Only the nodes reached are read: the room reserved between the
+    /// parallel subtrees is never touched.
+    pub(crate) fn leaf_slot_numbers(&self) -> Vec<u32> {
+        let mut numbers = Vec::new();
+        self.walk_slots_of(|q, quad, s, _| match quad.count[s] {
+            0 => true,
+            _ => {
+                numbers.push((4 * q + s) as u32);
+                false
+            }
+        });
+        numbers
+    }
+
     /// Visits the slots reached from the root, each with its level (the root's slots are level
     /// 1); `visit(quad, slot, level)` says whether to descend into an inner slot's node.
     fn walk_slots(&self, mut visit: impl FnMut(&Quad, usize, u32) -> bool) {
+        self.walk_slots_of(|_, quad, s, level| visit(quad, s, level));
+    }
+
+    /// [`QuadBvh::walk_slots`] with each node's index: `visit(q, quad, slot, level)`.
+    fn walk_slots_of(&self, mut visit: impl FnMut(usize, &Quad, usize, u32) -> bool) {
         if self.quads.is_empty() {
             return;
         }
@@ -369,7 +389,7 @@ impl QuadBvh {
         while let Some((q, level)) = pending.pop() {
             let quad = &self.quads[q];
             for s in 0..quad.len as usize {
-                if visit(quad, s, level) && quad.count[s] == 0 {
+                if visit(q, quad, s, level) && quad.count[s] == 0 {
                     pending.push((quad.child[s] as usize, level + 1));
                 }
             }

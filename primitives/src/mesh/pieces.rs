@@ -1,0 +1,255 @@
+//! A mesh as [`Pieces`]: its hierarchy's leaves (up to eight triangles each), the piece
+//! numbered `4·q + s` being the leaf in slot `s` of 4-wide node `q`, its box that slot's box,
+//! the one the walks test before the leaf. Numbers of other slots (inner nodes, empty slots)
+//! name no piece.
+//!
+//! [`Pieces::intersect_pieces`] runs, for each candidate leaf in the order given, the walk's own
+//! steps: the slab test of the leaf's box against the f32 ray up to [`cull_bound`] of the closest
+//! hit so far (the test by which the walk skips a subtree), then the leaf's 8-lane watertight
+//! test keeping the smallest `(t, leaf position)`, and at the end the same f64 `t`. A leaf
+//! holding the closest hit is entered by that test (its box holds the triangle, the slab test is
+//! conservative), so any set of candidates holding it gives the walk's answer, in any order.
+//! A triangle the watertight test accepts lies within a few f32 ulps of the f32 ray, which is
+//! within f32 rounding of the f64 ray (`2⁻²⁴` of the distance, and the origin's own rounding,
+//! [`crate::Intersect::origin_rounding`]): the f64 ray passes its box closer than the margin
+//! the trait asks candidates to be chosen with.
+
+use super::{Candidate, Mesh, MeshQuery};
+use crate::bounds::Aabb;
+use crate::bvh::{cull_bound, Quad};
+use crate::hit::RawHit;
+use crate::ray::{Interval, Ray};
+use crate::traits::Pieces;
+use glam::DVec3;
+
+impl Mesh {
+    /// The node and slot of the leaf numbered `number`, if one is.
+    #[inline(always)]
+    fn leaf_slot(&self, number: u32) -> Option<(&Quad, usize)> {
+        let quad = self.bvh.quads().get((number >> 2) as usize)?;
+        let slot = (number & 3) as usize;
+        (slot < quad.len as usize && quad.count[slot] > 0).then_some((quad, slot))
+    }
+
+    /// The closest candidate among the leaves `candidates` for a ray whose axes are
+    /// `[KX, KY, KZ]` (module docs).
+    #[inline(always)]
+    fn closest_among<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        ray: &Ray,
+        range: Interval,
+        query: &MeshQuery,
+        candidates: &[u32],
+    ) -> Option<Candidate> {
+        let mut best = None;
+        let mut t_far = query.t_max;
+        for &number in candidates {
+            let Some((quad, slot)) = self.leaf_slot(number) else {
+                continue;
+            };
+            let (lo, hi) = quad.slot_bounds(slot);
+            if !query.ray.slab.enters(lo, hi, query.t_min, cull_bound(t_far)) {
+                continue;
+            }
+            let (first, count) = (quad.child[slot], u32::from(quad.count[slot]));
+            if let Some(t) = self.leaf_closest(ray, range, query, [KX, KY, KZ], first, count, t_far, &mut best) {
+                t_far = t;
+            }
+        }
+        best
+    }
+}
+
+/// [`Pieces::intersect_pieces`] of `mesh`: the ray's set-up, the copy for its axes, the f64 `t`.
+#[inline(always)]
+fn among(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<RawHit> {
+    if candidates.is_empty() {
+        return None;
+    }
+    let query = mesh.entry(ray, range)?.query();
+    let best = match query.ray.k {
+        [1, 2, 0] => mesh.closest_among::<1, 2, 0>(ray, range, &query, candidates),
+        [2, 1, 0] => mesh.closest_among::<2, 1, 0>(ray, range, &query, candidates),
+        [2, 0, 1] => mesh.closest_among::<2, 0, 1>(ray, range, &query, candidates),
+        [0, 2, 1] => mesh.closest_among::<0, 2, 1>(ray, range, &query, candidates),
+        [0, 1, 2] => mesh.closest_among::<0, 1, 2>(ray, range, &query, candidates),
+        _ => mesh.closest_among::<1, 0, 2>(ray, range, &query, candidates),
+    };
+    mesh.finish(ray, range, &query, best)
+}
+
+fn corner(v: [f32; 3]) -> DVec3 {
+    DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))
+}
+
+impl Pieces for Mesh {
+    fn piece_numbers(&self) -> Vec<u32> {
+        self.bvh.leaf_slot_numbers()
+    }
+
+    fn piece_box(&self, number: u32) -> Option<Aabb> {
+        let (quad, slot) = self.leaf_slot(number)?;
+        let (lo, hi) = quad.slot_bounds(slot);
+        Some(Aabb::new(corner(lo), corner(hi)))
+    }
+
+    /// [`among`] in its AVX2+FMA copy where the CPU has them.
+    fn intersect_pieces(&self, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<RawHit> {
+        crate::with_fma!(among(
+            mesh: &Mesh = self,
+            ray: &Ray = ray,
+            range: Interval = range,
+            candidates: &[u32] = candidates,
+        ) -> Option<RawHit>)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::traits::Intersect;
+    use rand::{Rng, SeedableRng};
+
+    /// A closed, bumpy sphere of `4·n²` triangles around the origin (radius about 1).
+    fn bumpy_sphere(n: usize) -> Mesh {
+        let mut vertices = Vec::new();
+        let mut tris = Vec::new();
+        let (rows, columns) = (n, 2 * n);
+        for i in 0..=rows {
+            for j in 0..columns {
+                let theta = std::f64::consts::PI * i as f64 / rows as f64;
+                let phi = std::f64::consts::TAU * j as f64 / columns as f64;
+                let r = 1.0 + 0.1 * (5.0 * phi).sin() * (3.0 * theta).sin();
+                vertices.push([
+                    (r * theta.sin() * phi.cos()) as f32,
+                    (r * theta.cos()) as f32,
+                    (r * theta.sin() * phi.sin()) as f32,
+                ]);
+            }
+        }
+        for i in 0..rows {
+            for j in 0..columns {
+                let at = |i: usize, j: usize| (i * columns + j % columns) as u32;
+                tris.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                tris.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+        Mesh::new(vertices, tris, None).unwrap()
+    }
+
+    /// Whether the f64 ray passes within `margin` of `bounds` inside `range` (the exact slab
+    /// test on the box grown by `margin`).
+    fn passes_near(bounds: &Aabb, margin: f64, ray: &Ray, range: Interval) -> bool {
+        bounds.expanded(margin).clip(ray, range).is_some()
+    }
+
+    /// With the candidates chosen as the trait asks (every piece whose box the ray passes within
+    /// the margin), shuffled or not, the answer is `intersect`'s, bit for bit, over random rays
+    /// from outside and inside, hitting and missing; the candidates are a small share of the
+    /// pieces, and dropping the piece that holds the hit loses it.
+    #[test]
+    fn candidate_pieces_give_the_walk_s_answer() {
+        let mesh = bumpy_sphere(40);
+        let boxes: Vec<(u32, Aabb)> = mesh
+            .piece_numbers()
+            .into_iter()
+            .map(|n| (n, mesh.piece_box(n).unwrap()))
+            .collect();
+        assert!(boxes.len() > 100, "{} pieces", boxes.len());
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let (mut hits, mut candidates_seen, mut lost) = (0, 0usize, 0);
+        for trial in 0..3000 {
+            let origin = if trial % 4 == 0 {
+                DVec3::new(
+                    rng.random_range(-0.3..0.3),
+                    rng.random_range(-0.3..0.3),
+                    rng.random_range(-0.3..0.3),
+                )
+            } else {
+                DVec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), -4.0)
+            };
+            let target = DVec3::new(
+                rng.random_range(-1.3..1.3),
+                rng.random_range(-1.3..1.3),
+                rng.random_range(-1.0..1.0),
+            );
+            let ray = Ray::new(origin, target - origin);
+            let range = Interval::POSITIVE;
+            let mut candidates: Vec<u32> = boxes
+                .iter()
+                .filter(|(_, b)| {
+                    let margin = 1e-6 * (b.diagonal_length() + (b.center() - origin).length())
+                        + 4.0 * mesh.origin_rounding(origin);
+                    passes_near(b, margin, &ray, range)
+                })
+                .map(|&(n, _)| n)
+                .collect();
+            candidates_seen += candidates.len();
+            let walk = mesh.intersect(&ray, range);
+            assert_eq!(mesh.intersect_pieces(&ray, range, &candidates), walk, "trial {trial}");
+            // farthest first, with repeats and numbers of no piece
+            candidates.reverse();
+            let repeated: Vec<u32> = candidates
+                .iter()
+                .chain(&candidates)
+                .chain(&[0, 1, u32::MAX])
+                .copied()
+                .collect();
+            assert_eq!(
+                mesh.intersect_pieces(&ray, range, &repeated),
+                walk,
+                "trial {trial} reversed"
+            );
+            if let Some(hit) = walk {
+                hits += 1;
+                let k = mesh.file_to_leaf[hit.feature as usize];
+                let holder = boxes
+                    .iter()
+                    .map(|&(n, _)| n)
+                    .find(|&n| {
+                        let (quad, slot) = mesh.leaf_slot(n).unwrap();
+                        (quad.child[slot]..quad.child[slot] + u32::from(quad.count[slot])).contains(&k)
+                    })
+                    .unwrap();
+                candidates.retain(|&c| c != holder);
+                if mesh.intersect_pieces(&ray, range, &candidates) != walk {
+                    lost += 1;
+                }
+            }
+        }
+        assert!(hits > 1500, "{hits} hits");
+        assert_eq!(lost, hits, "the hit's own piece is needed");
+        assert!(
+            candidates_seen < 3000 * boxes.len() / 10,
+            "{candidates_seen} candidates over 3000 rays of {} pieces",
+            boxes.len()
+        );
+        assert_eq!(
+            mesh.intersect_pieces(&Ray::new(DVec3::ZERO, DVec3::X), Interval::POSITIVE, &[]),
+            None
+        );
+    }
+
+    /// The pieces' boxes hold their triangles, and the pieces partition the triangles; the
+    /// numbers of the other slots name no piece.
+    #[test]
+    fn pieces_hold_their_triangles() {
+        let mesh = bumpy_sphere(24);
+        let numbers = mesh.piece_numbers();
+        let mut seen = vec![0u32; mesh.in_bvh];
+        for &number in &numbers {
+            let bounds = mesh.piece_box(number).unwrap();
+            let (quad, slot) = mesh.leaf_slot(number).unwrap();
+            for k in quad.child[slot]..quad.child[slot] + u32::from(quad.count[slot]) {
+                seen[k as usize] += 1;
+                for v in mesh.corners(k as usize) {
+                    assert!(bounds.contains(corner(v)), "leaf triangle {k}");
+                }
+            }
+        }
+        assert!(seen.iter().all(|&n| n == 1));
+        let others = (0..4 * mesh.node_count() as u32).filter(|n| !numbers.contains(n));
+        assert!(others.clone().count() > 0);
+        assert!(others.into_iter().all(|n| mesh.piece_box(n).is_none()));
+    }
+}

@@ -1,0 +1,243 @@
+//! Which pieces of a scene's lone object each pixel can see, worked out before any ray is
+//! traced: the render hands a pixel's ray only its pieces ([`Pieces::intersect_pieces`])
+//! instead of walking the object's hierarchy, and a pixel with none sees nothing.
+//!
+//! For a pinhole camera and a scene of one static object that has [`Pieces`] (a mesh: its
+//! hierarchy's leaves, a few triangles each), every piece's box is projected
+//! ([`crate::camera::footprint::BoxProjector`]: the box enlarged by `10⁻⁴` of its size and
+//! distance and a hundred times the origin's rounding, a hundred times or more the margin the
+//! trait asks for, the rectangle widened by [`TIGHT_WIDENING`]). A pixel whose centre lies
+//! outside a piece's rectangle has an exact ray that passes the box by more than that margin,
+//! so the pieces whose rectangles hold the centre are all the trait needs: the answer is
+//! [`Scene::intersect`]'s, bit for bit.
+//!
+//! Layout. Per bucket of 16 image rows, the pieces seen on any of its rows, nearest box first
+//! ([`PieceBins::new`], made once per view, in parallel over the pieces and the buckets; a
+//! piece is listed once per bucket it reaches, most reach one); per pixel of a row, the pieces
+//! covering it in the same order ([`RowBins`], made when the row is rendered). Nearer pieces
+//! first let the test dismiss the farther ones by their boxes once a hit is found. Memory is a
+//! few tens of bytes per piece: on a machine where first touching a page costs microseconds,
+//! per-row lists of a million-triangle mesh's pieces would take longer to write than to use.
+
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use zeroset_primitives::{Interval, Pieces, RawHit, Ray};
+
+use crate::camera::footprint::TIGHT_WIDENING;
+use crate::camera::{Camera, Model};
+use crate::render::Window;
+use crate::scene::Scene;
+
+/// Rows per bucket of [`PieceBins`].
+const BUCKET_ROWS: u32 = 16;
+
+/// The fewest window pixels per piece for which bins are made. Callgrind, the level-8 bench
+/// mesh (182,000 leaves) at 1280 × 720: listing the leaves costs about 970 instructions a leaf,
+/// and saves about 825 a traced pixel (46 % of the frame's pixels are under a leaf): the
+/// listing pays for itself from about one traced pixel per leaf, two window pixels.
+const PIXELS_PER_PIECE: u64 = 2;
+
+/// A piece seen in the window: its number, the distance from the eye to its box, and the
+/// pixels (columns and rows, inclusive) whose centres its footprint holds.
+#[derive(Clone, Copy, Debug)]
+struct Seen {
+    number: u32,
+    near: f32,
+    columns: [u32; 2],
+    rows: [u32; 2],
+}
+
+/// The pieces each row of a view's window can see (module docs).
+pub(crate) struct PieceBins<'a> {
+    pieces: &'a dyn Pieces,
+    object: u32,
+    /// First row of the window.
+    y0: u32,
+    seen: Vec<Seen>,
+    /// Bucket `b` (the window's rows `y0 + 16·b ..` sixteen of them): the pieces seen on any of
+    /// its rows, `buckets[starts[b]..starts[b + 1]]`, nearest first: the distance's bits above,
+    /// the index into `seen` below (ties go by the pieces' order, whatever the threads do).
+    starts: Vec<usize>,
+    buckets: Vec<u64>,
+}
+
+impl<'a> PieceBins<'a> {
+    /// The bins of `window` of `camera`'s view of `scene`, where the scene is one static object
+    /// with pieces seen through a pinhole, every piece wholly in front of the eye; else `None`.
+    pub(crate) fn new(scene: &'a Scene, camera: &Camera, window: &Window) -> Option<Self> {
+        if !matches!(camera.model, Model::Perspective(_)) || scene.has_motion() || window.height() == 0 {
+            return None;
+        }
+        let object = scene.lone_object()?;
+        let pieces = scene.objects[object as usize].primitive.pieces()?;
+        let primitive = &*scene.objects[object as usize].primitive;
+        let projector = camera.box_projector(primitive.origin_rounding(camera.eye));
+        let numbers = pieces.piece_numbers();
+        // a window of fewer pixels than twice the pieces (a small crop of a dense mesh) would
+        // spend more on the footprints than the walks they save
+        if (numbers.len() as u64).saturating_mul(PIXELS_PER_PIECE)
+            > u64::from(window.width()) * u64::from(window.height())
+        {
+            return None;
+        }
+        // every piece's footprint (one without: no bins), kept where it holds a pixel
+        let no_footprint = AtomicBool::new(false);
+        let seen: Vec<Seen> = numbers
+            .into_par_iter()
+            .filter_map(|number| {
+                let bounds = pieces.piece_box(number)?;
+                let Some(rect) = projector.footprint(&bounds, TIGHT_WIDENING) else {
+                    no_footprint.store(true, Ordering::Relaxed);
+                    return None;
+                };
+                // the pixels whose centres `k + 0.5` lie in the rectangle, within the window
+                let first = |lo: f64, start: u32| (lo - 0.5).ceil().max(f64::from(start));
+                let last = |hi: f64, end: u32| (hi - 0.5).floor().min(f64::from(end) - 1.0);
+                let (c0, c1) = (first(rect.x0, window.x0), last(rect.x1, window.x1));
+                let (r0, r1) = (first(rect.y0, window.y0), last(rect.y1, window.y1));
+                (c0 <= c1 && r0 <= r1).then(|| Seen {
+                    number,
+                    near: (camera.eye.clamp(bounds.min, bounds.max) - camera.eye).length() as f32,
+                    columns: [c0 as u32, c1 as u32],
+                    rows: [r0 as u32, r1 as u32],
+                })
+            })
+            .collect();
+        if no_footprint.into_inner() {
+            return None;
+        }
+        let bucket = |row: u32| ((row - window.y0) / BUCKET_ROWS) as usize;
+        let bucket_count = bucket(window.y1 - 1) + 1;
+        let mut starts = vec![0usize; bucket_count + 1];
+        for piece in &seen {
+            for b in bucket(piece.rows[0])..=bucket(piece.rows[1]) {
+                starts[b + 1] += 1;
+            }
+        }
+        for b in 0..bucket_count {
+            starts[b + 1] += starts[b];
+        }
+        let mut next = starts.clone();
+        let mut buckets = vec![0u64; starts[bucket_count]];
+        for (i, piece) in seen.iter().enumerate() {
+            // the distance's bits (≥ 0: they order like the values), then the index
+            let key = (u64::from(piece.near.to_bits()) << 32) | i as u64;
+            for b in bucket(piece.rows[0])..=bucket(piece.rows[1]) {
+                buckets[next[b]] = key;
+                next[b] += 1;
+            }
+        }
+        // each bucket nearest first
+        let mut rest = &mut buckets[..];
+        let mut lists = Vec::with_capacity(bucket_count);
+        for b in 0..bucket_count {
+            let (list, after) = rest.split_at_mut(starts[b + 1] - starts[b]);
+            lists.push(list);
+            rest = after;
+        }
+        lists.into_par_iter().for_each(|list| list.sort_unstable());
+        Some(Self {
+            pieces,
+            object,
+            y0: window.y0,
+            seen,
+            starts,
+            buckets,
+        })
+    }
+
+    /// The pieces of the rows `y0..y0 + rows`, columns `x0..x0 + columns`, into `band`: each
+    /// bucket reaching them is read once.
+    pub(crate) fn band(&self, y0: u32, rows: usize, x0: u32, columns: usize, band: &mut BandBins) {
+        band.rows.resize_with(rows, Vec::new);
+        band.rows.iter_mut().for_each(Vec::clear);
+        if columns == 0 || rows == 0 {
+            return;
+        }
+        let (end, y1) = (x0 + columns as u32 - 1, y0 + rows as u32 - 1);
+        let bucket = |y: u32| (y.saturating_sub(self.y0) / BUCKET_ROWS) as usize;
+        let last_bucket = bucket(y1).min(self.starts.len() - 2);
+        for b in bucket(y0)..=last_bucket {
+            // the rows of this band in bucket `b`: a piece reaching several buckets is taken
+            // from each for its rows there only
+            let (lo, hi) = (
+                y0.max(self.y0 + b as u32 * BUCKET_ROWS),
+                y1.min(self.y0 + (b as u32 + 1) * BUCKET_ROWS - 1),
+            );
+            for &key in &self.buckets[self.starts[b]..self.starts[b + 1]] {
+                let piece = &self.seen[key as u32 as usize];
+                let (first, last) = (piece.columns[0].max(x0), piece.columns[1].min(end));
+                let (top, bottom) = (piece.rows[0].max(lo), piece.rows[1].min(hi));
+                if first > last {
+                    continue;
+                }
+                for y in top..=bottom {
+                    band.rows[(y - y0) as usize].push((piece.number, (first - x0) as usize, (last - x0) as usize));
+                }
+            }
+        }
+    }
+
+    /// [`Scene::intersect`]`(ray, range)` for the ray of a pixel whose pieces are `candidates`.
+    #[inline]
+    pub(crate) fn intersect(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        range: Interval,
+        candidates: &[u32],
+    ) -> Option<(u32, RawHit)> {
+        scene.intersect_lone_pieces(self.object, self.pieces, ray, range, candidates)
+    }
+}
+
+/// The pieces of each row of a band, nearest first, with the columns they cover (relative to
+/// the band's first column) ([`PieceBins::band`]).
+#[derive(Default)]
+pub(crate) struct BandBins {
+    rows: Vec<Vec<(u32, usize, usize)>>,
+}
+
+impl BandBins {
+    /// The pieces of each pixel of the band's row `r` (of `columns` pixels), into `bins`.
+    pub(crate) fn row(&self, r: usize, columns: usize, bins: &mut RowBins) {
+        let spans = &self.rows[r];
+        bins.starts.clear();
+        bins.starts.resize(columns + 1, 0);
+        for &(_, first, last) in spans {
+            for count in &mut bins.starts[first + 1..=last + 1] {
+                *count += 1;
+            }
+        }
+        for c in 0..columns {
+            bins.starts[c + 1] += bins.starts[c];
+        }
+        bins.pieces.clear();
+        bins.pieces.resize(bins.starts[columns], 0);
+        bins.next.clear();
+        bins.next.extend_from_slice(&bins.starts[..columns]);
+        for &(number, first, last) in spans {
+            for at in &mut bins.next[first..=last] {
+                bins.pieces[*at] = number;
+                *at += 1;
+            }
+        }
+    }
+}
+
+/// The pieces of each pixel of one row, nearest first ([`BandBins::row`]).
+#[derive(Default)]
+pub(crate) struct RowBins {
+    starts: Vec<usize>,
+    pieces: Vec<u32>,
+    /// Where each pixel's next piece goes while the row is filled.
+    next: Vec<usize>,
+}
+
+impl RowBins {
+    /// The pieces of the row's `column`-th pixel.
+    #[inline]
+    pub(crate) fn pixel(&self, column: usize) -> &[u32] {
+        &self.pieces[self.starts[column]..self.starts[column + 1]]
+    }
+}
