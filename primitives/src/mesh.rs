@@ -69,6 +69,22 @@ use glam::{DVec2, DVec3, Vec3A};
 use rayon::prelude::*;
 use std::fmt;
 
+/// `$mesh.$method::<KX, KY, KZ>(args…)` for the watertight test's axes `$k` (`[KX, KY, KZ]`,
+/// one of the six orders): each order has its own copy of the method, its permutations resolved
+/// at compile time.
+macro_rules! by_axes {
+    ($k:expr, $mesh:ident.$method:ident($($arg:expr),* $(,)?)) => {
+        match $k {
+            [1, 2, 0] => $mesh.$method::<1, 2, 0>($($arg),*),
+            [2, 1, 0] => $mesh.$method::<2, 1, 0>($($arg),*),
+            [2, 0, 1] => $mesh.$method::<2, 0, 1>($($arg),*),
+            [0, 2, 1] => $mesh.$method::<0, 2, 1>($($arg),*),
+            [0, 1, 2] => $mesh.$method::<0, 1, 2>($($arg),*),
+            _ => $mesh.$method::<1, 0, 2>($($arg),*),
+        }
+    };
+}
+
 mod packet;
 mod pieces;
 
@@ -1069,14 +1085,7 @@ impl Mesh {
 #[inline(always)]
 fn walk(mesh: &Mesh, ray: &Ray, range: Interval, entry: MeshEntry, root: (u32, [f32; 8])) -> Option<RawHit> {
     let query = entry.query();
-    let best = match query.ray.k {
-        [1, 2, 0] => mesh.closest_candidate::<1, 2, 0>(ray, range, &query, root),
-        [2, 1, 0] => mesh.closest_candidate::<2, 1, 0>(ray, range, &query, root),
-        [2, 0, 1] => mesh.closest_candidate::<2, 0, 1>(ray, range, &query, root),
-        [0, 2, 1] => mesh.closest_candidate::<0, 2, 1>(ray, range, &query, root),
-        [0, 1, 2] => mesh.closest_candidate::<0, 1, 2>(ray, range, &query, root),
-        _ => mesh.closest_candidate::<1, 0, 2>(ray, range, &query, root),
-    };
+    let best = by_axes!(query.ray.k, mesh.closest_candidate(ray, range, &query, root));
     mesh.finish(ray, range, &query, best)
 }
 

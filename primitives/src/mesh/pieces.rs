@@ -67,14 +67,7 @@ fn among(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<
         return None;
     }
     let query = mesh.entry(ray, range)?.query();
-    let best = match query.ray.k {
-        [1, 2, 0] => mesh.closest_among::<1, 2, 0>(ray, range, &query, candidates),
-        [2, 1, 0] => mesh.closest_among::<2, 1, 0>(ray, range, &query, candidates),
-        [2, 0, 1] => mesh.closest_among::<2, 0, 1>(ray, range, &query, candidates),
-        [0, 2, 1] => mesh.closest_among::<0, 2, 1>(ray, range, &query, candidates),
-        [0, 1, 2] => mesh.closest_among::<0, 1, 2>(ray, range, &query, candidates),
-        _ => mesh.closest_among::<1, 0, 2>(ray, range, &query, candidates),
-    };
+    let best = by_axes!(query.ray.k, mesh.closest_among(ray, range, &query, candidates));
     mesh.finish(ray, range, &query, best)
 }
 
