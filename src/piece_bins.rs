@@ -54,11 +54,10 @@ pub(crate) struct PieceBins<'a> {
     /// First row of the window.
     y0: u32,
     seen: Vec<Seen>,
-    /// Bucket `b` (the window's rows `y0 + 16·b ..` sixteen of them): the pieces seen on any of
-    /// its rows, `buckets[starts[b]..starts[b + 1]]`, nearest first: the distance's bits above,
-    /// the index into `seen` below (ties go by the pieces' order, whatever the threads do).
-    starts: Vec<usize>,
-    buckets: Vec<u64>,
+    /// Under bucket `b` (the window's rows `y0 + 16·b ..`, sixteen of them): the pieces seen on
+    /// any of its rows, nearest first: the distance's bits above, the index into `seen` below
+    /// (ties go by the pieces' order, whatever the threads do).
+    buckets: RangeLists<u64>,
 }
 
 impl<'a> PieceBins<'a> {
@@ -69,8 +68,8 @@ impl<'a> PieceBins<'a> {
             return None;
         }
         let object = scene.lone_object()?;
-        let pieces = scene.objects[object as usize].primitive.pieces()?;
         let primitive = &*scene.objects[object as usize].primitive;
+        let pieces = primitive.pieces()?;
         let projector = camera.box_projector(primitive.origin_rounding(camera.eye));
         let numbers = pieces.piece_numbers();
         // a window of fewer pixels than twice the pieces (a small crop of a dense mesh) would
@@ -107,41 +106,24 @@ impl<'a> PieceBins<'a> {
             return None;
         }
         let bucket = |row: u32| ((row - window.y0) / BUCKET_ROWS) as usize;
-        let bucket_count = bucket(window.y1 - 1) + 1;
-        let mut starts = vec![0usize; bucket_count + 1];
-        for piece in &seen {
-            for b in bucket(piece.rows[0])..=bucket(piece.rows[1]) {
-                starts[b + 1] += 1;
-            }
-        }
-        for b in 0..bucket_count {
-            starts[b + 1] += starts[b];
-        }
-        let mut next = starts.clone();
-        let mut buckets = vec![0u64; starts[bucket_count]];
-        for (i, piece) in seen.iter().enumerate() {
+        let mut buckets = RangeLists::default();
+        buckets.fill(bucket(window.y1 - 1) + 1, || {
             // the distance's bits (≥ 0: they order like the values), then the index
-            let key = (u64::from(piece.near.to_bits()) << 32) | i as u64;
-            for b in bucket(piece.rows[0])..=bucket(piece.rows[1]) {
-                buckets[next[b]] = key;
-                next[b] += 1;
-            }
-        }
+            seen.iter().enumerate().map(|(i, piece)| {
+                let key = (u64::from(piece.near.to_bits()) << 32) | i as u64;
+                (key, bucket(piece.rows[0]), bucket(piece.rows[1]))
+            })
+        });
         // each bucket nearest first
-        let mut rest = &mut buckets[..];
-        let mut lists = Vec::with_capacity(bucket_count);
-        for b in 0..bucket_count {
-            let (list, after) = rest.split_at_mut(starts[b + 1] - starts[b]);
-            lists.push(list);
-            rest = after;
-        }
-        lists.into_par_iter().for_each(|list| list.sort_unstable());
+        buckets
+            .lists_mut()
+            .into_par_iter()
+            .for_each(|list| list.sort_unstable());
         Some(Self {
             pieces,
             object,
             y0: window.y0,
             seen,
-            starts,
             buckets,
         })
     }
@@ -156,7 +138,7 @@ impl<'a> PieceBins<'a> {
         }
         let (end, y1) = (x0 + columns as u32 - 1, y0 + rows as u32 - 1);
         let bucket = |y: u32| (y.saturating_sub(self.y0) / BUCKET_ROWS) as usize;
-        let last_bucket = bucket(y1).min(self.starts.len() - 2);
+        let last_bucket = bucket(y1).min(self.buckets.slots() - 1);
         for b in bucket(y0)..=last_bucket {
             // the rows of this band in bucket `b`: a piece reaching several buckets is taken
             // from each for its rows there only
@@ -164,7 +146,7 @@ impl<'a> PieceBins<'a> {
                 y0.max(self.y0 + b as u32 * BUCKET_ROWS),
                 y1.min(self.y0 + (b as u32 + 1) * BUCKET_ROWS - 1),
             );
-            for &key in &self.buckets[self.starts[b]..self.starts[b + 1]] {
+            for &key in self.buckets.get(b) {
                 let piece = &self.seen[key as u32 as usize];
                 let (first, last) = (piece.columns[0].max(x0), piece.columns[1].min(end));
                 let (top, bottom) = (piece.rows[0].max(lo), piece.rows[1].min(hi));
@@ -201,43 +183,71 @@ pub(crate) struct BandBins {
 impl BandBins {
     /// The pieces of each pixel of the band's row `r` (of `columns` pixels), into `bins`.
     pub(crate) fn row(&self, r: usize, columns: usize, bins: &mut RowBins) {
-        let spans = &self.rows[r];
-        bins.starts.clear();
-        bins.starts.resize(columns + 1, 0);
-        for &(_, first, last) in spans {
-            for count in &mut bins.starts[first + 1..=last + 1] {
+        bins.fill(columns, || self.rows[r].iter().copied());
+    }
+}
+
+/// The pieces of each pixel of one row, nearest first ([`BandBins::row`]), listed under the
+/// row's columns.
+pub(crate) type RowBins = RangeLists<u32>;
+
+/// Values listed under numbered slots: `values[starts[s]..starts[s + 1]]` are those under slot
+/// `s`, in the order they were given.
+#[derive(Default)]
+pub(crate) struct RangeLists<T> {
+    starts: Vec<usize>,
+    values: Vec<T>,
+    /// Where each slot's next value goes while the lists are filled.
+    next: Vec<usize>,
+}
+
+impl<T: Copy + Default> RangeLists<T> {
+    /// Lists each `(value, first, last)` of `items()` under the slots `first..=last` of `slots`
+    /// (all below `slots`), replacing what was listed: the items are walked twice, counted,
+    /// then placed.
+    pub(crate) fn fill<I: Iterator<Item = (T, usize, usize)>>(&mut self, slots: usize, items: impl Fn() -> I) {
+        self.starts.clear();
+        self.starts.resize(slots + 1, 0);
+        for (_, first, last) in items() {
+            for count in &mut self.starts[first + 1..=last + 1] {
                 *count += 1;
             }
         }
-        for c in 0..columns {
-            bins.starts[c + 1] += bins.starts[c];
+        for s in 0..slots {
+            self.starts[s + 1] += self.starts[s];
         }
-        bins.pieces.clear();
-        bins.pieces.resize(bins.starts[columns], 0);
-        bins.next.clear();
-        bins.next.extend_from_slice(&bins.starts[..columns]);
-        for &(number, first, last) in spans {
-            for at in &mut bins.next[first..=last] {
-                bins.pieces[*at] = number;
+        self.values.clear();
+        self.values.resize(self.starts[slots], T::default());
+        self.next.clear();
+        self.next.extend_from_slice(&self.starts[..slots]);
+        for (value, first, last) in items() {
+            for at in &mut self.next[first..=last] {
+                self.values[*at] = value;
                 *at += 1;
             }
         }
     }
-}
 
-/// The pieces of each pixel of one row, nearest first ([`BandBins::row`]).
-#[derive(Default)]
-pub(crate) struct RowBins {
-    starts: Vec<usize>,
-    pieces: Vec<u32>,
-    /// Where each pixel's next piece goes while the row is filled.
-    next: Vec<usize>,
-}
+    /// How many slots there are.
+    pub(crate) fn slots(&self) -> usize {
+        self.starts.len().saturating_sub(1)
+    }
 
-impl RowBins {
-    /// The pieces of the row's `column`-th pixel.
+    /// The values under slot `s`.
     #[inline]
-    pub(crate) fn pixel(&self, column: usize) -> &[u32] {
-        &self.pieces[self.starts[column]..self.starts[column + 1]]
+    pub(crate) fn get(&self, s: usize) -> &[T] {
+        &self.values[self.starts[s]..self.starts[s + 1]]
+    }
+
+    /// Every slot's values, to work on each list apart.
+    pub(crate) fn lists_mut(&mut self) -> Vec<&mut [T]> {
+        let mut rest = &mut self.values[..];
+        let mut lists = Vec::with_capacity(self.starts.len());
+        for bounds in self.starts.windows(2) {
+            let (list, after) = rest.split_at_mut(bounds[1] - bounds[0]);
+            lists.push(list);
+            rest = after;
+        }
+        lists
     }
 }

@@ -333,7 +333,7 @@ impl<'a> Tracer<'a> {
         let seen = if sampled || bins.is_some() {
             None
         } else {
-            camera.coverage(&scene.bounds_parts(), scene.origin_rounding(camera.eye))
+            scene.coverage(camera)
         };
         let request = HitRequest {
             normal: aovs
@@ -441,8 +441,9 @@ impl<'a> Tracer<'a> {
 #[doc(hidden)]
 #[must_use]
 pub fn uses_piece_bins(scene: &Scene, camera: &Camera) -> bool {
-    let layout = FrameLayout::new(camera, &RenderOptions::default());
-    scene.sampling.spp <= 1 && PieceBins::new(scene, camera, &layout.window).is_some()
+    let options = RenderOptions::default();
+    let layout = FrameLayout::new(camera, &options);
+    Tracer::new(scene, camera, &options, &layout).context.bins.is_some()
 }
 
 /// Renders `scene` through `camera` (one of its views, or any other camera) as `options` ask.
@@ -558,7 +559,7 @@ fn render_rows_binned(
         let j = y + k as u32;
         band.row(k, width, &mut row_bins);
         for (column, pixel) in row.chunks_exact_mut(channels).enumerate() {
-            let candidates = row_bins.pixel(column);
+            let candidates = row_bins.get(column);
             // a pixel that can see no piece gets the miss values untraced
             if candidates.is_empty() {
                 write_miss(pixel, scene, context);
@@ -639,9 +640,8 @@ struct RowContext<'a> {
     miss_colour: DVec3,
     /// Where the `Uncertain` channel is in a pixel, if it was asked for.
     uncertain_offset: Option<usize>,
-    /// The pixel centres whose rays can meet an object ([`Camera::coverage`] of the scene's
-    /// [`Scene::bounds_parts`]), if the camera can say; the others see nothing and are not
-    /// traced.
+    /// The pixel centres whose rays can meet an object ([`Scene::coverage`]), if the camera
+    /// can say; the others see nothing and are not traced.
     seen: Option<Coverage>,
     /// The pieces each pixel can see, where the scene is one object with pieces
     /// ([`PieceBins`]): its pixels are traced against those alone, instead of in packets.

@@ -4,6 +4,8 @@
 use zeroset_primitives::root::uncertain_while;
 use zeroset_primitives::{Aabb, Bvh, Interval, RawHit, Ray};
 
+use crate::camera::footprint::Coverage;
+use crate::camera::Camera;
 use crate::scene::{Object, Scene};
 
 /// Direction magnitudes (largest component) traced as given; beyond, [`Scene::intersect`] scales
@@ -153,6 +155,14 @@ impl Scene {
             .iter()
             .map(|o| o.primitive.origin_rounding(origin))
             .fold(0.0, f64::max)
+    }
+
+    /// The pixels of `camera` whose rays can meet an object: [`Camera::coverage`] of
+    /// [`Scene::bounds_parts`], allowing for [`Scene::origin_rounding`] at the eye; `None` where
+    /// the camera cannot say. A render skips the others.
+    #[must_use]
+    pub fn coverage(&self, camera: &Camera) -> Option<Coverage> {
+        camera.coverage(&self.bounds_parts(), self.origin_rounding(camera.eye))
     }
 
     /// The scene's one object, if it has exactly one (what every ray is tested against).

@@ -101,7 +101,7 @@ fn packets_equal_single_rays_on_every_scene() {
     assert!(total_hits > 10_000, "{total_hits}");
 }
 
-/// The pixels of `camera` outside its coverage of `scene`'s parts (`Camera::coverage` of
+/// The pixels of `camera` outside its coverage of `scene` (`Scene::coverage`: the footprints of
 /// `Scene::bounds_parts`, what a render skips), if it has one: every such pixel inside the
 /// footprint of the scene's whole box or within three pixels of it, and every 7th one beyond,
 /// sees nothing (`Scene::intersect` of its ray). Returns the number of pixels checked, or `None`
@@ -109,7 +109,7 @@ fn packets_equal_single_rays_on_every_scene() {
 fn assert_outside_sees_nothing(scene: &Scene, camera: &Camera, what: &str) -> Option<usize> {
     // what the renderer skips: the coverage of the scene's parts (a mesh's upper boxes)
     let rect = camera.footprint(&scene.bounds())?;
-    let seen = camera.coverage(&scene.bounds_parts(), scene.origin_rounding(camera.eye))?;
+    let seen = scene.coverage(camera)?;
     let mut checked = 0;
     for j in 0..camera.height {
         for i in 0..camera.width {

@@ -252,11 +252,10 @@ pub trait Pieces: Sync {
     fn piece_box(&self, number: u32) -> Option<Aabb>;
 
     /// Exactly [`Intersect::intersect`]`(ray, range)`, given that `candidates` (piece numbers,
-    /// in any order, repeats allowed, numbers of no piece ignored) holds every piece whose box the
-    /// ray passes within `10⁻⁶·(|box diagonal| + |box centre − ray origin|)` plus four times
-    /// [`Intersect::origin_rounding`] of inside `range`: no other piece can hold the closest
-    /// hit. Nearer pieces first make it faster (farther
-    /// ones are then dismissed by their box).
+    /// in any order, repeats allowed, numbers of no piece ignored) holds every piece whose box
+    /// the ray passes within `10⁻⁶·(|box diagonal| + |box centre − ray origin|)` plus four times
+    /// [`Intersect::origin_rounding`] of inside `range`: no other piece can hold the closest hit.
+    /// Nearer pieces first make it faster (farther ones are then dismissed by their box).
     fn intersect_pieces(&self, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<RawHit>;
 }
 

@@ -165,19 +165,16 @@ impl<P: Intersect> Intersect for Transformed<P> {
         self.inner.uv_at(&self.local_ray(ray), raw)
     }
 
-    /// The inner bound mapped to the world by `‖W‖_F`, plus the rounding of the maps themselves:
-    /// `γ₃₂·κ_F·(‖p‖∞ + ‖o‖∞ + ‖translation‖∞)`, `κ_F = ‖W‖_F·‖W⁻¹‖_F` (see [`crate::offset`]).
-    /// The inner primitive's, at the local origin, mapped back to world lengths.
+    /// The inner primitive's, at the local origin, mapped back to world lengths by `‖W‖_F`.
     fn origin_rounding(&self, origin: glam::DVec3) -> f64 {
-        let inner = self
-            .inner
-            .origin_rounding(self.local_from_world.transform_point3(origin));
-        if inner == 0.0 {
-            return 0.0;
-        }
-        frobenius(&self.world_from_local.matrix3) * inner
+        frobenius(&self.world_from_local.matrix3)
+            * self
+                .inner
+                .origin_rounding(self.local_from_world.transform_point3(origin))
     }
 
+    /// The inner bound mapped to the world by `‖W‖_F`, plus the rounding of the maps themselves:
+    /// `γ₃₂·κ_F·(‖p‖∞ + ‖o‖∞ + ‖translation‖∞)`, `κ_F = ‖W‖_F·‖W⁻¹‖_F` (see [`crate::offset`]).
     fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
         let w = frobenius(&self.world_from_local.matrix3);
         let kappa = w * frobenius(&self.local_from_world.matrix3);

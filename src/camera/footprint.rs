@@ -174,8 +174,8 @@ struct PinholeScales {
 }
 
 /// Projects boxes through one camera ([`Camera::box_projector`]): the footprints of
-/// [`Camera::footprint`] and [`Camera::tight_footprint`], with the camera's constants worked
-/// out once for all of them.
+/// [`Camera::footprint`], [`Camera::coverage`] and the pixel bins (widened by
+/// [`TIGHT_WIDENING`]), with the camera's constants worked out once for all of them.
 #[derive(Clone, Copy, Debug)]
 pub struct BoxProjector<'a> {
     camera: &'a Camera,

@@ -334,7 +334,7 @@ impl QuadBvh {
     /// the leaf order), in leaf order: they partition the items.
     pub fn leaves(&self) -> Vec<(usize, usize)> {
         let mut leaves = Vec::new();
-        self.walk_slots(|quad, s, _| match quad.count[s] {
+        self.walk_slots(|_, quad, s, _| match quad.count[s] {
             0 => true,
             count => {
                 leaves.push((quad.child[s] as usize, usize::from(count)));
@@ -349,7 +349,7 @@ impl QuadBvh {
     /// and of the leaves met above that level, `(lo, hi)` per axis: they hold every item.
     pub fn boxes_below(&self, levels: u32) -> Vec<([f32; 3], [f32; 3])> {
         let mut boxes = Vec::new();
-        self.walk_slots(|quad, s, level| {
+        self.walk_slots(|_, quad, s, level| {
             let descend = quad.count[s] == 0 && level < levels;
             if !descend {
                 boxes.push(quad.slot_bounds(s));
@@ -364,7 +364,7 @@ impl QuadBvh {
     /// parallel subtrees is never touched.
     pub(crate) fn leaf_slot_numbers(&self) -> Vec<u32> {
         let mut numbers = Vec::new();
-        self.walk_slots_of(|q, quad, s, _| match quad.count[s] {
+        self.walk_slots(|q, quad, s, _| match quad.count[s] {
             0 => true,
             _ => {
                 numbers.push((4 * q + s) as u32);
@@ -374,14 +374,10 @@ impl QuadBvh {
         numbers
     }
 
-    /// Visits the slots reached from the root, each with its level (the root's slots are level
-    /// 1); `visit(quad, slot, level)` says whether to descend into an inner slot's node.
-    fn walk_slots(&self, mut visit: impl FnMut(&Quad, usize, u32) -> bool) {
-        self.walk_slots_of(|_, quad, s, level| visit(quad, s, level));
-    }
-
-    /// [`QuadBvh::walk_slots`] with each node's index: `visit(q, quad, slot, level)`.
-    fn walk_slots_of(&self, mut visit: impl FnMut(usize, &Quad, usize, u32) -> bool) {
+    /// Visits the slots reached from the root, each with its node's index and level (the root's
+    /// slots are level 1); `visit(q, quad, slot, level)` says whether to descend into an inner
+    /// slot's node.
+    fn walk_slots(&self, mut visit: impl FnMut(usize, &Quad, usize, u32) -> bool) {
         if self.quads.is_empty() {
             return;
         }

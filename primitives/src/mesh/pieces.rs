@@ -14,13 +14,12 @@
 //! [`crate::Intersect::origin_rounding`]): the f64 ray passes its box closer than the margin
 //! the trait asks candidates to be chosen with.
 
-use super::{Candidate, Mesh, MeshQuery};
+use super::{v64, Candidate, Mesh, MeshQuery};
 use crate::bounds::Aabb;
 use crate::bvh::{cull_bound, Quad};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::Pieces;
-use glam::DVec3;
 
 impl Mesh {
     /// The node and slot of the leaf numbered `number`, if one is.
@@ -71,10 +70,6 @@ fn among(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<
     mesh.finish(ray, range, &query, best)
 }
 
-fn corner(v: [f32; 3]) -> DVec3 {
-    DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))
-}
-
 impl Pieces for Mesh {
     fn piece_numbers(&self) -> Vec<u32> {
         self.bvh.leaf_slot_numbers()
@@ -83,7 +78,7 @@ impl Pieces for Mesh {
     fn piece_box(&self, number: u32) -> Option<Aabb> {
         let (quad, slot) = self.leaf_slot(number)?;
         let (lo, hi) = quad.slot_bounds(slot);
-        Some(Aabb::new(corner(lo), corner(hi)))
+        Some(Aabb::new(v64(lo), v64(hi)))
     }
 
     /// [`among`] in its AVX2+FMA copy where the CPU has them.
@@ -101,6 +96,7 @@ impl Pieces for Mesh {
 mod tests {
     use super::*;
     use crate::traits::Intersect;
+    use glam::DVec3;
     use rand::{Rng, SeedableRng};
 
     /// A closed, bumpy sphere of `4·n²` triangles around the origin (radius about 1).
@@ -236,7 +232,7 @@ mod tests {
             for k in quad.child[slot]..quad.child[slot] + u32::from(quad.count[slot]) {
                 seen[k as usize] += 1;
                 for v in mesh.corners(k as usize) {
-                    assert!(bounds.contains(corner(v)), "leaf triangle {k}");
+                    assert!(bounds.contains(v64(v)), "leaf triangle {k}");
                 }
             }
         }
