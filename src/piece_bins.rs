@@ -20,7 +20,6 @@
 //! per-row lists of a million-triangle mesh's pieces would take longer to write than to use.
 
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, Ordering};
 use zeroset_primitives::{Interval, Pieces, RawHit, Ray};
 
 use crate::camera::footprint::TIGHT_WIDENING;
@@ -47,10 +46,20 @@ struct Seen {
     rows: [u32; 2],
 }
 
+/// What the pieces of [`PieceBins`] are.
+enum Source<'a> {
+    /// The pieces of the scene's lone object.
+    Lone { object: u32, pieces: &'a dyn Pieces },
+    /// The scene's bounded objects, piece `i` being object `i` (its world box); every pixel
+    /// also tests the unbounded objects and `always`, the bounded ones with no footprint (a box
+    /// reaching behind the eye plane). `near[i]` is a lower bound on the distance from the eye
+    /// to object `i`'s enlarged box, hence to any hit on it.
+    Objects { always: Vec<u32>, near: Vec<f32> },
+}
+
 /// The pieces each row of a view's window can see (module docs).
 pub(crate) struct PieceBins<'a> {
-    pieces: &'a dyn Pieces,
-    object: u32,
+    source: Source<'a>,
     /// First row of the window.
     y0: u32,
     seen: Vec<Seen>,
@@ -61,32 +70,59 @@ pub(crate) struct PieceBins<'a> {
 }
 
 impl<'a> PieceBins<'a> {
-    /// The bins of `window` of `camera`'s view of `scene`, where the scene is one static object
-    /// with pieces seen through a pinhole, every piece wholly in front of the eye; else `None`.
+    /// The bins of `window` of `camera`'s view of `scene`, seen through a pinhole with nothing
+    /// moving: the pieces of a lone object that has them, every one wholly in front of the eye
+    /// ([`Source::Lone`]), or the objects of a scene of several simple ones (no object with a
+    /// hierarchy of its own, see [`objects_as_pieces`]); else `None`.
     pub(crate) fn new(scene: &'a Scene, camera: &Camera, window: &Window) -> Option<Self> {
         if !matches!(camera.model, Model::Perspective(_)) || scene.has_motion() || window.height() == 0 {
             return None;
         }
-        let object = scene.lone_object()?;
-        let primitive = &*scene.objects[object as usize].primitive;
-        let pieces = primitive.pieces()?;
-        let projector = camera.box_projector(primitive.origin_rounding(camera.eye));
-        let numbers = pieces.piece_numbers();
+        let pixels = u64::from(window.width()) * u64::from(window.height());
         // a window of fewer pixels than twice the pieces (a small crop of a dense mesh) would
         // spend more on the footprints than the walks they save
-        if (numbers.len() as u64).saturating_mul(PIXELS_PER_PIECE)
-            > u64::from(window.width()) * u64::from(window.height())
-        {
-            return None;
-        }
-        // every piece's footprint (one without: no bins), kept where it holds a pixel
-        let no_footprint = AtomicBool::new(false);
+        let worth = |pieces: usize| (pieces as u64).saturating_mul(PIXELS_PER_PIECE) <= pixels;
+        let (source, numbers, projector) = match scene.lone_object() {
+            Some(object) => {
+                let primitive = &*scene.objects[object as usize].primitive;
+                let pieces = primitive.pieces()?;
+                let numbers = pieces.piece_numbers();
+                if !worth(numbers.len()) {
+                    return None;
+                }
+                let projector = camera.box_projector(primitive.origin_rounding(camera.eye));
+                (Source::Lone { object, pieces }, numbers, projector)
+            }
+            None => {
+                let numbers = objects_as_pieces(scene)?;
+                if !worth(numbers.len()) {
+                    return None;
+                }
+                let projector = camera.box_projector(scene.origin_rounding(camera.eye));
+                let near = vec![0.0; scene.objects.len()];
+                (
+                    Source::Objects {
+                        always: Vec::new(),
+                        near,
+                    },
+                    numbers,
+                    projector,
+                )
+            }
+        };
+        let piece_box = |number: u32| match &source {
+            Source::Lone { pieces, .. } => pieces.piece_box(number),
+            Source::Objects { .. } => Some(scene.objects[number as usize].primitive.bounds()),
+        };
+        // every piece's footprint (a lone object's piece without one: no bins; an object
+        // without one: tested by every pixel), kept where it holds a pixel
+        let no_footprint = std::sync::Mutex::new(Vec::new());
         let seen: Vec<Seen> = numbers
             .into_par_iter()
             .filter_map(|number| {
-                let bounds = pieces.piece_box(number)?;
+                let bounds = piece_box(number)?;
                 let Some(rect) = projector.footprint(&bounds, TIGHT_WIDENING) else {
-                    no_footprint.store(true, Ordering::Relaxed);
+                    no_footprint.lock().unwrap_or_else(|e| e.into_inner()).push(number);
                     return None;
                 };
                 // the pixels whose centres `k + 0.5` lie in the rectangle, within the window
@@ -94,17 +130,34 @@ impl<'a> PieceBins<'a> {
                 let last = |hi: f64, end: u32| (hi - 0.5).floor().min(f64::from(end) - 1.0);
                 let (c0, c1) = (first(rect.x0, window.x0), last(rect.x1, window.x1));
                 let (r0, r1) = (first(rect.y0, window.y0), last(rect.y1, window.y1));
+                let distance = (camera.eye.clamp(bounds.min, bounds.max) - camera.eye).length();
+                let near = match &source {
+                    Source::Lone { .. } => distance as f32,
+                    Source::Objects { .. } => f32_below((distance - projector.enlargement(&bounds)).max(0.0)),
+                };
                 (c0 <= c1 && r0 <= r1).then(|| Seen {
                     number,
-                    near: (camera.eye.clamp(bounds.min, bounds.max) - camera.eye).length() as f32,
+                    near,
                     columns: [c0 as u32, c1 as u32],
                     rows: [r0 as u32, r1 as u32],
                 })
             })
             .collect();
-        if no_footprint.into_inner() {
-            return None;
-        }
+        let mut no_footprint = no_footprint.into_inner().unwrap_or_else(|e| e.into_inner());
+        let source = match source {
+            Source::Lone { .. } if !no_footprint.is_empty() => return None,
+            Source::Objects { mut near, .. } => {
+                no_footprint.sort_unstable();
+                for piece in &seen {
+                    near[piece.number as usize] = piece.near;
+                }
+                Source::Objects {
+                    always: no_footprint,
+                    near,
+                }
+            }
+            lone => lone,
+        };
         let bucket = |row: u32| ((row - window.y0) / BUCKET_ROWS) as usize;
         let mut buckets = RangeLists::default();
         buckets.fill(bucket(window.y1 - 1) + 1, || {
@@ -120,12 +173,20 @@ impl<'a> PieceBins<'a> {
             .into_par_iter()
             .for_each(|list| list.sort_unstable());
         Some(Self {
-            pieces,
-            object,
+            source,
             y0: window.y0,
             seen,
             buckets,
         })
+    }
+
+    /// Whether a pixel with no pieces is traced all the same: some object is tested by every
+    /// pixel (one unbounded, or with no footprint).
+    pub(crate) fn tests_every_pixel(&self, scene: &Scene) -> bool {
+        match &self.source {
+            Source::Lone { .. } => false,
+            Source::Objects { always, .. } => !always.is_empty() || scene.has_unbounded_objects(),
+        }
     }
 
     /// The pieces of the rows `y0..y0 + rows`, columns `x0..x0 + columns`, into `band`: each
@@ -169,7 +230,41 @@ impl<'a> PieceBins<'a> {
         range: Interval,
         candidates: &[u32],
     ) -> Option<(u32, RawHit)> {
-        scene.intersect_lone_pieces(self.object, self.pieces, ray, range, candidates)
+        match &self.source {
+            Source::Lone { object, pieces } => scene.intersect_lone_pieces(*object, *pieces, ray, range, candidates),
+            Source::Objects { always, near } => scene.intersect_candidates(ray, range, always, candidates, near),
+        }
+    }
+}
+
+/// The objects of `scene` as the pieces of [`PieceBins`] (their indices; the unbounded ones are
+/// tested by every pixel anyway), where the scene has a hierarchy over several objects and every
+/// one is simple: a single box around it, no pieces of its own. A mesh among them walks its own
+/// hierarchy faster in packets than one ray at a time.
+fn objects_as_pieces(scene: &Scene) -> Option<Vec<u32>> {
+    let mut numbers = Vec::new();
+    let mut parts = Vec::new();
+    for (i, object) in scene.objects.iter().enumerate() {
+        let primitive = &*object.primitive;
+        parts.clear();
+        primitive.bounds_parts(&mut parts);
+        if primitive.pieces().is_some() || parts.len() != 1 {
+            return None;
+        }
+        if primitive.bounds().is_finite() {
+            numbers.push(i as u32);
+        }
+    }
+    (numbers.len() >= 2).then_some(numbers)
+}
+
+/// The largest f32 at most `x` (finite, ≥ 0).
+fn f32_below(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) > x {
+        y.next_down()
+    } else {
+        y
     }
 }
 

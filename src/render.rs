@@ -555,13 +555,14 @@ fn render_rows_binned(
     let camera = context.camera;
     let (mut band, mut row_bins) = (BandBins::default(), RowBins::default());
     bins.band(y, rows, x0, width, &mut band);
+    let every_pixel = bins.tests_every_pixel(scene);
     for (k, row) in out.chunks_exact_mut(row_len.max(1)).enumerate() {
         let j = y + k as u32;
         band.row(k, width, &mut row_bins);
         for (column, pixel) in row.chunks_exact_mut(channels).enumerate() {
             let candidates = row_bins.get(column);
             // a pixel that can see no piece gets the miss values untraced
-            if candidates.is_empty() {
+            if candidates.is_empty() && !every_pixel {
                 write_miss(pixel, scene, context);
                 continue;
             }

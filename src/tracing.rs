@@ -192,6 +192,66 @@ impl Scene {
         pieces.intersect_pieces(ray, range, candidates).map(|raw| (object, raw))
     }
 
+    /// Whether some object has infinite bounds (a plane): tested by every ray.
+    pub(crate) fn has_unbounded_objects(&self) -> bool {
+        self.hierarchy
+            .unbounded
+            .iter()
+            .any(|&i| !self.objects[i as usize].primitive.bounds().is_finite())
+    }
+
+    /// [`Scene::intersect`] for a ray from the eye of a scene with a hierarchy, whose hits among
+    /// the hierarchy's objects can only lie on `always` and `candidates`, these nearest first by
+    /// `near`: `near[i]` is at most the distance from the ray's origin to any hit on object `i`.
+    /// The unbounded objects are tested first and the others settled by the hierarchy's rules
+    /// ([`settles_tie`]), so the answer is the hierarchy's: a candidate whose `near` lies beyond
+    /// the closest hit so far, and all after it, cannot hold a hit in range.
+    pub(crate) fn intersect_candidates(
+        &self,
+        ray: &Ray,
+        range: Interval,
+        always: &[u32],
+        candidates: &[u32],
+        near: &[f32],
+    ) -> Option<(u32, RawHit)> {
+        if scaled_direction_size(ray).is_some() {
+            return self.intersect(ray, range);
+        }
+        let mut range = range;
+        let mut best = None;
+        for &i in &self.hierarchy.unbounded {
+            if let Some(hit) = self.objects[i as usize].primitive.intersect(ray, range) {
+                range.max = hit.t;
+                best = Some((i, hit));
+            }
+        }
+        let mut raw: Option<(u32, RawHit)> = None;
+        let mut test = |id: u32, range: &mut Interval| {
+            if let Some(hit) = self.objects[id as usize].primitive.intersect(ray, *range) {
+                if settles_tie(raw.as_ref(), id, hit.t, *range) {
+                    range.max = hit.t;
+                    raw = Some((id, hit));
+                }
+            }
+        };
+        for &id in always {
+            test(id, &mut range);
+        }
+        // the reach of the closest hit so far, once there is one (`t` times the direction's
+        // length, with room for the rounding of both)
+        let mut length = None;
+        for &id in candidates {
+            if range.max.is_finite() {
+                let length = *length.get_or_insert_with(|| ray.dir.length() * (1.0 + 1e-9));
+                if f64::from(near[id as usize]) > range.max * length {
+                    break;
+                }
+            }
+            test(id, &mut range);
+        }
+        raw.or(best)
+    }
+
     /// The closest hit of `test(object, ray, range)` over the always-tested objects and the BVH,
     /// shrinking `range.max` as hits are found.
     ///

@@ -149,3 +149,106 @@ fn binned_pixels_equal_their_rays() {
     assert!(inside >= 9, "{inside} cameras inside the box did not");
     assert!(hits > 20_000, "{hits} hits");
 }
+
+/// A random scene of `n` simple objects (spheres, boxes, capped cylinders, cones, ellipsoids,
+/// triangles, a few of them touching or overlapping, two of them the same sphere so that ties
+/// occur) around the origin, with a large ground polygon (its box reaches behind most eyes)
+/// and, if `plane`, an unbounded plane behind everything.
+fn simple_objects_scene(rng: &mut rand::rngs::StdRng, n: usize, plane: bool) -> Scene {
+    let mut shapes = Vec::new();
+    let mut r = |a: f64, b: f64| rng.random_range(a..b);
+    for k in 0..n {
+        let (x, y, z) = (r(-3.0, 3.0), r(0.0, 2.0), r(-3.0, 3.0));
+        let s = r(0.2, 0.8);
+        shapes.push(match k % 6 {
+            0 => format!("Sphere(center: ({x}, {y}, {z}), radius: {s})"),
+            1 => format!(
+                "Box(min: ({x}, {y}, {z}), max: ({}, {}, {}))",
+                x + s,
+                y + 0.7 * s,
+                z + 1.3 * s
+            ),
+            2 => format!(
+                "Cylinder(base: ({x}, {y}, {z}), axis: ({}, 1, {}), radius: {}, height: {s}, capped: true)",
+                r(-0.5, 0.5),
+                r(-0.5, 0.5),
+                0.5 * s
+            ),
+            3 => format!("Cone(base: ({x}, {y}, {z}), base_radius: {}, height: {s})", 0.6 * s),
+            4 => format!(
+                "Ellipsoid(center: ({x}, {y}, {z}), radii: ({s}, {}, {}))",
+                0.5 * s,
+                0.8 * s
+            ),
+            _ => format!(
+                "Triangle(a: ({x}, {y}, {z}), b: ({}, {y}, {z}), c: ({x}, {}, {}))",
+                x + s,
+                y + s,
+                z + 0.3
+            ),
+        });
+    }
+    shapes.push("Sphere(center: (0.5, 1, 0.5), radius: 0.5)".into());
+    shapes.push("Sphere(center: (0.5, 1, 0.5), radius: 0.5)".into());
+    shapes.push("Polygon(points: [(-40, 0, 40), (40, 0, 40), (40, 0, -40), (-40, 0, -40)])".into());
+    if plane {
+        shapes.push("Plane(normal: (0, 0, -1), point: (0, 0, 30))".into());
+    }
+    let objects: Vec<String> = shapes.iter().map(|s| format!("(shape: {s})")).collect();
+    let text = format!(
+        "Scene(camera: (eye: (0, 3, -9), look_at: (0, 0, 0)), objects: [{}])",
+        objects.join(", ")
+    );
+    Scene::from_ron(&text, "objects.ron").unwrap()
+}
+
+/// Scenes of several simple objects take the same path with the objects as pieces: every
+/// pixel's values are those of its own ray (closest object, ties between the two equal spheres
+/// to the smaller index), from cameras outside and among the objects, with and without an
+/// unbounded plane, crops included.
+#[test]
+fn binned_objects_equal_their_rays() {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(29);
+    let (mut binned, mut hits) = (0, 0);
+    for trial in 0..16 {
+        let scene = simple_objects_scene(&mut rng, 6 + 5 * trial, trial % 2 == 0);
+        let eye = if trial % 4 == 3 {
+            // among the objects
+            DVec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(0.3..1.5),
+                rng.random_range(-1.0..1.0),
+            )
+        } else {
+            DVec3::new(
+                rng.random_range(-8.0..8.0),
+                rng.random_range(0.5..6.0),
+                rng.random_range(-12.0..-5.0),
+            )
+        };
+        let target = DVec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(0.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let (width, height) = (rng.random_range(50..100), rng.random_range(30..70));
+        let mut camera = Camera::new(eye, target - eye, DVec3::Y, rng.random_range(25.0..80.0), width, height).unwrap();
+        camera.model = Model::Perspective(Perspective {
+            principal_offset: DVec2::new(rng.random_range(-6.0..6.0), rng.random_range(-6.0..6.0)),
+        });
+        if uses_piece_bins(&scene, &camera) {
+            binned += 1;
+        }
+        let what = format!("objects trial {trial}");
+        hits += assert_pixels_equal_rays(&scene, &camera, None, &what);
+        let crop = Window {
+            x0: width / 4,
+            y0: height / 5,
+            x1: width - 2,
+            y1: height - height / 3,
+        };
+        assert_pixels_equal_rays(&scene, &camera, Some(crop), &format!("{what} cropped"));
+    }
+    assert_eq!(binned, 16, "every camera took the piece path");
+    assert!(hits > 40_000, "{hits} hits");
+}

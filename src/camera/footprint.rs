@@ -185,6 +185,13 @@ pub struct BoxProjector<'a> {
 }
 
 impl BoxProjector<'_> {
+    /// How much [`BoxProjector::footprint`] enlarges `bounds` before projecting it: a hit
+    /// farther than this from the box would not be found by a footprint's pixels.
+    #[must_use]
+    pub fn enlargement(&self, bounds: &Aabb) -> f64 {
+        enlargement(bounds, self.camera.eye, self.origin_rounding)
+    }
+
     /// The bounding rectangle of the images of the enlarged box's corners (module docs),
     /// widened by `widening` pixels on every side. The corners' camera-local coordinates are
     /// the first corner's plus the box's edges mapped once (sums of f64 terms: their rounding,
