@@ -115,13 +115,18 @@ impl<'a> PieceBins<'a> {
             Source::Objects { .. } => Some(scene.objects[number as usize].primitive.bounds()),
         };
         // every piece's footprint (a lone object's piece without one: no bins; an object
-        // without one: tested by every pixel), kept where it holds a pixel
+        // without one, even cut at the eye plane: tested by every pixel), kept where it holds
+        // a pixel
         let no_footprint = std::sync::Mutex::new(Vec::new());
         let seen: Vec<Seen> = numbers
             .into_par_iter()
             .filter_map(|number| {
                 let bounds = piece_box(number)?;
-                let Some(rect) = projector.footprint(&bounds, TIGHT_WIDENING) else {
+                let rect = match &source {
+                    Source::Lone { .. } => projector.footprint(&bounds, TIGHT_WIDENING),
+                    Source::Objects { .. } => projector.footprint_clipped(&bounds, TIGHT_WIDENING),
+                };
+                let Some(rect) = rect else {
                     no_footprint.lock().unwrap_or_else(|e| e.into_inner()).push(number);
                     return None;
                 };
@@ -135,7 +140,7 @@ impl<'a> PieceBins<'a> {
                     Source::Lone { .. } => distance as f32,
                     Source::Objects { .. } => f32_below((distance - projector.enlargement(&bounds)).max(0.0)),
                 };
-                (c0 <= c1 && r0 <= r1).then(|| Seen {
+                (c0 <= c1 && r0 <= r1).then_some(Seen {
                     number,
                     near,
                     columns: [c0 as u32, c1 as u32],

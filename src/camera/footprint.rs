@@ -193,11 +193,88 @@ impl BoxProjector<'_> {
     }
 
     /// The bounding rectangle of the images of the enlarged box's corners (module docs),
-    /// widened by `widening` pixels on every side. The corners' camera-local coordinates are
-    /// the first corner's plus the box's edges mapped once (sums of f64 terms: their rounding,
-    /// like the projection's, is covered by the enlargement `δ`).
+    /// widened by `widening` pixels on every side.
     #[must_use]
     pub fn footprint(&self, bounds: &Aabb, widening: f64) -> Option<ImageRect> {
+        let (delta, [lx, ly, lz]) = self.local_corners(bounds)?;
+        let (mut xs, mut ys) = ([0.0; 8], [0.0; 8]);
+        match (&self.camera.model, self.pinhole) {
+            (Model::Perspective(_), Some(p)) => {
+                // strictly in front, by more than rounding could move a corner across the plane
+                if !lz.iter().all(|&z| z > delta) {
+                    return None;
+                }
+                for c in 0..8 {
+                    (xs[c], ys[c]) = p.project(lx[c], ly[c], lz[c]);
+                }
+            }
+            (Model::Orthographic(m), _) => {
+                for c in 0..8 {
+                    let seen = m.project(self.camera, DVec3::new(lx[c], ly[c], lz[c]));
+                    (xs[c], ys[c]) = (seen.x, seen.y);
+                }
+            }
+            _ => return None,
+        }
+        bounding_rect(&xs, &ys, widening)
+    }
+
+    /// [`BoxProjector::footprint`] of a pinhole, also for a box reaching behind the eye plane
+    /// (a ground polygon under the eye), whose corners have no images: the enlarged box is first
+    /// cut by the plane `z = z_c` (camera-local depth), keeping the part in front, and the
+    /// rectangle bounds the images of that part's corners (the box's corners in front and
+    /// where its edges cross the plane). With `R` the distance from the eye to the enlarged
+    /// box and `T` the largest `|(x, y)|/z` of a direction through the image,
+    /// `z_c = R / (2·√(1 + T²))`: a point of the box in front of the cut lies farther than `R`
+    /// from the eye, so it is seen at `|(x, y)| ≥ √(R² − z²) > T·z` — outside the image. `None`
+    /// where the eye is in the enlarged box or the cut lies within the enlargement.
+    #[must_use]
+    pub fn footprint_clipped(&self, bounds: &Aabb, widening: f64) -> Option<ImageRect> {
+        let (Model::Perspective(_), Some(p)) = (&self.camera.model, self.pinhole) else {
+            return None;
+        };
+        let (delta, [lx, ly, lz]) = self.local_corners(bounds)?;
+        if lz.iter().all(|&z| z > delta) {
+            return self.footprint(bounds, widening);
+        }
+        let camera = self.camera;
+        let enlarged = bounds.expanded(delta);
+        let reach = (camera.eye.clamp(enlarged.min, enlarged.max) - camera.eye).length();
+        let (w, h) = (f64::from(camera.width), f64::from(camera.height));
+        let tx = p.cx.abs().max((w - p.cx).abs()) / p.ax;
+        let ty = p.cy.abs().max((h - p.cy).abs()) / p.ay;
+        let cut = 0.5 * reach / (1.0 + tx * tx + ty * ty).sqrt();
+        if !(cut > delta) {
+            return None;
+        }
+        // the corners in front of the cut and the crossings of the twelve edges (corners `c` and
+        // `c | 1 << a` for bit `a` of `c` clear)
+        let (mut xs, mut ys) = (Vec::with_capacity(20), Vec::with_capacity(20));
+        for c in 0..8 {
+            if lz[c] >= cut {
+                let (x, y) = p.project(lx[c], ly[c], lz[c]);
+                xs.push(x);
+                ys.push(y);
+            }
+            for a in 0..3 {
+                let d = c | 1 << a;
+                if c & 1 << a != 0 || (lz[c] >= cut) == (lz[d] >= cut) {
+                    continue;
+                }
+                let f = (cut - lz[c]) / (lz[d] - lz[c]);
+                let (x, y) = p.project(lx[c] + f * (lx[d] - lx[c]), ly[c] + f * (ly[d] - ly[c]), cut);
+                xs.push(x);
+                ys.push(y);
+            }
+        }
+        bounding_rect(&xs, &ys, widening)
+    }
+
+    /// The enlargement `δ` of `bounds` and the camera-local coordinates of the enlarged box's
+    /// corners, one array per axis (corner `c` is the low corner plus edge `a` where bit `a`
+    /// of `c` is set): the first corner's coordinates plus the box's edges mapped once (sums of
+    /// f64 terms: their rounding, like the projection's, is covered by `δ`).
+    fn local_corners(&self, bounds: &Aabb) -> Option<(f64, [[f64; 8]; 3])> {
         let camera = self.camera;
         if !bounds.is_finite() || bounds.is_empty() || !camera.eye.is_finite() {
             return None;
@@ -211,7 +288,6 @@ impl BoxProjector<'_> {
             size.y * DVec3::new(camera.right.y, camera.up.y, camera.forward.y),
             size.z * DVec3::new(camera.right.z, camera.up.z, camera.forward.z),
         ];
-        // the corners' coordinates, one array per axis (corner `c` adds edge `a` if bit `a` is set)
         let mut local = [[first.x; 8], [first.y; 8], [first.z; 8]];
         for (axis, values) in local.iter_mut().enumerate() {
             for (c, value) in values.iter_mut().enumerate() {
@@ -222,43 +298,35 @@ impl BoxProjector<'_> {
                 }
             }
         }
-        let [lx, ly, lz] = local;
-        let (mut xs, mut ys) = ([0.0; 8], [0.0; 8]);
-        match (&camera.model, self.pinhole) {
-            (Model::Perspective(_), Some(p)) => {
-                // strictly in front, by more than rounding could move a corner across the plane
-                if !lz.iter().all(|&z| z > delta) {
-                    return None;
-                }
-                for c in 0..8 {
-                    let inverse = 1.0 / lz[c];
-                    xs[c] = p.cx + p.ax * (lx[c] * inverse);
-                    ys[c] = p.cy - p.ay * (ly[c] * inverse);
-                }
-            }
-            (Model::Orthographic(m), _) => {
-                for c in 0..8 {
-                    let seen = m.project(camera, DVec3::new(lx[c], ly[c], lz[c]));
-                    (xs[c], ys[c]) = (seen.x, seen.y);
-                }
-            }
-            _ => return None,
-        }
-        // plain comparisons: every value here is finite or ±∞, never NaN (checked below)
-        let lowest = |v: &[f64; 8]| v.iter().fold(f64::INFINITY, |m, &x| if x < m { x } else { m });
-        let highest = |v: &[f64; 8]| v.iter().fold(f64::NEG_INFINITY, |m, &x| if x > m { x } else { m });
-        let (x0, x1, y0, y1) = (lowest(&xs), highest(&xs), lowest(&ys), highest(&ys));
-        let rect = ImageRect {
-            x0: x0 - widening,
-            x1: x1 + widening,
-            y0: y0 - widening,
-            y1: y1 + widening,
-        };
-        [rect.x0, rect.x1, rect.y0, rect.y1]
-            .iter()
-            .all(|v| v.is_finite())
-            .then_some(rect)
+        Some((delta, local))
     }
+}
+
+impl PinholeScales {
+    /// The image position of camera-local `(x, y, z)`, `z > 0`.
+    #[inline(always)]
+    fn project(&self, x: f64, y: f64, z: f64) -> (f64, f64) {
+        let inverse = 1.0 / z;
+        (self.cx + self.ax * (x * inverse), self.cy - self.ay * (y * inverse))
+    }
+}
+
+/// The bounding rectangle of the image positions `(xs[i], ys[i])`, widened by `widening` pixels
+/// on every side; `None` unless it is finite.
+fn bounding_rect(xs: &[f64], ys: &[f64], widening: f64) -> Option<ImageRect> {
+    // plain comparisons: every value here is finite or ±∞, never NaN (checked below)
+    let lowest = |v: &[f64]| v.iter().fold(f64::INFINITY, |m, &x| if x < m { x } else { m });
+    let highest = |v: &[f64]| v.iter().fold(f64::NEG_INFINITY, |m, &x| if x > m { x } else { m });
+    let rect = ImageRect {
+        x0: lowest(xs) - widening,
+        x1: highest(xs) + widening,
+        y0: lowest(ys) - widening,
+        y1: highest(ys) + widening,
+    };
+    [rect.x0, rect.x1, rect.y0, rect.y1]
+        .iter()
+        .all(|v| v.is_finite())
+        .then_some(rect)
 }
 
 #[cfg(test)]
@@ -331,6 +399,79 @@ mod tests {
         assert!(rects > 200, "{rects} footprints");
         assert!(culled > 100 * rects, "{culled} pixels left out over {rects} footprints");
         assert!(hits > 20 * rects, "{hits} pixels meeting their boxes");
+    }
+
+    /// The cut footprint of boxes reaching behind a pinhole's eye plane (long slabs under and
+    /// beside the eye, boxes around it or behind it): every pixel whose centre it leaves out has
+    /// a ray that misses the box grown by half the margin, the pixels meeting the box are held,
+    /// and most footprints leave pixels out (the ground's sky). Boxes wholly in front get the
+    /// plain footprint.
+    #[test]
+    fn pixels_outside_the_cut_footprint_miss_the_box() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(73);
+        let (width, height) = (48u32, 32u32);
+        let (mut cut, mut culled, mut hits, mut none) = (0usize, 0usize, 0usize, 0usize);
+        for trial in 0..400 {
+            let eye = DVec3::new(
+                rng.random_range(-3.0..3.0),
+                rng.random_range(0.2..5.0),
+                rng.random_range(-3.0..3.0),
+            );
+            let direction = DVec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-0.8..0.3),
+                rng.random_range(-1.0..1.0),
+            );
+            let Ok(mut camera) = Camera::new(eye, direction, DVec3::Y, rng.random_range(10.0..120.0), width, height)
+            else {
+                continue;
+            };
+            camera.model = Model::Perspective(Perspective {
+                principal_offset: DVec2::new(rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0)),
+            });
+            let bounds = if trial % 2 == 0 {
+                // a thick ground slab under the eye, reaching far behind it
+                let half = rng.random_range(5.0..200.0);
+                let top = rng.random_range(-0.5..0.1);
+                Aabb::new(
+                    DVec3::new(-half, top - rng.random_range(0.0..0.5), -half),
+                    DVec3::new(half, top, half),
+                )
+            } else {
+                random_box(&mut rng, [-6.0..6.0, -6.0..6.0, -6.0..6.0], 0.01..6.0)
+            };
+            let projector = camera.box_projector(0.0);
+            let Some(rect) = projector.footprint_clipped(&bounds, 1.0) else {
+                none += 1;
+                continue;
+            };
+            if projector.footprint(&bounds, 1.0) == Some(rect) {
+                continue;
+            }
+            cut += 1;
+            let delta = enlargement(&bounds, camera.eye, 0.0);
+            let grown = bounds.expanded(0.5 * delta);
+            let mut left_out = 0;
+            for j in 0..height {
+                for i in 0..width {
+                    let ray = camera.pixel_ray(i, j).unwrap();
+                    let meets = grown.clip(&ray, Interval::POSITIVE).is_some();
+                    if rect.holds_pixel(i, j) {
+                        hits += usize::from(meets);
+                    } else {
+                        left_out += 1;
+                        assert!(
+                            !meets,
+                            "trial {trial}: pixel ({i}, {j}) outside {rect:?} meets {grown:?}"
+                        );
+                    }
+                }
+            }
+            culled += usize::from(left_out > 0);
+        }
+        assert!(cut > 150, "{cut} cut footprints ({none} without one)");
+        assert!(culled > cut / 3, "{culled} of {cut} cut footprints leave pixels out");
+        assert!(hits > 100 * cut, "{hits} pixels meeting their boxes");
     }
 
     /// Over random cameras and random sets of up to 40 boxes: every pixel the coverage leaves
