@@ -349,7 +349,7 @@ impl<'a> Tracer<'a> {
             ProgressStyle::with_template("{bar:40} {pos}/{len} rows, {elapsed} elapsed, ~{eta} left")
                 .expect("valid template"),
         );
-        let context = RowContext {
+        let mut context = RowContext {
             aovs,
             request,
             shading: aovs.contains(&Aov::ShadingNormal),
@@ -367,7 +367,9 @@ impl<'a> Tracer<'a> {
             } else {
                 DVec3::ZERO
             },
+            miss_pixel: Vec::new(),
         };
+        context.miss_pixel = miss_pixel(scene, &context);
         Self {
             scene,
             context,
@@ -617,13 +619,21 @@ fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray
 }
 
 /// Writes the miss values of every AOV of `context` into `pixel`.
-fn write_miss(pixel: &mut [f32], scene: &Scene, context: &RowContext) {
+#[inline(always)]
+fn write_miss(pixel: &mut [f32], _scene: &Scene, context: &RowContext) {
+    pixel.copy_from_slice(&context.miss_pixel);
+}
+
+/// The values every AOV of `context` takes where nothing is hit (the same for every pixel).
+fn miss_pixel(scene: &Scene, context: &RowContext) -> Vec<f32> {
     let camera = context.camera;
-    let mut rest = pixel;
+    let mut pixel = vec![0.0; context.channels];
+    let mut rest = &mut pixel[..];
     for aov in context.aovs {
         let n = write_aov(rest, scene, *aov, &Ray::new(camera.eye, camera.forward), None, context);
         rest = &mut rest[n..];
     }
+    pixel
 }
 
 /// What every row of one render shares.
@@ -639,6 +649,8 @@ struct RowContext<'a> {
     no_ray: NoRayCounts,
     /// Beauty of the uncovered part of a pixel: the background, or black (premultiplied).
     miss_colour: DVec3,
+    /// Every AOV's values where nothing is hit ([`miss_pixel`]).
+    miss_pixel: Vec<f32>,
     /// Where the `Uncertain` channel is in a pixel, if it was asked for.
     uncertain_offset: Option<usize>,
     /// The pixel centres whose rays can meet an object ([`Scene::coverage`]), if the camera

@@ -244,7 +244,7 @@ impl BoxProjector<'_> {
         let tx = p.cx.abs().max((w - p.cx).abs()) / p.ax;
         let ty = p.cy.abs().max((h - p.cy).abs()) / p.ay;
         let cut = 0.5 * reach / (1.0 + tx * tx + ty * ty).sqrt();
-        if !(cut > delta) {
+        if cut.is_nan() || cut <= delta {
             return None;
         }
         // the corners in front of the cut and the crossings of the twelve edges (corners `c` and

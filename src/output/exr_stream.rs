@@ -175,11 +175,9 @@ impl BandSink for ExrStream {
             for row in rows[line * row_len..(line + block_lines) * row_len].chunks_exact(row_len) {
                 for &source in &self.sources {
                     let target = targets.next().expect("one line per channel and row");
-                    for (bytes, value) in target
-                        .chunks_exact_mut(4)
-                        .zip(row[source..].iter().step_by(self.stride))
-                    {
-                        bytes.copy_from_slice(&value.to_ne_bytes());
+                    // pixel `x`'s sample of this channel is `row[x·stride + source]`
+                    for (bytes, pixel) in target.chunks_exact_mut(4).zip(row.chunks_exact(self.stride)) {
+                        bytes.copy_from_slice(&pixel[source].to_ne_bytes());
                     }
                 }
             }
