@@ -636,7 +636,7 @@ fn read_npy_header(reader: &mut impl Read, path: &str) -> Result<NpyHeader, Quer
         return Err(err(format!("shape ({shape}): expected (N, 6) or (N, 8)")));
     }
     let (rows, columns) = (parse(dims[0])?, parse(dims[1])?);
-    if ![6, 8, 9, 11].contains(&columns) {
+    if ![6, 8, 9, MAX_COLUMNS as u64].contains(&columns) {
         return Err(err(format!("shape ({shape}): expected (N, 6) or (N, 8)")));
     }
     Ok(NpyHeader {
@@ -682,6 +682,9 @@ impl<R: Read> NpyRays<R> {
     }
 }
 
+/// The widest ray rows a `.npy` file may have: origin, direction, range and surface normal.
+const MAX_COLUMNS: usize = 11;
+
 impl<R: Read> RaySource for NpyRays<R> {
     fn read_chunk(&mut self, max: usize, out: &mut Vec<QueryRay>) -> Result<bool, QueryError> {
         out.clear();
@@ -700,17 +703,16 @@ impl<R: Read> RaySource for NpyRays<R> {
             .bytes
             .par_chunks_exact(columns * width)
             .map(|row| {
-                let v: Vec<f64> = row
-                    .chunks_exact(width)
-                    .map(|b| {
-                        if double {
-                            f64::from_le_bytes(b.try_into().expect("8 bytes"))
-                        } else {
-                            f64::from(f32::from_le_bytes(b.try_into().expect("4 bytes")))
-                        }
-                    })
-                    .collect();
-                ray_from_fields(&v, &setup)
+                // the row's fields on the stack (at most 11 columns, checked with the header)
+                let mut v = [0.0f64; MAX_COLUMNS];
+                for (field, b) in v.iter_mut().zip(row.chunks_exact(width)) {
+                    *field = if double {
+                        f64::from_le_bytes(b.try_into().expect("8 bytes"))
+                    } else {
+                        f64::from(f32::from_le_bytes(b.try_into().expect("4 bytes")))
+                    };
+                }
+                ray_from_fields(&v[..columns], &setup)
             })
             .collect();
         for (k, ray) in parsed.into_iter().enumerate() {
