@@ -152,8 +152,9 @@ fn binned_pixels_equal_their_rays() {
 
 /// A random scene of `n` simple objects (spheres, boxes, capped cylinders, cones, ellipsoids,
 /// triangles, a few of them touching or overlapping, two of them the same sphere so that ties
-/// occur) around the origin, with a large ground polygon (its box reaches behind most eyes)
-/// and, if `plane`, an unbounded plane behind everything.
+/// occur) around the origin, with, for even `n`, a translated mesh and a rotated box, a large
+/// ground polygon (its box reaches behind most eyes) and, if `plane`, an unbounded plane
+/// behind everything.
 fn simple_objects_scene(rng: &mut rand::rngs::StdRng, n: usize, plane: bool) -> Scene {
     let mut shapes = Vec::new();
     let mut r = |a: f64, b: f64| rng.random_range(a..b);
@@ -190,6 +191,17 @@ fn simple_objects_scene(rng: &mut rand::rngs::StdRng, n: usize, plane: bool) -> 
     }
     shapes.push("Sphere(center: (0.5, 1, 0.5), radius: 0.5)".into());
     shapes.push("Sphere(center: (0.5, 1, 0.5), radius: 0.5)".into());
+    if n % 2 == 0 {
+        // a mesh (the shipped icosphere, traced ray by ray) and a rotated box among them
+        let icosphere = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/meshes/icosphere2.ply");
+        shapes.push(format!(
+            "Mesh(path: {:?}), transform: (translate: (-1.5, 1, 1))",
+            icosphere.display().to_string()
+        ));
+        shapes.push(
+            "Box(min: (1, 0, -2), max: (2, 0.8, -1.2)), transform: (rotate: (axis: (0, 1, 0), degrees: 30))".into(),
+        );
+    }
     shapes.push("Polygon(points: [(-40, 0, 40), (40, 0, 40), (40, 0, -40), (-40, 0, -40)])".into());
     if plane {
         shapes.push("Plane(normal: (0, 0, -1), point: (0, 0, 30))".into());
@@ -202,7 +214,7 @@ fn simple_objects_scene(rng: &mut rand::rngs::StdRng, n: usize, plane: bool) -> 
     Scene::from_ron(&text, "objects.ron").unwrap()
 }
 
-/// Scenes of several simple objects take the same path with the objects as pieces: every
+/// Scenes of several objects take the same path with the objects as pieces: every
 /// pixel's values are those of its own ray (closest object, ties between the two equal spheres
 /// to the smaller index), from cameras outside and among the objects, with and without an
 /// unbounded plane, crops included.
