@@ -54,6 +54,9 @@ pub struct Polygon {
     convex: bool,
     domain: UvDomain,
     bounds: Aabb,
+    /// `(k, s)` where the normal is `s·e_k` (`s = ±1`, a plane across a coordinate axis, a
+    /// ground): the plane's equation is then one coordinate ([`Polygon::axis_plane_t`]).
+    axis: Option<(usize, f64)>,
 }
 
 fn error(field: impl Into<String>, problem: impl Into<String>) -> PrimitiveError {
@@ -189,6 +192,7 @@ impl Polygon {
                 v: (lo.y, hi.y),
             },
             bounds,
+            axis: axis_normal(normal),
         })
     }
 
@@ -244,9 +248,53 @@ impl Implicit for Polygon {
     }
 }
 
+/// `(k, s)` where `normal` is `s·e_k` with `s = ±1` (its other components zero).
+fn axis_normal(normal: DVec3) -> Option<(usize, f64)> {
+    let k = normal.abs().max_position();
+    let s = normal[k];
+    (s.abs() == 1.0 && normal.abs().element_sum() == 1.0).then_some((k, s))
+}
+
+impl Polygon {
+    /// The hit `t` of `ray` on the plane of a polygon whose normal is `s·e_k`: the same value
+    /// the compensated sums of the general test give, from one coordinate. `⟨d, n⟩ = s·d_k`
+    /// exactly (the other products are zeros), and `⟨o, n⟩ − ⟨p₀, n⟩ = s·(o_k − p₀_k)` has two
+    /// nonzero terms, whose compensated sum is their sum rounded once, `+0` where they cancel
+    /// (hence the `+ 0.0`, which turns `−0` into `+0`). `None` for a ray parallel to the plane;
+    /// the caller checks the ray is finite (a non-finite other component makes the sums NaN).
+    #[inline(always)]
+    fn axis_plane_t(&self, k: usize, s: f64, ray: &Ray) -> Option<f64> {
+        let denom = ray.dir[k] * s;
+        if denom == 0.0 {
+            return None;
+        }
+        Some(-((ray.origin[k] - self.origin[k]) * s + 0.0) / denom)
+    }
+
+    /// The hit at `t` on the plane, if `t` is in `range` and the hit inside the polygon.
+    #[inline(always)]
+    fn hit_at(&self, ray: &Ray, range: Interval, t: f64) -> Option<RawHit> {
+        if !range.contains(t) {
+            return None;
+        }
+        let q = self.uv(ray.at(t));
+        self.contains_2d(q).then_some(RawHit {
+            t,
+            feature: 0,
+            local: q,
+        })
+    }
+}
+
 impl Intersect for Polygon {
     #[inline]
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        // a plane across a coordinate axis needs no compensated sums, hence no FMA copy
+        if let Some((k, s)) = self.axis {
+            if ray.origin.is_finite() && ray.dir.is_finite() {
+                return self.hit_at(ray, range, self.axis_plane_t(k, s, ray)?);
+            }
+        }
         // the whole test inlined into the AVX2+FMA copy where the CPU has them
         #[inline(always)]
         fn test(this: &Polygon, ray: &Ray, range: Interval) -> Option<RawHit> {
@@ -255,15 +303,7 @@ impl Intersect for Polygon {
                 return None;
             }
             let t = -dot_minus(ray.origin, this.normal, this.origin.dot(this.normal)) / denom;
-            if !range.contains(t) {
-                return None;
-            }
-            let q = this.uv(ray.at(t));
-            this.contains_2d(q).then_some(RawHit {
-                t,
-                feature: 0,
-                local: q,
-            })
+            this.hit_at(ray, range, t)
         }
         crate::with_fma!(test(this: &Polygon = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
@@ -399,6 +439,90 @@ mod tests {
                 .is_convex(),
             "hole"
         );
+    }
+
+    /// Polygons across each coordinate axis, facing either way (a ground square, a concave
+    /// ring with a hole, far from the origin or not) take the one-coordinate plane test; its
+    /// answers equal the compensated test's bit for bit over random rays, rays from points on
+    /// the plane (where `−0` and `+0` differ), nearly parallel and parallel rays, and rays with a
+    /// non-finite component.
+    #[test]
+    fn axis_planes_give_the_compensated_answers() {
+        let mut rng = StdRng::seed_from_u64(404);
+        let (mut hits, mut on_plane_hits) = (0, 0);
+        for case in 0..24 {
+            let k = case % 3;
+            let flip = (case / 3) % 2 == 1;
+            let offset = if case >= 12 { 1.0e6 } else { 0.0 };
+            let height = if case % 4 == 0 {
+                0.0
+            } else {
+                rng.random_range(-3.0..3.0)
+            };
+            // a square and a concave ring with a square hole, in the plane x_k = height
+            let at = |u: f64, v: f64| {
+                let mut p = [0.0; 3];
+                p[k] = height;
+                p[(k + 1) % 3] = u + offset;
+                p[(k + 2) % 3] = v;
+                DVec3::from_array(p)
+            };
+            let mut outer = if case % 2 == 0 {
+                vec![at(-5.0, -5.0), at(5.0, -5.0), at(5.0, 5.0), at(-5.0, 5.0)]
+            } else {
+                vec![at(-5.0, -5.0), at(5.0, -5.0), at(0.0, 0.5), at(5.0, 5.0), at(-5.0, 5.0)]
+            };
+            let mut holes = vec![];
+            if case % 2 == 1 {
+                holes.push(vec![at(-3.0, -1.0), at(-1.0, -1.0), at(-1.0, 1.0), at(-3.0, 1.0)]);
+            }
+            if flip {
+                outer.reverse();
+            }
+            let polygon = Polygon::new(outer, holes).unwrap();
+            assert!(polygon.axis.is_some(), "case {case}: {:?}", polygon.normal);
+            let general = Polygon {
+                axis: None,
+                ..polygon.clone()
+            };
+            for trial in 0..4000 {
+                let target = at(rng.random_range(-6.0..6.0), rng.random_range(-6.0..6.0));
+                let origin = match trial % 4 {
+                    // on the plane itself
+                    0 => at(rng.random_range(-6.0..6.0), rng.random_range(-6.0..6.0)),
+                    _ => {
+                        target
+                            + DVec3::new(
+                                rng.random_range(-9.0..9.0),
+                                rng.random_range(-9.0..9.0),
+                                rng.random_range(-9.0..9.0),
+                            )
+                    }
+                };
+                let mut dir = target - origin;
+                if trial % 4 == 0 {
+                    dir[k] = [0.0, 1e-300, -2.0, 1.0][trial / 4 % 4];
+                }
+                if trial % 97 == 0 {
+                    dir[(k + 1) % 3] = [f64::INFINITY, f64::NAN][trial / 97 % 2];
+                }
+                let ray = Ray::new(origin, dir);
+                for range in [
+                    Interval::POSITIVE,
+                    Interval::new(-1.0, 1.0),
+                    Interval::new(0.0, f64::INFINITY),
+                ] {
+                    let fast = polygon.intersect(&ray, range);
+                    let slow = general.intersect(&ray, range);
+                    let bits = |h: Option<RawHit>| h.map(|h| (h.t.to_bits(), h.local.x.to_bits(), h.local.y.to_bits()));
+                    assert_eq!(bits(fast), bits(slow), "case {case} trial {trial} {ray:?} {range:?}");
+                    hits += usize::from(fast.is_some());
+                    on_plane_hits += usize::from(trial % 4 == 0 && fast.is_some_and(|h| h.t == 0.0));
+                }
+            }
+        }
+        assert!(hits > 50_000, "{hits} hits");
+        assert!(on_plane_hits > 1000, "{on_plane_hits} hits at t = 0 from the plane");
     }
 
     #[test]
