@@ -81,6 +81,21 @@ fn assert_pixels_equal_rays(scene: &Scene, camera: &Camera, crop: Option<Window>
     hits
 }
 
+/// [`assert_pixels_equal_rays`] on the whole view and on the crop `[w/l, h/t, w − r, h − h/b]`
+/// of `[l, t, r, b]`; returns the whole view's hits.
+fn assert_view_and_crop_equal_rays(scene: &Scene, camera: &Camera, [l, t, r, b]: [u32; 4], what: &str) -> usize {
+    let hits = assert_pixels_equal_rays(scene, camera, None, what);
+    let (width, height) = (camera.width, camera.height);
+    let crop = Window {
+        x0: width / l,
+        y0: height / t,
+        x1: width - r,
+        y1: height - height / b,
+    };
+    assert_pixels_equal_rays(scene, camera, Some(crop), &format!("{what} cropped"));
+    hits
+}
+
 /// Random cameras around a lone mesh (the shipped icosphere, a generated bumpy sphere of
 /// 12,800 triangles off the origin, and one of 3,200 at 22,000 from it): the rendered values are those of the pixels' own rays
 /// wherever the render takes the piece path, and the path is taken from outside the mesh's box
@@ -135,14 +150,7 @@ fn binned_pixels_equal_their_rays() {
             } else if trial % 3 == 2 {
                 inside += 1;
             }
-            hits += assert_pixels_equal_rays(&scene, &camera, None, &what);
-            let crop = Window {
-                x0: width / 5,
-                y0: height / 3,
-                x1: width - 3,
-                y1: height - height / 5,
-            };
-            assert_pixels_equal_rays(&scene, &camera, Some(crop), &format!("{what} cropped"));
+            hits += assert_view_and_crop_equal_rays(&scene, &camera, [5, 3, 3, 5], &what);
         }
     }
     assert!(binned >= 24, "{binned} cameras took the piece path");
@@ -252,14 +260,7 @@ fn binned_objects_equal_their_rays() {
             binned += 1;
         }
         let what = format!("objects trial {trial}");
-        hits += assert_pixels_equal_rays(&scene, &camera, None, &what);
-        let crop = Window {
-            x0: width / 4,
-            y0: height / 5,
-            x1: width - 2,
-            y1: height - height / 3,
-        };
-        assert_pixels_equal_rays(&scene, &camera, Some(crop), &format!("{what} cropped"));
+        hits += assert_view_and_crop_equal_rays(&scene, &camera, [4, 5, 2, 3], &what);
     }
     assert_eq!(binned, 16, "every camera took the piece path");
     assert!(hits > 40_000, "{hits} hits");

@@ -350,6 +350,30 @@ mod tests {
         Aabb::new(c - h, c + h)
     }
 
+    /// Checks that every pixel of `camera` whose centre lies outside `rect` has a ray missing
+    /// `bounds` grown by half the footprint's margin (the f64 slab test of `Aabb::clip`);
+    /// returns how many pixels inside `rect` meet it and how many are left out.
+    fn check_pixels_outside(camera: &Camera, bounds: &Aabb, rect: &ImageRect, trial: usize) -> (usize, usize) {
+        let grown = bounds.expanded(0.5 * enlargement(bounds, camera.eye, 0.0));
+        let (mut meeting, mut left_out) = (0, 0);
+        for j in 0..camera.height {
+            for i in 0..camera.width {
+                let ray = camera.pixel_ray(i, j).unwrap();
+                let meets = grown.clip(&ray, Interval::POSITIVE).is_some();
+                if rect.holds_pixel(i, j) {
+                    meeting += usize::from(meets);
+                } else {
+                    left_out += 1;
+                    assert!(
+                        !meets,
+                        "trial {trial}: pixel ({i}, {j}) outside {rect:?} meets {grown:?}"
+                    );
+                }
+            }
+        }
+        (meeting, left_out)
+    }
+
     /// Over random pinhole (principal offsets included) and orthographic cameras and random
     /// boxes, near and far, in view and beside it: every pixel whose centre is outside the
     /// footprint has a ray that misses the box grown by half the margin (the f64 slab test of
@@ -378,23 +402,9 @@ mod tests {
                 continue;
             };
             rects += 1;
-            let delta = enlargement(&bounds, camera.eye, 0.0);
-            let grown = bounds.expanded(0.5 * delta);
-            for j in 0..height {
-                for i in 0..width {
-                    let ray = camera.pixel_ray(i, j).unwrap();
-                    let meets = grown.clip(&ray, Interval::POSITIVE).is_some();
-                    if rect.holds_pixel(i, j) {
-                        hits += usize::from(meets);
-                    } else {
-                        culled += 1;
-                        assert!(
-                            !meets,
-                            "trial {trial}: pixel ({i}, {j}) outside {rect:?} meets {grown:?}"
-                        );
-                    }
-                }
-            }
+            let (meeting, left_out) = check_pixels_outside(&camera, &bounds, &rect, trial);
+            hits += meeting;
+            culled += left_out;
         }
         assert!(rects > 200, "{rects} footprints");
         assert!(culled > 100 * rects, "{culled} pixels left out over {rects} footprints");
@@ -449,24 +459,8 @@ mod tests {
                 continue;
             }
             cut += 1;
-            let delta = enlargement(&bounds, camera.eye, 0.0);
-            let grown = bounds.expanded(0.5 * delta);
-            let mut left_out = 0;
-            for j in 0..height {
-                for i in 0..width {
-                    let ray = camera.pixel_ray(i, j).unwrap();
-                    let meets = grown.clip(&ray, Interval::POSITIVE).is_some();
-                    if rect.holds_pixel(i, j) {
-                        hits += usize::from(meets);
-                    } else {
-                        left_out += 1;
-                        assert!(
-                            !meets,
-                            "trial {trial}: pixel ({i}, {j}) outside {rect:?} meets {grown:?}"
-                        );
-                    }
-                }
-            }
+            let (meeting, left_out) = check_pixels_outside(&camera, &bounds, &rect, trial);
+            hits += meeting;
             culled += usize::from(left_out > 0);
         }
         assert!(cut > 150, "{cut} cut footprints ({none} without one)");
