@@ -491,17 +491,28 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         (format!("{} views", cameras.len()), "trace and write", "")
     };
     println!(
-        "rendered {what} at {} spp ({} objects) on {} threads: {trace} {:.3} s ({:.2} Mrays/s), wall {:.3} s (load+BVH {:.3} s, write {:.3} s{write}{cpu})",
+        "rendered {what} at {} spp ({} objects) on {} threads: {trace} {} s ({:.2} Mrays/s), wall {:.3} s (load+BVH {:.3} s, write {:.3} s{write}{cpu})",
         scene.sampling.spp,
         scene.objects.len(),
         rayon::current_num_threads(),
-        trace_seconds,
+        significant_seconds(trace_seconds),
         rays as f64 / trace_seconds.max(1e-12) / 1e6,
         wall.elapsed().as_secs_f64(),
         load_time.as_secs_f64(),
         write_seconds,
     );
     Ok(())
+}
+
+/// `seconds` with three decimals, or with three significant digits where that needs more (a
+/// small render's trace takes well under a millisecond, which three decimals would print as 0).
+fn significant_seconds(seconds: f64) -> String {
+    let decimals = if seconds > 0.0 && seconds < 0.1 {
+        (2.0 - seconds.log10().floor()).min(12.0) as usize
+    } else {
+        3
+    };
+    format!("{seconds:.decimals$}")
 }
 
 /// Prints the files written for view file `file`, and a warning for its samples without a ray.
@@ -662,4 +673,19 @@ fn query_command(args: &QueryArgs) -> Result<()> {
         counts.rays as f64 / elapsed.max(1e-12) / 1e6
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::significant_seconds;
+
+    /// Three decimals from a tenth of a second on, three significant digits below.
+    #[test]
+    fn trace_seconds_keep_three_significant_digits() {
+        assert_eq!(significant_seconds(1.5), "1.500");
+        assert_eq!(significant_seconds(0.25), "0.250");
+        assert_eq!(significant_seconds(0.0301), "0.0301");
+        assert_eq!(significant_seconds(0.000_443), "0.000443");
+        assert_eq!(significant_seconds(0.0), "0.000");
+    }
 }
