@@ -68,6 +68,9 @@ enum Source<'a> {
 /// The pieces each row of a view's window can see (module docs).
 pub(crate) struct PieceBins<'a> {
     source: Source<'a>,
+    /// Whether a pixel with no pieces is traced all the same: some object is tested by every
+    /// pixel (one unbounded, or with no footprint).
+    every_pixel: bool,
     /// First row of the window.
     y0: u32,
     seen: Vec<Seen>,
@@ -185,21 +188,22 @@ impl<'a> PieceBins<'a> {
             .lists_mut()
             .into_par_iter()
             .for_each(|list| list.sort_unstable());
+        let every_pixel = match &source {
+            Source::Lone { .. } => false,
+            Source::Objects { always, .. } => !always.is_empty() || scene.has_unbounded_objects(),
+        };
         Some(Self {
             source,
+            every_pixel,
             y0: window.y0,
             seen,
             buckets,
         })
     }
 
-    /// Whether a pixel with no pieces is traced all the same: some object is tested by every
-    /// pixel (one unbounded, or with no footprint).
-    pub(crate) fn tests_every_pixel(&self, scene: &Scene) -> bool {
-        match &self.source {
-            Source::Lone { .. } => false,
-            Source::Objects { always, .. } => !always.is_empty() || scene.has_unbounded_objects(),
-        }
+    /// Whether a pixel with no pieces is traced all the same (see the field).
+    pub(crate) fn tests_every_pixel(&self) -> bool {
+        self.every_pixel
     }
 
     /// The pieces of the rows `y0..y0 + rows`, columns `x0..x0 + columns`, into `band`: each

@@ -530,7 +530,7 @@ fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: us
                 let at = row * row_len + (first + column) * channels;
                 let pixel = &mut out[at..at + channels];
                 if lane == usize::MAX {
-                    write_miss(pixel, scene, context);
+                    write_miss(pixel, context);
                 } else {
                     write_pixel(pixel, scene, context, &rays[lane], hits[lane]);
                 }
@@ -557,7 +557,7 @@ fn render_rows_binned(
     let camera = context.camera;
     let (mut band, mut row_bins) = (BandBins::default(), RowBins::default());
     bins.band(y, rows, x0, width, &mut band);
-    let every_pixel = bins.tests_every_pixel(scene);
+    let every_pixel = bins.tests_every_pixel();
     for (k, row) in out.chunks_exact_mut(row_len.max(1)).enumerate() {
         let j = y + k as u32;
         band.row(k, width, &mut row_bins);
@@ -565,7 +565,7 @@ fn render_rows_binned(
             let candidates = row_bins.get(column);
             // a pixel that can see no piece gets the miss values untraced
             if candidates.is_empty() && !every_pixel {
-                write_miss(pixel, scene, context);
+                write_miss(pixel, context);
                 continue;
             }
             match camera.pixel_ray(x0 + column as u32, j) {
@@ -575,7 +575,7 @@ fn render_rows_binned(
                 }
                 Err(reason) => {
                     context.no_ray.add(reason);
-                    write_miss(pixel, scene, context);
+                    write_miss(pixel, context);
                 }
             }
         }
@@ -592,7 +592,7 @@ fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut
         }
         Err(reason) => {
             context.no_ray.add(reason);
-            write_miss(pixel, scene, context);
+            write_miss(pixel, context);
         }
     }
     flag_uncertain(pixel, context, exhausted_before);
@@ -620,7 +620,7 @@ fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray
 
 /// Writes the miss values of every AOV of `context` into `pixel`.
 #[inline(always)]
-fn write_miss(pixel: &mut [f32], _scene: &Scene, context: &RowContext) {
+fn write_miss(pixel: &mut [f32], context: &RowContext) {
     pixel.copy_from_slice(&context.miss_pixel);
 }
 
@@ -656,8 +656,9 @@ struct RowContext<'a> {
     /// The pixel centres whose rays can meet an object ([`Scene::coverage`]), if the camera
     /// can say; the others see nothing and are not traced.
     seen: Option<Coverage>,
-    /// The pieces each pixel can see, where the scene is one object with pieces
-    /// ([`PieceBins`]): its pixels are traced against those alone, instead of in packets.
+    /// The pieces each pixel can see ([`PieceBins`]: a lone mesh's leaves, or the objects of a
+    /// scene of several), where a pinhole sees the scene: its pixels are traced against those
+    /// alone, instead of in packets.
     bins: Option<PieceBins<'a>>,
 }
 
@@ -744,7 +745,7 @@ fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out:
         let mut rest = &mut pixel[..];
         // the nearest hit sample (the first of equals), for depth, distance and position
         let Some(nearest) = hits.iter().min_by(|a, b| a.depth.total_cmp(&b.depth)) else {
-            write_miss(rest, scene, context);
+            write_miss(rest, context);
             flag_uncertain(pixel, context, exhausted_before);
             continue;
         };

@@ -217,14 +217,8 @@ impl Scene {
         if scaled_direction_size(ray).is_some() {
             return self.intersect(ray, range);
         }
-        let mut range = range;
-        let mut best = None;
-        for &i in &self.hierarchy.unbounded {
-            if let Some(hit) = self.objects[i as usize].primitive.intersect(ray, range) {
-                range.max = hit.t;
-                best = Some((i, hit));
-            }
-        }
+        let (mut range, best) =
+            self.closest_unbounded(range, |id, r| self.objects[id as usize].primitive.intersect(ray, r));
         let mut raw: Option<(u32, RawHit)> = None;
         let mut test = |id: u32, range: &mut Interval| {
             if let Some(hit) = self.objects[id as usize].primitive.intersect(ray, *range) {
@@ -250,6 +244,25 @@ impl Scene {
             test(id, &mut range);
         }
         raw.or(best)
+    }
+
+    /// The closest hit of `test(object, range)` over the objects tested by every ray (those
+    /// outside the hierarchy), in order, each shrinking `range.max` to its hit: that range and
+    /// the last hit found.
+    #[inline(always)]
+    fn closest_unbounded(
+        &self,
+        mut range: Interval,
+        test: impl Fn(u32, Interval) -> Option<RawHit>,
+    ) -> (Interval, Option<(u32, RawHit)>) {
+        let mut best = None;
+        for &i in &self.hierarchy.unbounded {
+            if let Some(hit) = test(i, range) {
+                range.max = hit.t;
+                best = Some((i, hit));
+            }
+        }
+        (range, best)
     }
 
     /// The closest hit of `test(object, ray, range)` over the always-tested objects and the BVH,
@@ -284,17 +297,11 @@ impl Scene {
     #[inline(always)]
     fn closest_unscaled(
         &self,
-        mut range: Interval,
+        range: Interval,
         test: impl Fn(u32, Interval) -> Option<RawHit>,
         ray: &Ray,
     ) -> Option<(u32, RawHit)> {
-        let mut best = None;
-        for &i in &self.hierarchy.unbounded {
-            if let Some(hit) = test(i, range) {
-                range.max = hit.t;
-                best = Some((i, hit));
-            }
-        }
+        let (range, best) = self.closest_unbounded(range, &test);
         // a scene of one bounded object has no hierarchy: no call
         if self.hierarchy.bvh.is_empty() {
             return best;

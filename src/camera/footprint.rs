@@ -18,8 +18,10 @@
 //! the rounding of the projection itself ([`TIGHT_WIDENING`] for the pixel bins of a mesh's
 //! leaves, boxes only a few pixels wide).
 //!
-//! Other models (panoramas, fisheyes, distortion) and boxes reaching behind a pinhole's eye
-//! plane get no rectangle: every pixel is traced.
+//! Other models (panoramas, fisheyes, distortion) get no rectangle: every pixel is traced. Nor
+//! does a box reaching behind a pinhole's eye plane, except through
+//! [`BoxProjector::footprint_clipped`] (the pixel bins of a scene of several objects), which
+//! cuts it at a depth in front of which nothing is seen in the image.
 
 use super::{Camera, Model};
 use glam::DVec3;
@@ -196,27 +198,23 @@ impl BoxProjector<'_> {
     /// widened by `widening` pixels on every side.
     #[must_use]
     pub fn footprint(&self, bounds: &Aabb, widening: f64) -> Option<ImageRect> {
-        let (delta, [lx, ly, lz]) = self.local_corners(bounds)?;
-        let (mut xs, mut ys) = ([0.0; 8], [0.0; 8]);
+        let (delta, corners) = self.local_corners(bounds)?;
         match (&self.camera.model, self.pinhole) {
-            (Model::Perspective(_), Some(p)) => {
-                // strictly in front, by more than rounding could move a corner across the plane
-                if !lz.iter().all(|&z| z > delta) {
-                    return None;
-                }
-                for c in 0..8 {
-                    (xs[c], ys[c]) = p.project(lx[c], ly[c], lz[c]);
-                }
+            // strictly in front, by more than rounding could move a corner across the plane
+            (Model::Perspective(_), Some(p)) if corners[2].iter().all(|&z| z > delta) => {
+                p.corners_rect(&corners, widening)
             }
             (Model::Orthographic(m), _) => {
+                let [lx, ly, lz] = corners;
+                let (mut xs, mut ys) = ([0.0; 8], [0.0; 8]);
                 for c in 0..8 {
                     let seen = m.project(self.camera, DVec3::new(lx[c], ly[c], lz[c]));
                     (xs[c], ys[c]) = (seen.x, seen.y);
                 }
+                bounding_rect(&xs, &ys, widening)
             }
-            _ => return None,
+            _ => None,
         }
-        bounding_rect(&xs, &ys, widening)
     }
 
     /// [`BoxProjector::footprint`] of a pinhole, also for a box reaching behind the eye plane
@@ -233,9 +231,10 @@ impl BoxProjector<'_> {
         let (Model::Perspective(_), Some(p)) = (&self.camera.model, self.pinhole) else {
             return None;
         };
-        let (delta, [lx, ly, lz]) = self.local_corners(bounds)?;
+        let (delta, corners) = self.local_corners(bounds)?;
+        let [lx, ly, lz] = corners;
         if lz.iter().all(|&z| z > delta) {
-            return self.footprint(bounds, widening);
+            return p.corners_rect(&corners, widening);
         }
         let camera = self.camera;
         let enlarged = bounds.expanded(delta);
@@ -308,6 +307,16 @@ impl PinholeScales {
     fn project(&self, x: f64, y: f64, z: f64) -> (f64, f64) {
         let inverse = 1.0 / z;
         (self.cx + self.ax * (x * inverse), self.cy - self.ay * (y * inverse))
+    }
+
+    /// [`bounding_rect`] of the images of eight camera-local corners (one array per axis, as
+    /// [`BoxProjector::local_corners`] gives them), all in front of the eye.
+    fn corners_rect(&self, [lx, ly, lz]: &[[f64; 8]; 3], widening: f64) -> Option<ImageRect> {
+        let (mut xs, mut ys) = ([0.0; 8], [0.0; 8]);
+        for c in 0..8 {
+            (xs[c], ys[c]) = self.project(lx[c], ly[c], lz[c]);
+        }
+        bounding_rect(&xs, &ys, widening)
     }
 }
 
