@@ -13,13 +13,19 @@
 //! old contents, and a file dropped unfinished is deleted).
 //!
 //! The header is the one the `exr` crate infers for the whole-frame image (the same channel
-//! list, sorted by name, the same attributes); blocks are made with the crate's own
-//! `UncompressedBlock::compress_to_chunk` and written with its `Chunk::write`.
+//! list, sorted by name, the same attributes); compressed blocks are made with the crate's own
+//! `UncompressedBlock::compress_to_chunk` and written with its `Chunk::write`. Uncompressed
+//! blocks (the default) are written here, with the same bytes (`y`, byte count, samples
+//! little-endian): the samples go from the band straight into the encoded band, and that
+//! straight to the file, where the crate's path copied them three times.
 
 use crate::output::atomic::{start_writeback, AtomicFile};
 
 /// Bytes written between two requests to start writing them to disk.
 const WRITEBACK_BYTES: u64 = 16 << 20;
+
+/// The output buffer's size: bands of at least this many bytes are written without it.
+const DIRECT_WRITE_BYTES: usize = 64 << 10;
 use crate::output::exr::{flat_image, frame_channels, sort_header_attributes, ExrCompression, ExrHeader};
 use crate::render::FrameLayout;
 use crate::stream::BandSink;
@@ -45,6 +51,10 @@ pub struct ExrStream {
     width: usize,
     window_y0: u32,
     lines_per_block: usize,
+    /// The codec stores samples as they are: blocks are encoded here, without the crate.
+    uncompressed: bool,
+    /// The data window's top row: an uncompressed block's `y` is it plus the block's row.
+    layer_y: i32,
     block_count: usize,
     /// File position of the offset table.
     table_start: u64,
@@ -101,12 +111,16 @@ impl ExrStream {
             .file()
             .try_clone()
             .with_context(|| format!("opening {}", path.display()))?;
-        let mut out = BufWriter::with_capacity(1 << 20, handle);
+        // a band larger than the buffer goes straight to the file (`BufWriter::write_all`),
+        // without a copy; the header and a small render's bands are gathered
+        let mut out = BufWriter::with_capacity(DIRECT_WRITE_BYTES, handle);
         out.write_all(&head)
             .with_context(|| format!("writing {}", path.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
             lines_per_block: compression.codec().scan_lines_per_block(),
+            uncompressed: compression.codec() == Compression::Uncompressed,
+            layer_y: headers[0].own_attributes.layer_position.y(),
             headers,
             sources,
             stride: layout.channel_count(),
@@ -129,6 +143,20 @@ impl ExrStream {
     /// # Errors
     /// Not every block was written, or a file operation fails (the destination is then
     /// untouched).
+    /// Appends `rows`' samples to `out` in the file's order: per row, each channel's samples
+    /// along the row (`row[x·stride + source]` for pixel `x`), little-endian.
+    fn gather(&self, rows: &[f32], out: &mut Vec<u8>) {
+        for row in rows.chunks_exact(self.width * self.stride) {
+            for &source in &self.sources {
+                let start = out.len();
+                out.resize(start + self.width * 4, 0);
+                for (bytes, pixel) in out[start..].chunks_exact_mut(4).zip(row.chunks_exact(self.stride)) {
+                    bytes.copy_from_slice(&pixel[source].to_le_bytes());
+                }
+            }
+        }
+    }
+
     pub fn finish(self) -> Result<()> {
         let Written {
             mut file,
@@ -170,30 +198,38 @@ impl BandSink for ExrStream {
         let mut line = 0;
         while line < lines {
             let block_lines = self.lines_per_block.min(lines - line);
-            let mut data = vec![0u8; block_lines * row_len * 4];
-            let mut targets = data.chunks_exact_mut(self.width * 4);
-            for row in rows[line * row_len..(line + block_lines) * row_len].chunks_exact(row_len) {
-                for &source in &self.sources {
-                    let target = targets.next().expect("one line per channel and row");
-                    // pixel `x`'s sample of this channel is `row[x·stride + source]`
-                    for (bytes, pixel) in target.chunks_exact_mut(4).zip(row.chunks_exact(self.stride)) {
-                        bytes.copy_from_slice(&pixel[source].to_ne_bytes());
-                    }
-                }
+            let block_rows = &rows[line * row_len..(line + block_lines) * row_len];
+            let position = (first_row - self.window_y0) as usize + line;
+            if self.uncompressed {
+                // what `compress_to_chunk` and `Chunk::write` make of an uncompressed block:
+                // `y` (the data window's top plus the block's row), the byte count, then the
+                // samples as they are, little-endian; gathered straight into the band's bytes
+                let y = i32::try_from(position)
+                    .ok()
+                    .and_then(|p| p.checked_add(self.layer_y))
+                    .with_context(|| format!("{}: row {position} is past the format's limit", self.path.display()))?;
+                let bytes = i32::try_from(block_rows.len() * 4)
+                    .with_context(|| format!("{}: a line of more than 2 GiB", self.path.display()))?;
+                encoded.extend_from_slice(&y.to_le_bytes());
+                encoded.extend_from_slice(&bytes.to_le_bytes());
+                self.gather(block_rows, &mut encoded);
+            } else {
+                let mut data = Vec::with_capacity(block_rows.len() * 4);
+                self.gather(block_rows, &mut data);
+                let block = UncompressedBlock {
+                    index: BlockIndex {
+                        layer: 0,
+                        pixel_position: Vec2(0, position),
+                        pixel_size: Vec2(self.width, block_lines),
+                        level: Vec2(0, 0),
+                    },
+                    data,
+                };
+                block
+                    .compress_to_chunk(&self.headers)
+                    .and_then(|chunk| chunk.write(&mut encoded, 1))
+                    .with_context(|| format!("encoding {}", self.path.display()))?;
             }
-            let block = UncompressedBlock {
-                index: BlockIndex {
-                    layer: 0,
-                    pixel_position: Vec2(0, (first_row - self.window_y0) as usize + line),
-                    pixel_size: Vec2(self.width, block_lines),
-                    level: Vec2(0, 0),
-                },
-                data,
-            };
-            block
-                .compress_to_chunk(&self.headers)
-                .and_then(|chunk| chunk.write(&mut encoded, 1))
-                .with_context(|| format!("encoding {}", self.path.display()))?;
             line += block_lines;
         }
         Ok(encoded)
