@@ -17,6 +17,7 @@ import zeroset.dask as zdask  # noqa: E402
 def client():
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
     c = distributed.Client(cluster)
+    c.cluster_for_tests = cluster
     yield c
     c.close()
     cluster.close()
@@ -138,6 +139,48 @@ def test_fetch_equals_compute_block_by_block(client, repo):
     for k in ref:
         assert got[k].dtype == ref[k].dtype, k
         np.testing.assert_array_equal(got[k], ref[k], err_msg=k)
+
+
+def test_fetch_gathers_from_the_workers_not_through_the_scheduler(client, repo):
+    """By default each tile comes straight from the worker that rendered it: the scheduler (here
+    in this process) is never asked to gather, which would make every byte cross twice.
+    ``direct=False`` goes through it, with the same arrays."""
+    scheduler = client.cluster_for_tests.scheduler
+    relayed = []
+    gather = scheduler.handlers["gather"]
+
+    async def counting(*args, **kwargs):
+        relayed.append(kwargs.get("keys"))
+        return await gather(*args, **kwargs)
+
+    scheduler.handlers["gather"] = counting
+    try:
+        path = str(repo / "scenes" / "default.ron")
+        tiled = zdask.render(path, chunks=(40, 64), aovs=["Depth", "Normal"], width=150, height=100)
+        straight = zdask.fetch(tiled, client)
+        assert relayed == []
+        relayed_arrays = zdask.fetch(tiled, client, direct=False)
+        assert len(relayed) == 3 * 3  # one gather per tile
+    finally:
+        scheduler.handlers["gather"] = gather
+    ref = zeroset.Scene.load(path).render(aovs=["Depth", "Normal"], width=150, height=100)
+    for name in ref:
+        np.testing.assert_array_equal(straight[name], ref[name], err_msg=name)
+        np.testing.assert_array_equal(relayed_arrays[name], ref[name], err_msg=name)
+
+
+def test_fetch_raises_a_failed_tile_s_error(client):
+    """A block whose task fails makes fetch raise that error (not hang, not return a partial
+    result)."""
+
+    def broken(block):
+        if block.sum() > 10:
+            raise ValueError("tile went wrong")
+        return block
+
+    lazy = da.ones((40, 40), chunks=(10, 10)).map_blocks(broken)
+    with pytest.raises(ValueError, match="tile went wrong"):
+        zdask.fetch({"x": lazy}, client)
 
 
 def test_fetch_without_a_cluster_uses_the_local_scheduler(repo):

@@ -219,7 +219,37 @@ def _windows(a: da.Array) -> Iterable[Tuple[Tuple[int, ...], Tuple[slice, ...]]]
         yield index, tuple(slice(starts[k][i], starts[k][i] + a.chunks[k][i]) for k, i in enumerate(index))
 
 
-def fetch(arrays: Dict[str, da.Array], client: Any = None) -> Dict[str, np.ndarray]:
+def _collect(client: Any, futures: list, direct: Optional[bool], place: Any) -> None:
+    """``place(future, result)`` for each of ``futures`` as it finishes, then the future released.
+
+    Each result is gathered from the worker that holds it where ``direct`` (``None``: the
+    client's own ``direct_to_workers`` if set, else ``True``); ``distributed`` by default gathers
+    through the scheduler, and the bytes then cross the network twice. Two threads gather and
+    place, so that one result's copy into place overlaps the next one's transfer. The first
+    error (a failed task, a lost worker) is raised once it is seen."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from distributed import as_completed
+
+    if direct is None:
+        direct = True if client.direct_to_workers is None else client.direct_to_workers
+
+    def take(future: Any) -> None:
+        place(future, client.gather(future, direct=direct))
+        future.release()
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        running = []
+        for future in as_completed(futures):
+            running.append(pool.submit(take, future))
+            for r in running:
+                if r.done():
+                    r.result()
+        for r in running:
+            r.result()
+
+
+def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool] = None) -> Dict[str, np.ndarray]:
     """Computes dask arrays into numpy arrays in this process, block by block as they finish.
 
     ``.compute()`` on a ``distributed`` cluster joins the blocks with a ``finalize`` task on a
@@ -231,7 +261,10 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None) -> Dict[str, np.ndarr
     result, every AOV of it, comes in one piece, and the per-AOV tasks never run (16 futures
     instead of 64 for a 4×4-tile frame of 4 AOVs). The values are those of ``.compute()``.
     ``client``: a ``distributed.Client`` (default: the current one); ``False``, or no client at
-    all, computes the blocks with the local scheduler.
+    all, computes the blocks with the local scheduler. ``direct``: gather each block straight
+    from the worker that made it (the default, unless the client says otherwise with
+    ``direct_to_workers``); ``False`` where this process cannot reach the workers (only the
+    scheduler), at the price of every byte crossing the network twice.
     """
     out = {name: np.empty(a.shape, dtype=a.dtype) for name, a in arrays.items()}
     if client is None:
@@ -243,17 +276,17 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None) -> Dict[str, np.ndarr
             client = False
     grouped = None if client is False else _by_render(arrays)
     if grouped is not None:
-        from distributed import as_completed
-
         # the arrays of `render` / `render_views`: fetch each render's whole result (every AOV
         # of a tile) once, rather than one future and one task per tile and AOV
         graph, renders = grouped
         futures = client.compute([Delayed(key, graph, layer=key[0]) for key in renders])
         where = {f.key: renders[key] for f, key in zip(futures, renders)}
-        for future, frame in as_completed(futures, with_results=True):
+
+        def place_render(future: Any, frame: Any) -> None:
             for name, take, aov, window in where[future.key]:
                 out[name][window] = take(frame, aov)
-            future.release()
+
+        _collect(client, futures, direct, place_render)
         return out
     blocks = []
     places = []
@@ -266,14 +299,14 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None) -> Dict[str, np.ndarr
         for (name, window), block in zip(places, dask.compute(*blocks)):
             out[name][window] = block
         return out
-    from distributed import as_completed
-
     futures = client.compute(blocks)
     where = {f.key: place for f, place in zip(futures, places)}
-    for future, block in as_completed(futures, with_results=True):
+
+    def place_block(future: Any, block: Any) -> None:
         name, window = where[future.key]
         out[name][window] = block
-        future.release()
+
+    _collect(client, futures, direct, place_block)
     return out
 
 
