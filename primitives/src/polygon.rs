@@ -31,7 +31,7 @@ use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::math::dot_minus;
 use crate::math::orthonormal_basis;
-use crate::math::polygon2d::{orient2d, point_in_convex_polygon, point_in_polygon};
+use crate::math::polygon2d::{orient2d, point_in_convex_polygon, point_in_polygon, ConvexRing};
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
@@ -52,6 +52,8 @@ pub struct Polygon {
     /// Plane coordinates: `rings[0]` the outer ring (counter-clockwise), then the holes.
     rings: Vec<Vec<DVec2>>,
     convex: bool,
+    /// The outer ring prepared for the same-sign test, where `convex`.
+    convex_ring: Option<ConvexRing>,
     domain: UvDomain,
     bounds: Aabb,
     /// `(k, s)` where the normal is `s·e_k` (`s = ±1`, a plane across a coordinate axis, a
@@ -185,6 +187,7 @@ impl Polygon {
             normal,
             e1,
             e2,
+            convex_ring: if convex { ConvexRing::new(&rings[0]) } else { None },
             rings,
             convex,
             domain: UvDomain {
@@ -218,7 +221,9 @@ impl Polygon {
     #[inline]
     #[must_use]
     pub fn contains_2d(&self, q: DVec2) -> bool {
-        if self.convex {
+        if let Some(inside) = self.convex_ring.as_ref().and_then(|ring| ring.contains(q)) {
+            inside
+        } else if self.convex {
             point_in_convex_polygon(q, &self.rings[0])
         } else {
             point_in_polygon(q, &self.rings)

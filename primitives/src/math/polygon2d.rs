@@ -4,6 +4,7 @@
 //! |----------------------------|------------------------------------------------------|---------------|
 //! | [`point_in_convex_polygon`] | one convex ring, counter-clockwise                   | same sign     |
 //! | [`point_in_polygon`]        | any rings (outer ring and holes, either orientation) | even-odd      |
+//! | [`ConvexRing::contains`]    | as [`point_in_convex_polygon`], prepared once        | same sign     |
 //!
 //! # Exactness
 //! Every side test is the sign of the orientation determinant [`orient2d`], computed **exactly**
@@ -71,6 +72,113 @@ pub fn point_in_convex_polygon(p: DVec2, ccw: &[DVec2]) -> bool {
         prev = cur;
     }
     true
+}
+
+/// One edge's side test in [`ConvexRing`]: which points are on the polygon's side of the edge
+/// (strictly left of it, or on it and kept by the `p + (ε, ε²)` rule).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum EdgeSide {
+    /// A rightward horizontal edge at height `y`: `p.y ≥ y`.
+    AtOrAbove(f64),
+    /// A leftward horizontal edge at height `y`: `p.y < y`.
+    Below(f64),
+    /// An upward vertical edge at `x`: `p.x < x`.
+    LeftOf(f64),
+    /// A downward vertical edge at `x`: `p.x ≥ x`.
+    AtOrRightOf(f64),
+    /// Any other edge, `prev → cur`: the exact determinant.
+    General(DVec2, DVec2),
+}
+
+/// A convex counter-clockwise ring prepared for [`point_in_convex_polygon`]'s test: the same
+/// answer for every finite point, with an edge parallel to an axis (a rectangle's every edge, a
+/// ground's) tested by one comparison.
+///
+/// For an edge `a → b` with `b.y = a.y` the orientation determinant is exactly
+/// `(b.x − a.x)·(p.y − a.y)`: its sign is `sign(b.x − a.x)` times the comparison of `p.y` with
+/// `a.y`, and where `p.y = a.y` the perturbation rule keeps `p` when `b.x > a.x`. Likewise
+/// `−(b.y − a.y)·(p.x − a.x)` for `b.x = a.x`, kept on the line when `b.y < a.y`. Zero-length
+/// edges constrain nothing and are dropped.
+///
+/// The determinant is exact as long as nothing overflows or underflows, so the prepared test
+/// is made only for rings whose coordinates are within [`ConvexRing::LIMIT`] in magnitude and
+/// asked only of points within it ([`ConvexRing::contains`] answers `None` for others, NaN
+/// included, which then take [`point_in_convex_polygon`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConvexRing {
+    edges: Vec<EdgeSide>,
+    /// Fewer than three vertices: contains nothing.
+    empty: bool,
+}
+
+impl ConvexRing {
+    /// The largest coordinate magnitude of the prepared test: differences stay below `2·10¹⁰⁰` and
+    /// products below `4·10²⁰⁰`, far from overflow.
+    pub const LIMIT: f64 = 1e100;
+
+    /// The edge tests of `ccw` (the precondition of [`point_in_convex_polygon`]); `None` where a
+    /// coordinate exceeds [`ConvexRing::LIMIT`] in magnitude (or is not finite).
+    #[must_use]
+    pub fn new(ccw: &[DVec2]) -> Option<Self> {
+        if !ccw
+            .iter()
+            .all(|v| v.is_finite() && v.abs().max_element() <= Self::LIMIT)
+        {
+            return None;
+        }
+        let mut edges = Vec::with_capacity(ccw.len());
+        for (i, &cur) in ccw.iter().enumerate() {
+            let prev = ccw[(i + ccw.len() - 1) % ccw.len()];
+            let d = cur - prev;
+            let side = if d == DVec2::ZERO {
+                continue;
+            } else if d.y == 0.0 {
+                if d.x > 0.0 {
+                    EdgeSide::AtOrAbove(prev.y)
+                } else {
+                    EdgeSide::Below(prev.y)
+                }
+            } else if d.x == 0.0 {
+                if d.y > 0.0 {
+                    EdgeSide::LeftOf(prev.x)
+                } else {
+                    EdgeSide::AtOrRightOf(prev.x)
+                }
+            } else {
+                EdgeSide::General(prev, cur)
+            };
+            edges.push(side);
+        }
+        Some(Self {
+            edges,
+            empty: ccw.len() < 3,
+        })
+    }
+
+    /// [`point_in_convex_polygon`]`(p, ring)`, or `None` where `p` lies beyond
+    /// [`ConvexRing::LIMIT`] (or is NaN).
+    #[inline]
+    #[must_use]
+    pub fn contains(&self, p: DVec2) -> Option<bool> {
+        // (`max_element` passes NaN by: `is_finite` first)
+        if !(p.is_finite() && p.abs().max_element() <= Self::LIMIT) {
+            return None;
+        }
+        Some(
+            !self.empty
+                && self.edges.iter().all(|edge| match *edge {
+                    EdgeSide::AtOrAbove(y) => p.y >= y,
+                    EdgeSide::Below(y) => p.y < y,
+                    EdgeSide::LeftOf(x) => p.x < x,
+                    EdgeSide::AtOrRightOf(x) => p.x >= x,
+                    EdgeSide::General(prev, cur) => {
+                        let side = orient2d(prev, cur, p);
+                        // on the line (`side` = 0): `d.y ≠ 0` here, so the rule drops `p` when `d.y > 0`
+                        !(side < 0.0 || (side == 0.0 && cur.y > prev.y))
+                    }
+                }),
+        )
+    }
 }
 
 /// Whether `p` is inside the region bounded by `rings` by the even-odd crossing rule, with
@@ -394,6 +502,77 @@ mod tests {
             }
         }
         assert_eq!(checked, 15_000);
+    }
+
+    /// The prepared ring answers as [`point_in_convex_polygon`] everywhere: rectangles and
+    /// other polygons with axis-parallel edges (either orientation of each), with collinear and
+    /// repeated vertices, general convex ones; points on vertices, on edges, on the edges' lines
+    /// beyond them and on a grid, and points off by one ulp of a vertex coordinate.
+    #[test]
+    fn prepared_convex_ring_equals_the_direct_test() {
+        let mut rng = StdRng::seed_from_u64(77);
+        let polys = [
+            vec![(-4, -3), (5, -3), (5, 2), (-4, 2)],                  // rectangle
+            vec![(-4, -3), (0, -3), (5, -3), (5, 2), (5, 2), (-4, 2)], // collinear, repeated
+            vec![(-6, -2), (6, -2), (3, 5), (-3, 5)],                  // trapezoid
+            vec![(0, -6), (6, 0), (0, 6), (-6, 0)],                    // diamond: no axis edge
+            vec![(-5, -5), (5, -5), (5, 5)],                           // right triangle
+            vec![(-6, -6), (0, -9), (6, -6), (9, 0), (6, 6), (0, 9), (-6, 6), (-9, 0)],
+        ];
+        let mut inside = 0;
+        let mut checked = 0;
+        for (n, poly) in polys.iter().enumerate() {
+            let mut f = ring(poly);
+            // the same polygon scaled by a non-integer, so the coordinates are not small integers
+            if n % 2 == 1 {
+                f.iter_mut().for_each(|v| *v *= 0.37);
+            }
+            let prepared = ConvexRing::new(&f).expect("small coordinates");
+            let mut points: Vec<DVec2> = f.clone();
+            for i in 0..f.len() {
+                let (a, b) = (f[i], f[(i + 1) % f.len()]);
+                for s in [-0.5, 0.0, 0.25, 0.5, 1.0, 1.5] {
+                    points.push(a + (b - a) * s);
+                }
+                for v in [a.x, a.y] {
+                    let (up, down) = (v.next_up(), v.next_down());
+                    points.extend([
+                        DVec2::new(up, a.y),
+                        DVec2::new(down, a.y),
+                        DVec2::new(a.x, up),
+                        DVec2::new(a.x, down),
+                    ]);
+                }
+            }
+            for _ in 0..3000 {
+                points.push(DVec2::new(rng.random_range(-20..=20) as f64, rng.random_range(-20..=20) as f64) * 0.5);
+            }
+            for p in points {
+                let expected = point_in_convex_polygon(p, &f);
+                assert_eq!(prepared.contains(p), Some(expected), "{poly:?} at {p:?}");
+                inside += usize::from(expected);
+                checked += 1;
+            }
+        }
+        assert!(
+            inside > checked / 20 && inside < checked - checked / 20,
+            "{inside} of {checked}"
+        );
+        let line = [DVec2::ZERO, DVec2::ONE];
+        assert_eq!(
+            ConvexRing::new(&line).and_then(|r| r.contains(DVec2::ZERO)),
+            Some(false)
+        );
+        let square = ring(&[(0, 0), (1, 0), (1, 1), (0, 1)]);
+        let prepared = ConvexRing::new(&square).expect("small coordinates");
+        for far in [
+            DVec2::new(f64::NAN, 0.5),
+            DVec2::new(0.5, f64::INFINITY),
+            DVec2::new(2e100, 0.5),
+        ] {
+            assert_eq!(prepared.contains(far), None, "{far:?}");
+        }
+        assert_eq!(ConvexRing::new(&[DVec2::ZERO, DVec2::X * 1e101, DVec2::ONE]), None);
     }
 
     #[test]
