@@ -32,7 +32,7 @@
 
 use crate::aov::Aov;
 use crate::camera::footprint::Coverage;
-use crate::camera::{Camera, NoRay};
+use crate::camera::{Camera, NoRay, PixelRays};
 use crate::piece_bins::{BandBins, PieceBins, RowBins};
 use crate::sampling::{pixel_samples, PixelSample};
 use crate::scene::{Light, Scene};
@@ -397,11 +397,15 @@ impl<'a> Tracer<'a> {
             rows = (out.len() / self.row_len.max(1)) as u64;
         } else {
             // pairs of rows, traced in packets of 4 × 2 pixels
+            let pixel_rays = self
+                .context
+                .camera
+                .pixel_rays(self.x0, self.row_len / self.context.channels.max(1));
             for (k, pair) in out.chunks_mut(2 * self.row_len.max(1)).enumerate() {
                 render_rows(
                     self.scene,
                     &self.context,
-                    self.x0,
+                    &pixel_rays,
                     y0 + 2 * k as u32,
                     self.row_len,
                     pair,
@@ -483,7 +487,8 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
 /// together in packets ([`Scene::intersect_packet`], the same hits as one by one) of 4 × 2
 /// pixels (8 × 1 for a single row), except when the `Uncertain` AOV needs each pixel's
 /// root-finder events on their own.
-fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: usize, out: &mut [f32]) {
+fn render_rows(scene: &Scene, context: &RowContext, pixel_rays: &PixelRays, y: u32, row_len: usize, out: &mut [f32]) {
+    let x0 = pixel_rays.x0();
     const N: usize = zeroset_primitives::PACKET;
     let channels = context.channels;
     let height = out.len() / row_len.max(1);
@@ -498,6 +503,7 @@ fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: us
     }
     let camera = context.camera;
     let group = N / height;
+    let row_rays = [pixel_rays.row(y), pixel_rays.row(y + 1)];
     for first in (0..width).step_by(group) {
         let columns = group.min(width - first);
         // the pixels with a ray, packed; `lane[row][column]` is where each pixel's ray is
@@ -511,7 +517,7 @@ fn render_rows(scene: &Scene, context: &RowContext, x0: u32, y: u32, row_len: us
                 if context.seen.as_ref().is_some_and(|seen| !seen.holds_pixel(i, j)) {
                     continue;
                 }
-                match camera.pixel_ray(i, j) {
+                match row_rays[row].ray(first + column) {
                     Ok(ray) => {
                         rays[n] = ray;
                         *slot = n;
@@ -558,8 +564,9 @@ fn render_rows_binned(
     let (mut band, mut row_bins) = (BandBins::default(), RowBins::default());
     bins.band(y, rows, x0, width, &mut band);
     let every_pixel = bins.tests_every_pixel();
+    let pixel_rays = camera.pixel_rays(x0, width);
     for (k, row) in out.chunks_exact_mut(row_len.max(1)).enumerate() {
-        let j = y + k as u32;
+        let row_rays = pixel_rays.row(y + k as u32);
         band.row(k, width, &mut row_bins);
         for (column, pixel) in row.chunks_exact_mut(channels).enumerate() {
             let candidates = row_bins.get(column);
@@ -568,7 +575,7 @@ fn render_rows_binned(
                 write_miss(pixel, context);
                 continue;
             }
-            match camera.pixel_ray(x0 + column as u32, j) {
+            match row_rays.ray(column) {
                 Ok(ray) => {
                     let hit = bins.intersect(scene, &ray, Interval::POSITIVE, candidates);
                     write_pixel(pixel, scene, context, &ray, hit);

@@ -347,6 +347,22 @@ impl Camera {
         self.ray_through(f64::from(i) + 0.5, f64::from(j) + 0.5)
     }
 
+    /// The pixel rays of columns `x0 .. x0 + width`, row by row ([`PixelRays`]).
+    #[must_use]
+    pub fn pixel_rays(&self, x0: u32, width: usize) -> PixelRays<'_> {
+        let screen_x = match &self.model {
+            Model::Perspective(p) => (0..width)
+                .map(|c| p.screen_x(self, f64::from(x0 + c as u32) + 0.5))
+                .collect(),
+            _ => Vec::new(),
+        };
+        PixelRays {
+            camera: self,
+            x0,
+            screen_x,
+        }
+    }
+
     /// `a·right + b·up + c·forward` for camera-local `(a, b, c)`.
     #[inline]
     #[must_use]
@@ -454,6 +470,60 @@ impl Camera {
     }
 }
 
+/// The rays through the pixel centres of a run of columns ([`Camera::pixel_rays`]), the same as
+/// [`Camera::pixel_ray`]'s bit for bit: for the perspective model, what a ray depends on of its
+/// column (its image-plane coordinate, two divisions) is worked out once per column and what it
+/// depends on of its row once per row ([`PixelRays::row`]), leaving the normalisation per pixel.
+pub struct PixelRays<'a> {
+    camera: &'a Camera,
+    x0: u32,
+    /// [`Perspective::screen_x`] of each column (empty for the other models).
+    screen_x: Vec<f64>,
+}
+
+impl PixelRays<'_> {
+    /// The first column.
+    #[inline]
+    #[must_use]
+    pub fn x0(&self) -> u32 {
+        self.x0
+    }
+
+    /// The rays of row `j`.
+    #[inline]
+    #[must_use]
+    pub fn row(&self, j: u32) -> RowRays<'_> {
+        let screen_y = match &self.camera.model {
+            Model::Perspective(p) => p.screen_y(self.camera, f64::from(j) + 0.5),
+            _ => 0.0,
+        };
+        RowRays {
+            rays: self,
+            j,
+            screen_y,
+        }
+    }
+}
+
+/// The rays of one row of [`PixelRays`].
+pub struct RowRays<'a> {
+    rays: &'a PixelRays<'a>,
+    j: u32,
+    /// [`Perspective::screen_y`] of the row (perspective model only).
+    screen_y: f64,
+}
+
+impl RowRays<'_> {
+    /// [`Camera::pixel_ray`] of the pixel in column `x0 + column` of this row.
+    #[inline]
+    pub fn ray(&self, column: usize) -> Result<Ray, NoRay> {
+        match self.rays.screen_x.get(column) {
+            Some(&sx) => Ok(Perspective::ray_at(self.rays.camera, sx, self.screen_y)),
+            None => self.rays.camera.pixel_ray(self.rays.x0 + column as u32, self.j),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -480,6 +550,38 @@ mod tests {
         assert!((r.dir - expected).length() < 1e-15, "{r:?}");
         let even = Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 60.0, 3, 3).unwrap();
         assert!((even.pixel_ray(1, 1).unwrap().dir - DVec3::Z).length() < 1e-15);
+    }
+
+    /// A run of columns' rays, row by row, are `pixel_ray`'s bit for bit: the perspective
+    /// model (with a principal offset, whose screen coordinates are worked out once per column
+    /// and row) and another model (traced by `pixel_ray` itself), from column 0 and from a crop's
+    /// first column.
+    #[test]
+    fn pixel_rays_equal_pixel_ray() {
+        let mut offset = camera();
+        offset.model = Model::Perspective(Perspective {
+            principal_offset: DVec2::new(13.25, -7.5),
+        });
+        let mut ortho = camera();
+        ortho.model = Model::Orthographic(Orthographic { width: 6.0 });
+        for (name, c) in [("pinhole", camera()), ("offset", offset), ("orthographic", ortho)] {
+            for (x0, width) in [(0u32, 1280usize), (517, 61)] {
+                let rays = c.pixel_rays(x0, width);
+                for j in [0u32, 1, 359, 719] {
+                    let row = rays.row(j);
+                    for column in 0..width {
+                        let expected = c.pixel_ray(x0 + column as u32, j).unwrap();
+                        let got = row.ray(column).unwrap();
+                        assert_eq!(
+                            got.origin.to_array(),
+                            expected.origin.to_array(),
+                            "{name} ({column}, {j})"
+                        );
+                        assert_eq!(got.dir.to_array(), expected.dir.to_array(), "{name} ({column}, {j})");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

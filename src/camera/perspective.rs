@@ -31,8 +31,29 @@ impl Perspective {
     #[inline]
     #[must_use]
     pub fn ray(&self, camera: &Camera, x: f64, y: f64) -> Ray {
-        let sx = ((x - self.principal_offset.x) / f64::from(camera.width) * 2.0 - 1.0) * camera.tan_half_hfov();
-        let sy = (1.0 - (y - self.principal_offset.y) / f64::from(camera.height) * 2.0) * camera.tan_half_vfov;
+        Self::ray_at(camera, self.screen_x(camera, x), self.screen_y(camera, y))
+    }
+
+    /// `sx`, the image plane's coordinate at distance 1 along `right`, of image position `x`:
+    /// what a ray depends on of its column.
+    #[inline]
+    #[must_use]
+    pub fn screen_x(&self, camera: &Camera, x: f64) -> f64 {
+        ((x - self.principal_offset.x) / f64::from(camera.width) * 2.0 - 1.0) * camera.tan_half_hfov()
+    }
+
+    /// `sy`, the image plane's coordinate at distance 1 along `up`, of image position `y`.
+    #[inline]
+    #[must_use]
+    pub fn screen_y(&self, camera: &Camera, y: f64) -> f64 {
+        (1.0 - (y - self.principal_offset.y) / f64::from(camera.height) * 2.0) * camera.tan_half_vfov
+    }
+
+    /// The ray through the image plane's point `(sx, sy)` ([`Perspective::screen_x`],
+    /// [`Perspective::screen_y`]): `forward + sx·right + sy·up`, normalised.
+    #[inline]
+    #[must_use]
+    pub fn ray_at(camera: &Camera, sx: f64, sy: f64) -> Ray {
         Ray::new(
             camera.eye,
             (camera.forward + sx * camera.right + sy * camera.up).normalize(),
