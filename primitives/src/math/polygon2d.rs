@@ -74,31 +74,17 @@ pub fn point_in_convex_polygon(p: DVec2, ccw: &[DVec2]) -> bool {
     true
 }
 
-/// One edge's side test in [`ConvexRing`]: which points are on the polygon's side of the edge
-/// (strictly left of it, or on it and kept by the `p + (ε, ε²)` rule).
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum EdgeSide {
-    /// A rightward horizontal edge at height `y`: `p.y ≥ y`.
-    AtOrAbove(f64),
-    /// A leftward horizontal edge at height `y`: `p.y < y`.
-    Below(f64),
-    /// An upward vertical edge at `x`: `p.x < x`.
-    LeftOf(f64),
-    /// A downward vertical edge at `x`: `p.x ≥ x`.
-    AtOrRightOf(f64),
-    /// Any other edge, `prev → cur`: the exact determinant.
-    General(DVec2, DVec2),
-}
-
 /// A convex counter-clockwise ring prepared for [`point_in_convex_polygon`]'s test: the same
-/// answer for every finite point, with an edge parallel to an axis (a rectangle's every edge, a
-/// ground's) tested by one comparison.
+/// answer for every point, with the edges parallel to an axis (a rectangle's every edge, a
+/// ground's) reduced to four comparisons.
 ///
 /// For an edge `a → b` with `b.y = a.y` the orientation determinant is exactly
 /// `(b.x − a.x)·(p.y − a.y)`: its sign is `sign(b.x − a.x)` times the comparison of `p.y` with
-/// `a.y`, and where `p.y = a.y` the perturbation rule keeps `p` when `b.x > a.x`. Likewise
-/// `−(b.y − a.y)·(p.x − a.x)` for `b.x = a.x`, kept on the line when `b.y < a.y`. Zero-length
-/// edges constrain nothing and are dropped.
+/// `a.y`, and where `p.y = a.y` the perturbation rule keeps `p` when `b.x > a.x`. So a rightward
+/// horizontal edge keeps `p.y ≥ a.y` and a leftward one `p.y < a.y`; likewise an upward
+/// vertical edge keeps `p.x < a.x` and a downward one `p.x ≥ a.x`. Edges on parallel lines
+/// combine into one bound each way (the largest lower bound, the smallest upper one). Other
+/// edges keep the exact determinant; zero-length edges constrain nothing and are dropped.
 ///
 /// The determinant is exact as long as nothing overflows or underflows, so the prepared test
 /// is made only for rings whose coordinates are within [`ConvexRing::LIMIT`] in magnitude and
@@ -106,9 +92,14 @@ enum EdgeSide {
 /// included, which then take [`point_in_convex_polygon`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ConvexRing {
-    edges: Vec<EdgeSide>,
-    /// Fewer than three vertices: contains nothing.
-    empty: bool,
+    /// Kept: `p.x ≥ x_at_least`, `p.x < x_below`, `p.y ≥ y_at_least`, `p.y < y_below` (±∞ where
+    /// no edge bounds that side); no bound holds at all for a ring of fewer than three vertices.
+    x_at_least: f64,
+    x_below: f64,
+    y_at_least: f64,
+    y_below: f64,
+    /// The other edges, `(prev, cur)`.
+    general: Vec<(DVec2, DVec2)>,
 }
 
 impl ConvexRing {
@@ -126,33 +117,40 @@ impl ConvexRing {
         {
             return None;
         }
-        let mut edges = Vec::with_capacity(ccw.len());
+        let mut ring = Self {
+            x_at_least: f64::NEG_INFINITY,
+            x_below: f64::INFINITY,
+            y_at_least: f64::NEG_INFINITY,
+            y_below: f64::INFINITY,
+            general: Vec::new(),
+        };
+        if ccw.len() < 3 {
+            // contains nothing: an empty range
+            ring.x_below = f64::NEG_INFINITY;
+            return Some(ring);
+        }
         for (i, &cur) in ccw.iter().enumerate() {
             let prev = ccw[(i + ccw.len() - 1) % ccw.len()];
             let d = cur - prev;
-            let side = if d == DVec2::ZERO {
+            if d == DVec2::ZERO {
                 continue;
             } else if d.y == 0.0 {
                 if d.x > 0.0 {
-                    EdgeSide::AtOrAbove(prev.y)
+                    ring.y_at_least = ring.y_at_least.max(prev.y);
                 } else {
-                    EdgeSide::Below(prev.y)
+                    ring.y_below = ring.y_below.min(prev.y);
                 }
             } else if d.x == 0.0 {
                 if d.y > 0.0 {
-                    EdgeSide::LeftOf(prev.x)
+                    ring.x_below = ring.x_below.min(prev.x);
                 } else {
-                    EdgeSide::AtOrRightOf(prev.x)
+                    ring.x_at_least = ring.x_at_least.max(prev.x);
                 }
             } else {
-                EdgeSide::General(prev, cur)
-            };
-            edges.push(side);
+                ring.general.push((prev, cur));
+            }
         }
-        Some(Self {
-            edges,
-            empty: ccw.len() < 3,
-        })
+        Some(ring)
     }
 
     /// [`point_in_convex_polygon`]`(p, ring)`, or `None` where `p` lies beyond
@@ -160,22 +158,17 @@ impl ConvexRing {
     #[inline]
     #[must_use]
     pub fn contains(&self, p: DVec2) -> Option<bool> {
-        // (`max_element` passes NaN by: `is_finite` first)
-        if !(p.is_finite() && p.abs().max_element() <= Self::LIMIT) {
+        // false for NaN
+        if !(p.x.abs() <= Self::LIMIT && p.y.abs() <= Self::LIMIT) {
             return None;
         }
+        let bounded = (p.x >= self.x_at_least) & (p.x < self.x_below) & (p.y >= self.y_at_least) & (p.y < self.y_below);
         Some(
-            !self.empty
-                && self.edges.iter().all(|edge| match *edge {
-                    EdgeSide::AtOrAbove(y) => p.y >= y,
-                    EdgeSide::Below(y) => p.y < y,
-                    EdgeSide::LeftOf(x) => p.x < x,
-                    EdgeSide::AtOrRightOf(x) => p.x >= x,
-                    EdgeSide::General(prev, cur) => {
-                        let side = orient2d(prev, cur, p);
-                        // on the line (`side` = 0): `d.y ≠ 0` here, so the rule drops `p` when `d.y > 0`
-                        !(side < 0.0 || (side == 0.0 && cur.y > prev.y))
-                    }
+            bounded
+                && self.general.iter().all(|&(prev, cur)| {
+                    let side = orient2d(prev, cur, p);
+                    // on the line (`side` = 0): `d.y ≠ 0` here, so the rule drops `p` when `d.y > 0`
+                    !(side < 0.0 || (side == 0.0 && cur.y > prev.y))
                 }),
         )
     }
