@@ -138,11 +138,6 @@ impl ExrStream {
         })
     }
 
-    /// Fills in the offset table, sorts the header's attributes and renames the file into place.
-    ///
-    /// # Errors
-    /// Not every block was written, or a file operation fails (the destination is then
-    /// untouched).
     /// Appends `rows`' samples to `out` in the file's order: per row, each channel's samples
     /// along the row (`row[x·stride + source]` for pixel `x`), little-endian.
     fn gather(&self, rows: &[f32], out: &mut Vec<u8>) {
@@ -157,6 +152,11 @@ impl ExrStream {
         }
     }
 
+    /// Fills in the offset table, sorts the header's attributes and renames the file into place.
+    ///
+    /// # Errors
+    /// Not every block was written, or a file operation fails (the destination is then
+    /// untouched).
     pub fn finish(self) -> Result<()> {
         let Written {
             mut file,
