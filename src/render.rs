@@ -456,19 +456,8 @@ pub fn uses_piece_bins(scene: &Scene, camera: &Camera) -> bool {
 #[must_use]
 pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> Frame {
     let layout = FrameLayout::new(camera, options);
-    let row_len = layout.row_len();
-    let mut samples = vec![0.0f32; row_len * layout.window.height() as usize];
-    let tracer = Tracer::new(scene, camera, options, &layout);
-    // sixteen rows a task: the bucket of pixel bins, eight packets' pairs of rows
-    const ROWS_PER_TASK: usize = 16;
-    samples
-        .par_chunks_mut(ROWS_PER_TASK * row_len.max(1))
-        .enumerate()
-        .for_each(|(task, out)| {
-            tracer.rows(layout.window.y0 + (ROWS_PER_TASK * task) as u32, out);
-        });
-    let elapsed = tracer.elapsed();
-    let stats = tracer.finish(elapsed);
+    let mut samples = vec![0.0f32; layout.row_len() * layout.window.height() as usize];
+    let stats = render_view_into(scene, camera, options, &mut samples);
     Frame {
         width: layout.width,
         height: layout.height,
@@ -480,6 +469,33 @@ pub fn render_view(scene: &Scene, camera: &Camera, options: &RenderOptions) -> F
         outside_field: stats.outside_field,
         not_converged: stats.not_converged,
     }
+}
+
+/// [`render_view`]'s samples written into `samples` (of [`FrameLayout::row_len`] times the
+/// window's height, interleaved as [`Frame::samples`]), which may hold anything: every sample is
+/// written. A caller rendering band after band reuses one buffer.
+///
+/// # Panics
+/// If `samples` is not the window's size.
+pub fn render_view_into(scene: &Scene, camera: &Camera, options: &RenderOptions, samples: &mut [f32]) -> TraceStats {
+    let layout = FrameLayout::new(camera, options);
+    let row_len = layout.row_len();
+    assert_eq!(
+        samples.len(),
+        row_len * layout.window.height() as usize,
+        "one frame of samples"
+    );
+    let tracer = Tracer::new(scene, camera, options, &layout);
+    // sixteen rows a task: the bucket of pixel bins, eight packets' pairs of rows
+    const ROWS_PER_TASK: usize = 16;
+    samples
+        .par_chunks_mut(ROWS_PER_TASK * row_len.max(1))
+        .enumerate()
+        .for_each(|(task, out)| {
+            tracer.rows(layout.window.y0 + (ROWS_PER_TASK * task) as u32, out);
+        });
+    let elapsed = tracer.elapsed();
+    tracer.finish(elapsed)
 }
 
 /// Renders the one or two rows in `out` (interleaved AOV samples, whole rows of `row_len`

@@ -7,7 +7,7 @@
 //! to Dask workers) and documents the conventions.
 
 use glam::{DAffine3, DMat3, DMat4, DVec3};
-use numpy::ndarray::{Array2, Array3};
+use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyValueError};
@@ -26,11 +26,12 @@ use zeroset::primitives::{Mesh, Primitive, Ray, Transformed};
 use zeroset::query::{trace_batch, QueryRay};
 use zeroset::query_rays::{scene_magnitude, trace_columns, RangeConvention, RayColumns, RaySetup};
 use zeroset::registry::BuildContext;
-use zeroset::render::{render_view, Frame, RenderOptions, Window};
+use zeroset::render::{render_view_into, Frame, FrameLayout, RenderOptions, Window};
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
 
 mod hits;
 mod pages;
+use pages::Plane;
 
 use hits::{HitArrays, HitChunk};
 
@@ -255,14 +256,27 @@ fn parse_aovs(names: Option<Vec<String>>, scene: &Scene) -> PyResult<Vec<Aov>> {
 }
 
 /// The requested AOVs of `window`, one plane per AOV (pixels row-major, channels interleaved
-/// within the AOV), rendered in bands of about a million pixels: the interleaved frame of the
-/// renderer never holds more than one band, so the peak memory is the returned planes plus one
-/// band. Crops are exact, so the planes equal a single render of the window bit for bit.
-fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window: Window) -> (Vec<Aov>, Vec<Vec<f32>>) {
+/// within the AOV), rendered in bands of about a million pixels into one interleaved buffer
+/// (reused from band to band) and gathered from it into the planes: the peak memory is the
+/// returned planes plus one band. The planes are written in place, in memory numpy then owns
+/// ([`Plane`]: pooled mappings for large ones, so a loop of renders of one size faults no page
+/// in). Crops are exact, so the planes equal a single render of the window bit for bit.
+fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window: Window) -> (Vec<Aov>, Vec<Plane>) {
     let (w, h) = (window.width() as usize, window.height() as usize);
-    let band_rows = ((1usize << 20) / w).clamp(1, h) as u32;
-    let mut aovs = Vec::new();
-    let mut planes: Vec<Vec<f32>> = Vec::new();
+    let band_rows = ((1usize << 20) / w.max(1)).clamp(1, h.max(1)) as u32;
+    let layout = FrameLayout::new(
+        camera,
+        &RenderOptions {
+            crop: Some(window),
+            ..options.clone()
+        },
+    );
+    let aovs = layout.aovs;
+    let stride: usize = aovs.iter().map(|a| a.channels().len()).sum();
+    let mut planes: Vec<Plane> = aovs.iter().map(|a| Plane::new(w * h * a.channels().len())).collect();
+    // pooled like the planes: a Dask worker renders tile after tile of one size
+    let mut band_buffer = Plane::new(w * band_rows as usize * stride);
+    let band_samples = band_buffer.as_mut_slice();
     let mut y0 = window.y0;
     while y0 < window.y1 {
         let y1 = (y0 + band_rows).min(window.y1);
@@ -270,26 +284,21 @@ fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window
             crop: Some(Window { y0, y1, ..window }),
             ..options.clone()
         };
-        let frame = render_view(scene, camera, &band);
-        if planes.is_empty() {
-            aovs.clone_from(&frame.aovs);
-            planes = aovs
-                .iter()
-                .map(|a| Vec::with_capacity(w * h * a.channels().len()))
-                .collect();
-        }
-        let stride = frame.channel_count();
+        let samples = &mut band_samples[..w * (y1 - y0) as usize * stride];
+        render_view_into(scene, camera, &band, samples);
+        let first_pixel = (y0 - window.y0) as usize * w;
         let mut offset = 0;
         for (aov, plane) in aovs.iter().zip(&mut planes) {
             let c = aov.channels().len();
+            let to = &mut plane.as_mut_slice()[first_pixel * c..(first_pixel + samples.len() / stride.max(1)) * c];
             match c {
-                1 => gather::<1>(plane, &frame.samples, stride, offset),
-                2 => gather::<2>(plane, &frame.samples, stride, offset),
-                3 => gather::<3>(plane, &frame.samples, stride, offset),
-                4 => gather::<4>(plane, &frame.samples, stride, offset),
+                1 => gather::<1>(to, samples, stride, offset),
+                2 => gather::<2>(to, samples, stride, offset),
+                3 => gather::<3>(to, samples, stride, offset),
+                4 => gather::<4>(to, samples, stride, offset),
                 _ => {
-                    for pixel in frame.samples.chunks_exact(stride) {
-                        plane.extend_from_slice(&pixel[offset..offset + c]);
+                    for (to, pixel) in to.chunks_exact_mut(c).zip(samples.chunks_exact(stride)) {
+                        to.copy_from_slice(&pixel[offset..offset + c]);
                     }
                 }
             }
@@ -300,15 +309,12 @@ fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window
     (aovs, planes)
 }
 
-/// Appends to `plane` the `C` channels from `offset` of every pixel of `samples` (interleaved,
+/// Writes into `to` the `C` channels from `offset` of every pixel of `samples` (interleaved,
 /// `stride` samples a pixel), in parallel over runs of 4096 pixels: copies of a size known when
 /// compiled, where a slice of run-time length would call `memmove` for each pixel.
-fn gather<const C: usize>(plane: &mut Vec<f32>, samples: &[f32], stride: usize, offset: usize) {
+fn gather<const C: usize>(to: &mut [f32], samples: &[f32], stride: usize, offset: usize) {
     const RUN: usize = 4096;
-    let start = plane.len();
-    plane.resize(start + samples.len() / stride.max(1) * C, 0.0);
-    plane[start..]
-        .par_chunks_mut(RUN * C)
+    to.par_chunks_mut(RUN * C)
         .zip(samples.par_chunks(RUN * stride.max(1)))
         .for_each(|(to, from)| {
             for (to, pixel) in to.chunks_exact_mut(C).zip(from.chunks_exact(stride)) {
@@ -323,22 +329,16 @@ fn plane_arrays<'py>(
     py: Python<'py>,
     (w, h): (usize, usize),
     aovs: Vec<Aov>,
-    planes: Vec<Vec<f32>>,
+    planes: Vec<Plane>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
-    for (aov, data) in aovs.into_iter().zip(planes) {
+    for (aov, plane) in aovs.into_iter().zip(planes) {
         let c = aov.channels().len();
         let name = format!("{aov:?}");
         if c == 1 {
-            out.set_item(
-                name,
-                Array2::from_shape_vec((h, w), data).map_err(error)?.into_pyarray(py),
-            )?;
+            out.set_item(name, plane.into_array(py, (h, w))?)?;
         } else {
-            out.set_item(
-                name,
-                Array3::from_shape_vec((h, w, c), data).map_err(error)?.into_pyarray(py),
-            )?;
+            out.set_item(name, plane.into_array(py, (h, w, c))?)?;
         }
     }
     Ok(out)
@@ -699,7 +699,7 @@ fn thread_pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
 }
 
 /// A rendered window: `(width, height)`, its AOVs and one plane per AOV.
-type RenderedPlanes = ((usize, usize), Vec<Aov>, Vec<Vec<f32>>);
+type RenderedPlanes = ((usize, usize), Vec<Aov>, Vec<Plane>);
 
 /// Flat origins and directions of a batch of rays.
 type RayArrays<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
@@ -908,6 +908,16 @@ fn aov_channels(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     Ok(out)
 }
 
+/// An uninitialised C-ordered float32 array of `shape`, for a caller that writes every element
+/// (`zeroset.dask.fetch`): large ones in pooled mappings ([`pages`]), so that a loop fetching
+/// frames of one size faults no page in.
+#[pyfunction]
+fn _empty_f32(py: Python<'_>, shape: Vec<usize>) -> Bound<'_, numpy::PyArrayDyn<f32>> {
+    // SAFETY: the caller writes every element before reading any (until then they are zero or
+    // left from an earlier array: valid floats either way)
+    unsafe { pages::uninit_array(py, numpy::ndarray::IxDyn(&shape)) }
+}
+
 #[pymodule]
 fn _zeroset(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyScene>()?;
@@ -915,6 +925,7 @@ fn _zeroset(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write_exr, m)?)?;
     m.add_function(wrap_pyfunction!(read_exr, m)?)?;
     m.add_function(wrap_pyfunction!(aov_channels, m)?)?;
+    m.add_function(wrap_pyfunction!(_empty_f32, m)?)?;
     m.add("ZerosetError", m.py().get_type::<ZerosetError>())?;
     Ok(())
 }

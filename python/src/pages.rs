@@ -173,3 +173,77 @@ pub unsafe fn uninit_array<'py, T: Element, D: Dimension>(
     // SAFETY: as the caller promises
     unsafe { PyArray::new(py, shape, false) }
 }
+
+/// The memory of one float32 output plane of `len` values, written in place by the renderer and
+/// then handed to numpy without a copy: its own aligned mapping where it holds at least
+/// [`MIN_BYTES`] (a pooled one after the first render of a size: no page faults, no zeroing),
+/// else a `Vec`. Every value is written before the plane becomes an array.
+pub enum Plane {
+    /// A mapping: its owner and the `len` floats at `data`.
+    Mapped {
+        buffer: MappedBuffer,
+        data: *mut f32,
+        len: usize,
+    },
+    /// numpy's memory, through a `Vec`.
+    Owned(Vec<f32>),
+}
+
+// SAFETY: `data` points into the mapping that `buffer` owns, which nothing else refers to
+unsafe impl Send for Plane {}
+
+impl Plane {
+    /// A plane of `len` floats (their values unspecified until written).
+    #[must_use]
+    pub fn new(len: usize) -> Self {
+        let bytes = len.saturating_mul(std::mem::size_of::<f32>());
+        if bytes >= MIN_BYTES {
+            if let Some((buffer, data)) = MappedBuffer::new(bytes) {
+                return Self::Mapped {
+                    buffer,
+                    data: data.cast(),
+                    len,
+                };
+            }
+        }
+        Self::Owned(vec![0.0; len])
+    }
+
+    /// The plane's values, to write.
+    pub fn as_mut_slice(&mut self) -> &mut [f32] {
+        match self {
+            // SAFETY: `len` floats at `data`, aligned (a page boundary), initialised (a fresh
+            // mapping reads as zero, a pooled one as what it last held: any bits are a valid
+            // f32), and borrowed mutably with `self`
+            Self::Mapped { data, len, .. } => unsafe { std::slice::from_raw_parts_mut(*data, *len) },
+            Self::Owned(values) => values,
+        }
+    }
+
+    /// The plane as a C-ordered array of `shape` (whose size is the plane's length), owning its
+    /// memory.
+    pub fn into_array<'py, D: Dimension>(
+        self,
+        py: Python<'py>,
+        shape: impl IntoDimension<Dim = D>,
+    ) -> PyResult<Bound<'py, PyArray<f32, D>>> {
+        let shape = shape.into_dimension();
+        match self {
+            Self::Mapped { buffer, data, len } => {
+                assert_eq!(shape.size(), len, "the shape holds the plane");
+                let owner = Bound::new(py, buffer)?;
+                // SAFETY: `len` initialised floats at `data`, owned by `owner`, which becomes the
+                // array's base object and is neither moved nor unmapped while the array lives
+                Ok(unsafe {
+                    let view = ArrayView::from_shape_ptr(shape, data.cast_const());
+                    PyArray::borrow_from_array(&view, owner.into_any())
+                })
+            }
+            Self::Owned(values) => {
+                let array = numpy::ndarray::Array::from_shape_vec(shape, values)
+                    .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
+                Ok(numpy::IntoPyArray::into_pyarray(array, py))
+            }
+        }
+    }
+}

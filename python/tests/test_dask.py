@@ -160,7 +160,8 @@ def test_fetch_gathers_from_the_workers_not_through_the_scheduler(client, repo):
         straight = zdask.fetch(tiled, client)
         assert relayed == []
         relayed_arrays = zdask.fetch(tiled, client, direct=False)
-        assert len(relayed) == 3 * 3  # one gather per tile
+        # every tile through the scheduler (concurrent requests may share one call)
+        assert sum(len(keys) for keys in relayed) == 3 * 3
     finally:
         scheduler.handlers["gather"] = gather
     ref = zeroset.Scene.load(path).render(aovs=["Depth", "Normal"], width=150, height=100)

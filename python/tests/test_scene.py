@@ -409,3 +409,30 @@ def test_render_threads_gives_the_same_frame():
     assert np.isfinite(default["Depth"]).sum() > 100
     with pytest.raises(zeroset.ZerosetError, match="threads must be at least 1"):
         scene.render(aovs=aovs, width=8, height=8, threads=0)
+
+
+def test_large_renders_keep_their_own_memory():
+    """Planes of 4 MiB and more are rendered into pooled mappings: a frame still held keeps its
+    values while later renders of the same size (another view, then the first again) reuse
+    memory freed in between. The frame (1.2 million pixels) is rendered in two bands through one
+    reused band buffer, and equals crops of it rendered alone."""
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    aovs = ["Depth", "Normal"]
+    size = dict(width=1600, height=750)
+    first = scene.render(aovs=aovs, **size)
+    kept = {k: v.copy() for k, v in first.items()}
+    assert first["Normal"].nbytes >= 4 << 20 and first["Normal"].flags.c_contiguous
+    other = scene.render(aovs=aovs, view=dict(eye=(0.5, 0.3, -4.0)), **size)
+    assert not np.array_equal(other["Depth"], first["Depth"])
+    for k in aovs:
+        np.testing.assert_array_equal(first[k], kept[k], err_msg=k)
+    other = None  # its memory back to the pool, for the next render to reuse
+    again = scene.render(aovs=aovs, **size)
+    for k in aovs:
+        np.testing.assert_array_equal(again[k], kept[k], err_msg=k)
+    # the same pixels as crops rendered one by one (each a single band)
+    for y0, y1 in ((0, 300), (300, 750)):
+        crop = scene.render(aovs=aovs, crop=(0, y0, 1600, y1), **size)
+        for k in aovs:
+            np.testing.assert_array_equal(crop[k], kept[k][y0:y1], err_msg=f"{k} rows {y0}..{y1}")
+    assert np.isfinite(kept["Depth"]).sum() > 10_000

@@ -30,7 +30,7 @@ from dask.base import tokenize
 from dask.delayed import Delayed
 from dask.highlevelgraph import HighLevelGraph
 
-from . import Scene, ZerosetError
+from . import Scene, ZerosetError, _zeroset
 
 SceneLike = Union[Scene, str, "os.PathLike[str]"]
 
@@ -249,6 +249,14 @@ def _collect(client: Any, futures: list, direct: Optional[bool], place: Any) -> 
             r.result()
 
 
+def _empty(shape: Tuple[int, ...], dtype: Any) -> np.ndarray:
+    """An array every element of which ``fetch`` writes: float32 ones (AOVs) in zeroset's pooled
+    memory (a loop fetching frames of one size then faults no page in), others numpy's."""
+    if np.dtype(dtype) == np.float32:
+        return _zeroset._empty_f32(list(shape))
+    return np.empty(shape, dtype=dtype)
+
+
 def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool] = None) -> Dict[str, np.ndarray]:
     """Computes dask arrays into numpy arrays in this process, block by block as they finish.
 
@@ -266,7 +274,7 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
     ``direct_to_workers``); ``False`` where this process cannot reach the workers (only the
     scheduler), at the price of every byte crossing the network twice.
     """
-    out = {name: np.empty(a.shape, dtype=a.dtype) for name, a in arrays.items()}
+    out = {name: _empty(a.shape, a.dtype) for name, a in arrays.items()}
     if client is None:
         try:
             from distributed import default_client
