@@ -307,17 +307,22 @@ pub(crate) struct RangeLists<T> {
 impl<T: Copy + Default> RangeLists<T> {
     /// Lists each `(value, first, last)` of `items()` under the slots `first..=last` of `slots`
     /// (all below `slots`), replacing what was listed: the items are walked twice, counted,
-    /// then placed.
+    /// then placed. The counting pass marks only each item's ends (`+1` at `first`, `−1` after
+    /// `last`, in wrapping arithmetic: every running sum is a count, never negative), and one
+    /// pass over the slots turns the marks into counts and the counts into starts.
     pub(crate) fn fill<I: Iterator<Item = (T, usize, usize)>>(&mut self, slots: usize, items: impl Fn() -> I) {
         self.starts.clear();
-        self.starts.resize(slots + 1, 0);
+        self.starts.resize(slots + 2, 0);
         for (_, first, last) in items() {
-            for count in &mut self.starts[first + 1..=last + 1] {
-                *count += 1;
-            }
+            self.starts[first + 1] = self.starts[first + 1].wrapping_add(1);
+            self.starts[last + 2] = self.starts[last + 2].wrapping_sub(1);
         }
+        self.starts.truncate(slots + 1);
+        // `starts[s + 1]` holds the change of slot `s`'s count from slot `s − 1`'s
+        let mut count = 0usize;
         for s in 0..slots {
-            self.starts[s + 1] += self.starts[s];
+            count = count.wrapping_add(self.starts[s + 1]);
+            self.starts[s + 1] = self.starts[s] + count;
         }
         self.values.clear();
         self.values.resize(self.starts[slots], T::default());
