@@ -271,8 +271,8 @@ fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window
             ..options.clone()
         },
     );
+    let stride = layout.channel_count();
     let aovs = layout.aovs;
-    let stride: usize = aovs.iter().map(|a| a.channels().len()).sum();
     let mut planes: Vec<Plane> = aovs.iter().map(|a| Plane::new(w * h * a.channels().len())).collect();
     // pooled like the planes: a Dask worker renders tile after tile of one size
     let mut band_buffer = Plane::new(w * band_rows as usize * stride);

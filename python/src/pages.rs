@@ -159,19 +159,34 @@ pub unsafe fn uninit_array<'py, T: Element, D: Dimension>(
     let bytes = shape.size().saturating_mul(std::mem::size_of::<T>());
     if bytes >= MIN_BYTES {
         if let Some((buffer, data)) = MappedBuffer::new(bytes) {
-            if let Ok(owner) = Bound::new(py, buffer) {
-                // SAFETY: `data` points to `bytes` zeroed, writable bytes aligned for any `T`,
-                // owned by `owner`, which becomes the array's base object and is neither moved
-                // nor unmapped while the array lives
-                unsafe {
-                    let view = ArrayView::from_shape_ptr(shape, data.cast::<T>().cast_const());
-                    return PyArray::borrow_from_array(&view, owner.into_any());
-                }
+            // SAFETY: `data` points to `bytes` writable bytes aligned for any `T`, which the
+            // caller writes before they are read
+            if let Ok(array) = unsafe { mapped_array(py, buffer, data.cast::<T>(), shape.clone()) } {
+                return array;
             }
         }
     }
     // SAFETY: as the caller promises
     unsafe { PyArray::new(py, shape, false) }
+}
+
+/// The array of `shape` over the memory at `data` that `buffer` owns, `buffer` becoming the
+/// array's base object (so the mapping lives, unmoved, as long as the array).
+///
+/// # Safety
+/// `data` points into `buffer`'s mapping, aligned for `T`, with room for `shape`'s elements.
+unsafe fn mapped_array<'py, T: Element, D: Dimension>(
+    py: Python<'py>,
+    buffer: MappedBuffer,
+    data: *mut T,
+    shape: D,
+) -> PyResult<Bound<'py, PyArray<T, D>>> {
+    let owner = Bound::new(py, buffer)?;
+    // SAFETY: as the caller promises; `owner` keeps the memory while the array lives
+    Ok(unsafe {
+        let view = ArrayView::from_shape_ptr(shape, data.cast_const());
+        PyArray::borrow_from_array(&view, owner.into_any())
+    })
 }
 
 /// The memory of one float32 output plane of `len` values, written in place by the renderer and
@@ -231,13 +246,8 @@ impl Plane {
         match self {
             Self::Mapped { buffer, data, len } => {
                 assert_eq!(shape.size(), len, "the shape holds the plane");
-                let owner = Bound::new(py, buffer)?;
-                // SAFETY: `len` initialised floats at `data`, owned by `owner`, which becomes the
-                // array's base object and is neither moved nor unmapped while the array lives
-                Ok(unsafe {
-                    let view = ArrayView::from_shape_ptr(shape, data.cast_const());
-                    PyArray::borrow_from_array(&view, owner.into_any())
-                })
+                // SAFETY: `len` initialised floats at `data`, a page boundary in `buffer`'s mapping
+                unsafe { mapped_array(py, buffer, data, shape) }
             }
             Self::Owned(values) => {
                 let array = numpy::ndarray::Array::from_shape_vec(shape, values)

@@ -239,12 +239,18 @@ def _collect(client: Any, futures: list, direct: Optional[bool], place: Any) -> 
         future.release()
 
     with ThreadPoolExecutor(max_workers=2) as pool:
-        running = []
+        running: list = []
         for future in as_completed(futures):
             running.append(pool.submit(take, future))
+            # the finished ones checked (a failed one raises now) and dropped, so that each
+            # arrival looks only at the few still in flight
+            unfinished = []
             for r in running:
                 if r.done():
                     r.result()
+                else:
+                    unfinished.append(r)
+            running = unfinished
         for r in running:
             r.result()
 
