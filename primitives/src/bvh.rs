@@ -21,8 +21,16 @@ use glam::{BVec4A, Vec3A, Vec4, Vec4Swizzles};
 use std::mem::MaybeUninit;
 
 /// Rounds an f64 to the nearest f32 not above it (boxes and ray ranges rounded outward).
+///
+/// A subnormal `x` (a range opened at 0 starts at `0.next_up()`) is answered without converting
+/// it: on x86 an arithmetic operation or conversion on a subnormal operand takes a microcode
+/// assist of some hundred cycles, more than the rest of a ray's set-up.
 #[inline]
 pub(crate) fn round_down(x: f64) -> f32 {
+    if x != 0.0 && x.abs() < f64::MIN_POSITIVE {
+        // below f32's smallest subnormal: 0 from above, −2⁻¹⁴⁹ from below
+        return if x > 0.0 { 0.0 } else { -f32::from_bits(1) };
+    }
     let y = x as f32;
     if f64::from(y) > x {
         y.next_down()
@@ -878,6 +886,50 @@ mod tests {
     use super::*;
     use glam::DVec3;
     use rand::{Rng, SeedableRng};
+
+    /// `round_down(x)` is the largest f32 not above `x` and `round_up(x)` the smallest not below,
+    /// checked by their definition in f64 (exact for every f32) on zeros of both signs, subnormal
+    /// f64s (a range opened at 0 starts at `0.next_up()`), f32 subnormals, normal values and the
+    /// ends of the ranges.
+    #[test]
+    fn rounding_brackets_every_value() {
+        let values = [
+            0.0,
+            -0.0,
+            0.0f64.next_up(),
+            -(0.0f64.next_up()),
+            f64::MIN_POSITIVE.next_down(),
+            -f64::MIN_POSITIVE.next_down(),
+            f64::MIN_POSITIVE,
+            1e-310,
+            -1e-310,
+            1e-45,
+            7e-46,
+            -7e-46,
+            1.5e-39,
+            0.1,
+            -0.1,
+            1.0,
+            3.4e38,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for x in values {
+            let down = round_down(x);
+            let exact = |r: f32| f64::from(r) == x;
+            assert!(
+                f64::from(down) <= x && (exact(down) || f64::from(down.next_up()) > x),
+                "round_down({x:e}) = {down:e}"
+            );
+            let up = round_up(x);
+            assert!(
+                f64::from(up) >= x && (exact(up) || f64::from(up.next_down()) < x),
+                "round_up({x:e}) = {up:e}"
+            );
+        }
+    }
 
     /// The sorting network puts the entered slots first, farthest entry first (entries within 3
     /// ulps, which share a key, in slot order), and among equal entries the earlier slot first,
