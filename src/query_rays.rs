@@ -19,9 +19,9 @@
 //! **Columns.** Rays already in memory as arrays (the Python package's numpy arrays) are a
 //! [`RayColumns`]: each ray is built by the same [`ray_from_fields`] as a line of input, and
 //! [`trace_columns`] builds a chunk of [`COLUMN_CHUNK`] rays at a time, in parallel, then traces
-//! them ([`crate::query::trace_one`]) and hands each ray's hit over as it comes, so rays only
-//! ever exist for the chunks in flight (cache-sized), hit records only one at a time, and the
-//! caller writes each answer straight into its own output buffers.
+//! them ([`crate::query::trace_one`]) and hands the chunk's hits over together, so rays and hit
+//! records only ever exist for the chunks in flight (cache-sized), and the caller writes the
+//! answers straight into its own output buffers.
 
 use crate::query::{trace_many_for, QueryHit, QueryRay, TraceWork, MISS};
 use crate::scene::Scene;
@@ -319,9 +319,9 @@ impl<'a> RayColumns<'a> {
 
 /// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, traced as
 /// [`crate::query::trace_one_for`] traces each, completed as far as `request` asks), handed to
-/// `put(out, row, hit)` one ray at a time: `outputs[k]` receives the hits of rays
-/// `k·COLUMN_CHUNK ..` (up to [`COLUMN_CHUNK`] of them, in ray order, `row` counting from 0 in
-/// each chunk). Chunks run in parallel on rayon's pool, each built, traced
+/// `put(out, hits)` a chunk at a time: `outputs[k]` receives the hits of rays
+/// `k·COLUMN_CHUNK ..` (up to [`COLUMN_CHUNK`] of them, in ray order), so that the caller can
+/// write them field by field. Chunks run in parallel on rayon's pool, each built, traced
 /// ([`crate::query::trace_many_for`]: handed to the scene together) and handed over while in
 /// cache (no hit record is kept beyond the chunk's); with the full request
 /// ([`crate::query::ANSWER`]) the hits equal [`crate::query::trace_batch`] on all the rays at
@@ -340,7 +340,7 @@ pub fn trace_columns<O: Send>(
     setup: &RaySetup,
     request: HitRequest,
     outputs: Vec<O>,
-    put: impl Fn(&mut O, usize, &QueryHit) + Sync,
+    put: impl Fn(&mut O, &[QueryHit]) + Sync,
 ) -> Result<(), (usize, String)> {
     let n = columns.len();
     assert_eq!(outputs.len(), n.div_ceil(COLUMN_CHUNK), "one output per chunk of rays");
@@ -376,9 +376,7 @@ pub fn trace_columns<O: Send>(
             if !failed.load(Ordering::Relaxed) {
                 answers.resize(rays.len(), MISS);
                 trace_many_for(scene, rays, request, work, answers);
-                for (row, answer) in answers.iter().enumerate() {
-                    put(&mut out, row, answer);
-                }
+                put(&mut out, answers);
             }
         },
     );
@@ -652,10 +650,10 @@ mod tests {
             &setup,
             ANSWER,
             slots.iter().collect(),
-            |slot, row, hit| {
+            |slot, hits| {
                 let mut slot = slot.lock().unwrap();
-                assert_eq!(row, slot.len(), "rows handed over in order");
-                slot.push(*hit);
+                assert!(slot.is_empty(), "each chunk handed over once");
+                slot.extend_from_slice(hits);
             },
         )
         .unwrap();
@@ -674,8 +672,8 @@ mod tests {
         let columns = RayColumns::new(&origins, &directions, &[0.0], &tmax, None).unwrap();
         let setup = RaySetup::default();
         let traced = std::sync::atomic::AtomicUsize::new(0);
-        let error = trace_columns(&scene, &columns, &setup, ANSWER, vec![(); 3], |(), _, _| {
-            traced.fetch_add(1, Ordering::Relaxed);
+        let error = trace_columns(&scene, &columns, &setup, ANSWER, vec![(); 3], |(), hits| {
+            traced.fetch_add(hits.len(), Ordering::Relaxed);
         })
         .unwrap_err();
         assert_eq!(

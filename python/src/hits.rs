@@ -2,8 +2,8 @@
 //!
 //! Each requested field is one numpy array, allocated (uninitialised) while the GIL is held and
 //! then split into one piece per chunk of [`COLUMN_CHUNK`] rays; [`trace_columns`] hands each
-//! ray's hit to its chunk's piece on a rayon thread, with the GIL released, which writes its row
-//! of every array (a miss writes the miss values). Nothing is copied after that: the arrays go
+//! chunk's hits to its piece on a rayon thread, with the GIL released, which writes them field
+//! by field (a miss writes the miss values). Nothing is copied after that: the arrays go
 //! back to Python as they are.
 //!
 //! Fields (one row per ray): `t` f64 (`+∞` on a miss), `hit` bool, `point` f64 ×3 and `normal`
@@ -15,7 +15,7 @@
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use zeroset::primitives::HitRequest;
+use zeroset::primitives::{HitRequest, SurfaceHit};
 use zeroset::query::QueryHit;
 use zeroset::query_rays::COLUMN_CHUNK;
 
@@ -191,47 +191,49 @@ impl<'py> HitArrays<'py> {
 }
 
 impl HitChunk<'_> {
-    /// Writes row `row` of this chunk (of every requested field) from one ray's hit.
-    #[inline]
-    pub fn put(&mut self, row: usize, query: &QueryHit) {
-        let hit = query.hit.as_ref();
+    /// Writes this chunk's rows (of every requested field) from its rays' hits, in ray order:
+    /// one field at a time, each a short loop over the hits.
+    pub fn put(&mut self, hits: &[QueryHit]) {
+        fn found(q: &QueryHit) -> Option<&(u32, SurfaceHit)> {
+            q.hit.as_ref()
+        }
         if let Some(out) = self.t.as_deref_mut() {
-            out[row] = hit.map_or(f64::INFINITY, |(_, h)| h.t);
+            for (o, q) in out.iter_mut().zip(hits) {
+                *o = found(q).map_or(f64::INFINITY, |(_, h)| h.t);
+            }
         }
         if let Some(out) = self.hit.as_deref_mut() {
-            out[row] = hit.is_some();
+            for (o, q) in out.iter_mut().zip(hits) {
+                *o = q.hit.is_some();
+            }
         }
-        put_row(
-            self.point.as_deref_mut(),
-            row,
-            hit.map_or([0.0; 3], |(_, h)| h.point.to_array()),
-        );
-        put_row(
-            self.normal.as_deref_mut(),
-            row,
-            hit.map_or([0.0; 3], |(_, h)| h.normal.unwrap_or_default().to_array()),
-        );
+        put_rows(self.point.as_deref_mut(), hits, |h| h.point.to_array());
+        put_rows(self.normal.as_deref_mut(), hits, |h| h.normal.unwrap_or_default().to_array());
         if let Some(out) = self.object_id.as_deref_mut() {
-            out[row] = hit.map_or(-1, |(id, _)| *id as i32);
+            for (o, q) in out.iter_mut().zip(hits) {
+                *o = found(q).map_or(-1, |(id, _)| *id as i32);
+            }
         }
-        put_row(
-            self.uv.as_deref_mut(),
-            row,
-            hit.and_then(|(_, h)| h.uv).unwrap_or_default().to_array(),
-        );
+        put_rows(self.uv.as_deref_mut(), hits, |h| h.uv.unwrap_or_default().to_array());
         if let Some(out) = self.primitive_id.as_deref_mut() {
-            out[row] = hit.map_or(-1, |(_, h)| i64::from(h.feature));
+            for (o, q) in out.iter_mut().zip(hits) {
+                *o = found(q).map_or(-1, |(_, h)| i64::from(h.feature));
+            }
         }
         if let Some(out) = self.uncertain.as_deref_mut() {
-            out[row] = query.uncertain;
+            for (o, q) in out.iter_mut().zip(hits) {
+                *o = q.uncertain;
+            }
         }
     }
 }
 
-/// Writes row `row` (`W` elements) of a field of `W` elements a ray, when requested.
+/// Writes a field of `W` elements a ray, when requested: `value` of each hit, zeros on a miss.
 #[inline]
-fn put_row<const W: usize>(out: Option<&mut [f64]>, row: usize, value: [f64; W]) {
+fn put_rows<const W: usize>(out: Option<&mut [f64]>, hits: &[QueryHit], value: impl Fn(&SurfaceHit) -> [f64; W]) {
     if let Some(out) = out {
-        out[row * W..][..W].copy_from_slice(&value);
+        for (o, q) in out.chunks_exact_mut(W).zip(hits) {
+            o.copy_from_slice(&q.hit.as_ref().map_or([0.0; W], |(_, h)| value(h)));
+        }
     }
 }
