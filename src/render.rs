@@ -533,9 +533,8 @@ fn render_rows(scene: &Scene, context: &RowContext, pixel_rays: &PixelRays, y: u
                 if context.seen.as_ref().is_some_and(|seen| !seen.holds_pixel(i, j)) {
                     continue;
                 }
-                match row_rays[row].ray(first + column) {
-                    Ok(ray) => {
-                        rays[n] = ray;
+                match row_rays[row].ray_into(first + column, &mut rays[n]) {
+                    Ok(()) => {
                         *slot = n;
                         n += 1;
                     }
@@ -581,6 +580,7 @@ fn render_rows_binned(
     bins.band(y, rows, x0, width, &mut band);
     let every_pixel = bins.tests_every_pixel();
     let pixel_rays = camera.pixel_rays(x0, width);
+    let mut ray = Ray::new(DVec3::ZERO, DVec3::ZERO);
     for (k, row) in out.chunks_exact_mut(row_len.max(1)).enumerate() {
         let row_rays = pixel_rays.row(y + k as u32);
         band.row(k, width, &mut row_bins);
@@ -591,8 +591,8 @@ fn render_rows_binned(
                 write_miss(pixel, context);
                 continue;
             }
-            match row_rays.ray(column) {
-                Ok(ray) => {
+            match row_rays.ray_into(column, &mut ray) {
+                Ok(()) => {
                     let hit = bins.intersect(scene, &ray, Interval::POSITIVE, candidates);
                     write_pixel(pixel, scene, context, &ray, hit);
                 }

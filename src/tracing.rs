@@ -219,31 +219,39 @@ impl Scene {
         }
         let (mut range, best) =
             self.closest_unbounded(range, |id, r| self.objects[id as usize].primitive.intersect(ray, r));
-        let mut raw: Option<(u32, RawHit)> = None;
+        // the closest hit so far, field by field (see `ClosestSoFar`)
+        let mut closest = ClosestSoFar::default();
         let mut test = |id: u32, range: &mut Interval| {
-            if let Some(hit) = self.objects[id as usize].primitive.intersect(ray, *range) {
-                if settles_tie(raw.as_ref(), id, hit.t, *range) {
-                    range.max = hit.t;
-                    raw = Some((id, hit));
+            let result = self.objects[id as usize].primitive.intersect(ray, *range);
+            if let Some(hit) = &result {
+                let t = scalar(&hit.t);
+                if closest.settles_tie(id, t, *range) {
+                    range.max = t;
+                    closest.keep(id, hit);
                 }
             }
         };
         for &id in always {
             test(id, &mut range);
         }
-        // the reach of the closest hit so far, once there is one (`t` times the direction's
-        // length, with room for the rounding of both)
-        let mut length = None;
+        // a candidate whose `near` lies beyond the reach of the closest hit so far (`t` times
+        // the direction's length) ends the list: compared squared, `near² > t²·|d|²`, with
+        // `10⁻⁹` of room for the rounding of the products (a few ulps), so no square root waits
+        // on the direction. Neither side can underflow to a wrong answer: `near > 0` is at least
+        // 2⁻¹⁴⁹ in f32, and a `t` whose square underflows reaches less than that along a
+        // direction of at most `√3·2⁶⁰` (`DIR_SCALE_MAX`).
+        let mut length_squared = None;
         for &id in candidates {
             if range.max.is_finite() {
-                let length = *length.get_or_insert_with(|| ray.dir.length() * (1.0 + 1e-9));
-                if f64::from(near[id as usize]) > range.max * length {
+                let length_squared = *length_squared.get_or_insert_with(|| ray.dir.length_squared() * (1.0 + 1e-9));
+                let near = f64::from(near[id as usize]);
+                if near > 0.0 && near * near > range.max * range.max * length_squared {
                     break;
                 }
             }
             test(id, &mut range);
         }
-        raw.or(best)
+        closest.hit().or(best)
     }
 
     /// The closest hit of `test(object, range)` over the objects tested by every ray (those
@@ -376,6 +384,66 @@ impl Scene {
     #[must_use]
     pub fn occluded(&self, ray: &Ray, range: Interval) -> bool {
         self.intersect(ray, range).is_some()
+    }
+}
+
+/// The closest hit of [`Scene::intersect_candidates`] so far, kept as separate fields (which
+/// the compiler holds in registers) and read from each hit one scalar at a time. A hit comes back
+/// from its primitive's call through memory, written field by field; a 16-byte copy of it spans
+/// two of those writes, cannot take its data from the store buffer and waits until both reach the
+/// cache (a store-forwarding stall, some 15 cycles a hit), whereas each scalar load lies within
+/// one write.
+#[derive(Clone, Copy, Default)]
+struct ClosestSoFar {
+    found: bool,
+    object: u32,
+    t: f64,
+    feature: u32,
+    u: f64,
+    v: f64,
+}
+
+/// `*x`, loaded on its own: never merged with its neighbours into a wider load (see
+/// [`ClosestSoFar`]).
+#[inline(always)]
+fn scalar(x: &f64) -> f64 {
+    // SAFETY: a read of a valid, aligned `f64` through a reference
+    unsafe { std::ptr::read_volatile(x) }
+}
+
+impl ClosestSoFar {
+    /// [`settles_tie`] against the hit kept so far.
+    #[inline(always)]
+    fn settles_tie(&self, id: u32, t: f64, range: Interval) -> bool {
+        t < range.max || !self.found || id < self.object
+    }
+
+    /// Keeps object `object`'s `hit`.
+    #[inline(always)]
+    fn keep(&mut self, object: u32, hit: &RawHit) {
+        *self = Self {
+            found: true,
+            object,
+            t: scalar(&hit.t),
+            feature: hit.feature,
+            u: scalar(&hit.local.x),
+            v: scalar(&hit.local.y),
+        };
+    }
+
+    /// The hit kept, if any.
+    #[inline(always)]
+    fn hit(&self) -> Option<(u32, RawHit)> {
+        self.found.then(|| {
+            (
+                self.object,
+                RawHit {
+                    t: self.t,
+                    feature: self.feature,
+                    local: glam::DVec2::new(self.u, self.v),
+                },
+            )
+        })
     }
 }
 
