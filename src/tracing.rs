@@ -406,7 +406,7 @@ struct ClosestSoFar {
 /// `*x`, loaded on its own: never merged with its neighbours into a wider load (see
 /// [`ClosestSoFar`]).
 #[inline(always)]
-fn scalar(x: &f64) -> f64 {
+pub(crate) fn scalar(x: &f64) -> f64 {
     // SAFETY: a read of a valid, aligned `f64` through a reference
     unsafe { std::ptr::read_volatile(x) }
 }

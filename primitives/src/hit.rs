@@ -146,6 +146,17 @@ impl SurfaceHit {
     /// The normal flipped, if needed, to face against `dir` (towards the viewer).
     #[must_use]
     pub fn facing_normal(&self, dir: DVec3) -> Option<DVec3> {
-        self.normal.map(|n| if dir.dot(n) > 0.0 { -n } else { n })
+        self.normal.map(|n| facing(n, dir))
+    }
+}
+
+/// `n`, flipped if needed to face against `dir`: `−n` where `dir · n > 0`.
+#[inline]
+#[must_use]
+pub fn facing(n: DVec3, dir: DVec3) -> DVec3 {
+    if dir.dot(n) > 0.0 {
+        -n
+    } else {
+        n
     }
 }

@@ -77,7 +77,7 @@ pub use bounds::Aabb;
 pub use bvh::Bvh;
 pub use crossings::{Crossing, Crossings};
 pub use error::PrimitiveError;
-pub use hit::{HitRequest, RawHit, SurfaceHit};
+pub use hit::{facing, HitRequest, RawHit, SurfaceHit};
 pub use ray::{Interval, Ray};
 pub use root::{first_root, RootOptions, RootReport};
 pub use traits::{Implicit, Intersect, Parametric, Pieces, Primitive, UvDomain};

@@ -676,6 +676,9 @@ impl Mesh {
     }
 
     /// Unnormalised geometric normal of the triangle at leaf position `k`, and its first corner.
+    /// Inlined: returned through memory, its six f64s were read back in 16-byte pieces straddling
+    /// the writes that made them (a store-forwarding stall on every hit).
+    #[inline(always)]
     fn plane(&self, k: usize) -> (DVec3, DVec3) {
         let [a, b, c] = self.tris[k].map(|i| v64(self.vertices[i as usize]));
         ((b - a).cross(c - a), a)

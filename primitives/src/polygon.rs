@@ -218,7 +218,7 @@ impl Polygon {
     }
 
     /// Whether the plane-coordinate point `q` is inside, by the test intersection uses.
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn contains_2d(&self, q: DVec2) -> bool {
         if let Some(inside) = self.convex_ring.as_ref().and_then(|ring| ring.contains(q)) {
@@ -335,6 +335,7 @@ impl Parametric for Polygon {
         (self.e1, self.e2)
     }
 
+    #[inline(always)]
     fn uv(&self, p: DVec3) -> DVec2 {
         let q = p - self.origin;
         DVec2::new(q.dot(self.e1), q.dot(self.e2))
