@@ -1,6 +1,9 @@
 """zeroset.dask on a real two-worker LocalCluster: results bit-identical to the single-process
 calls (tiles are exact crops; ray blocks go through the same query path)."""
 
+import gc
+import os
+
 import numpy as np
 import pytest
 
@@ -141,10 +144,12 @@ def test_fetch_equals_compute_block_by_block(client, repo):
         np.testing.assert_array_equal(got[k], ref[k], err_msg=k)
 
 
-def test_fetch_gathers_from_the_workers_not_through_the_scheduler(client, repo):
-    """By default each tile comes straight from the worker that rendered it: the scheduler (here
-    in this process) is never asked to gather, which would make every byte cross twice.
-    ``direct=False`` goes through it, with the same arrays."""
+def test_fetch_gathers_from_the_workers_not_through_the_scheduler(client, repo, monkeypatch):
+    """Over the network (workers that do not share this machine's memory: forced here) each tile
+    comes straight from the worker that rendered it by default: the scheduler (here in this
+    process) is never asked to gather, which would make every byte cross twice. ``direct=False``
+    goes through it, with the same arrays."""
+    monkeypatch.setattr(zdask, "_workers_share_memory", lambda client: False)
     scheduler = client.cluster_for_tests.scheduler
     relayed = []
     gather = scheduler.handlers["gather"]
@@ -168,6 +173,41 @@ def test_fetch_gathers_from_the_workers_not_through_the_scheduler(client, repo):
     for name in ref:
         np.testing.assert_array_equal(straight[name], ref[name], err_msg=name)
         np.testing.assert_array_equal(relayed_arrays[name], ref[name], err_msg=name)
+
+
+def _shared_files():
+    prefix = f"{zdask._SHARED_PREFIX}{os.getpid()}-"
+    return sorted(name for name in os.listdir(zdask._SHARED_DIR) if name.startswith(prefix))
+
+
+@pytest.mark.skipif(not os.path.isdir("/dev/shm"), reason="no /dev/shm")
+def test_fetch_through_shared_memory(client, repo):
+    """Workers on this machine write their tiles into one shared-memory file that holds the
+    arrays: the arrays equal the single-process render; the file is kept for the next fetch of
+    that size once the arrays are gone (and reused by it), and unlinked with the pool."""
+    assert zdask._workers_share_memory(client)
+    path = str(repo / "scenes" / "default.ron")
+    aovs = ["Beauty", "Depth", "Normal"]
+    tiled = zdask.render(path, chunks=(40, 64), aovs=aovs, width=150, height=100)
+    ref = zeroset.Scene.load(path).render(aovs=aovs, width=150, height=100)
+    zdask._unlink_pool()
+    before = _shared_files()
+    first = zdask.fetch(tiled, client)
+    held = _shared_files()
+    assert len(held) == len(before) + 1
+    for name in ref:
+        np.testing.assert_array_equal(first[name], ref[name], err_msg=name)
+    del first
+    gc.collect()
+    assert sum(len(paths) for paths in zdask._SHARED_POOL.values()) == 1
+    again = zdask.fetch(tiled, client)
+    assert _shared_files() == held  # the pooled file, reused
+    for name in ref:
+        np.testing.assert_array_equal(again[name], ref[name], err_msg=name)
+    del again
+    gc.collect()
+    zdask._unlink_pool()
+    assert _shared_files() == before
 
 
 def test_fetch_raises_a_failed_tile_s_error(client):

@@ -18,7 +18,12 @@ rays.
 
 from __future__ import annotations
 
+import atexit
+import mmap
 import os
+import tempfile
+import uuid
+import weakref
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
 import operator
@@ -273,7 +278,13 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
     each block crosses the network once, and the transfers overlap the computation. Arrays made
     by ``render`` or ``render_views`` are fetched a render at a time: each tile's (or view's)
     result, every AOV of it, comes in one piece, and the per-AOV tasks never run (16 futures
-    instead of 64 for a 4×4-tile frame of 4 AOVs). The values are those of ``.compute()``.
+    instead of 64 for a 4×4-tile frame of 4 AOVs). Where every worker shares this machine's
+    memory (a ``LocalCluster``; checked once per client by a token file each worker reads back),
+    those renders' tiles travel not at all: the arrays live in one shared-memory file in
+    ``/dev/shm``, each worker copies its tiles into it and returns only an acknowledgement, and the
+    file is kept for the next fetch of the same size once the arrays are gone (unlinked when this
+    process ends; files of processes killed before that are unlinked by the next fetch). The
+    values are those of ``.compute()``.
     ``client``: a ``distributed.Client`` (default: the current one); ``False``, or no client at
     all, computes the blocks with the local scheduler. ``direct``: gather each block straight
     from the worker that made it (the default, unless the client says otherwise with
@@ -293,6 +304,8 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
         # the arrays of `render` / `render_views`: fetch each render's whole result (every AOV
         # of a tile) once, rather than one future and one task per tile and AOV
         graph, renders = grouped
+        if _workers_share_memory(client):
+            return _fetch_in_shared_memory(client, arrays, graph, renders, direct)
         futures = client.compute([Delayed(key, graph, layer=key[0]) for key in renders])
         where = {f.key: renders[key] for f, key in zip(futures, renders)}
 
@@ -321,6 +334,181 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
         out[name][window] = block
 
     _collect(client, futures, direct, place_block)
+    return out
+
+
+# -- fetch through shared memory, where the workers share this machine's ------------------------
+
+#: Where files are memory.
+_SHARED_DIR = "/dev/shm"
+#: Prefix of the files of the output arrays (followed by the creating process's id).
+_SHARED_PREFIX = "zeroset-fetch-"
+#: The most bytes of shared files kept for reuse once their arrays are gone.
+_SHARED_POOL_BYTES = 1 << 30
+#: Files whose arrays are gone, by size: reused by the next fetch of that size.
+_SHARED_POOL: Dict[int, List[str]] = {}
+#: Which clients' workers share this process's memory, by (client, workers).
+_SHARING: Dict[Tuple[int, Tuple[str, ...]], bool] = {}
+#: On a worker: the shared files mapped so far, most recent last (see `_worker_mapping`).
+_WORKER_MAPS: Dict[str, mmap.mmap] = {}
+
+
+def _read_token(path: str) -> Optional[str]:
+    try:
+        with open(path, encoding="ascii") as f:
+            return f.read()
+    except OSError:
+        return None
+
+
+def _workers_share_memory(client: Any) -> bool:
+    """Whether every worker of ``client`` sees this process's shared-memory files: a token file
+    written here is read back by each worker (``client.run``), once per client and set of
+    workers. True for a ``LocalCluster`` and for workers on this machine sharing its
+    ``/dev/shm``; false for workers elsewhere and where there is no ``/dev/shm``."""
+    if not (os.path.isdir(_SHARED_DIR) and os.access(_SHARED_DIR, os.W_OK)):
+        return False
+    try:
+        workers = tuple(sorted(client.scheduler_info()["workers"]))
+    except Exception:  # noqa: BLE001 - a client that cannot say: the network path
+        return False
+    if not workers:
+        return False
+    key = (id(client), workers)
+    if key not in _SHARING:
+        token = uuid.uuid4().hex
+        path = os.path.join(_SHARED_DIR, f"zeroset-token-{token}")
+        try:
+            with open(path, "w", encoding="ascii") as f:
+                f.write(token)
+            seen = client.run(_read_token, path)
+            _SHARING[key] = len(seen) == len(workers) and all(t == token for t in seen.values())
+        except Exception:  # noqa: BLE001 - any failure: the network path
+            _SHARING[key] = False
+        finally:
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
+    return _SHARING[key]
+
+
+def _remove_stale_files() -> None:
+    """Unlinks the shared files of processes that are gone (killed before they could)."""
+    for name in os.listdir(_SHARED_DIR):
+        if name.startswith(_SHARED_PREFIX):
+            pid = name[len(_SHARED_PREFIX):].split("-")[0]
+            if pid.isdigit() and int(pid) != os.getpid() and not os.path.exists(f"/proc/{pid}"):
+                try:
+                    os.unlink(os.path.join(_SHARED_DIR, name))
+                except OSError:
+                    pass
+
+
+def _release_shared(path: str, size: int) -> None:
+    """The arrays over the file at ``path`` are gone: keep it for the next fetch of its size
+    (within ``_SHARED_POOL_BYTES``) or, once this process is ending, unlink it."""
+    pooled = sum(size * len(paths) for size, paths in _SHARED_POOL.items())
+    if not _EXITING and pooled + size <= _SHARED_POOL_BYTES:
+        _SHARED_POOL.setdefault(size, []).append(path)
+    else:
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
+
+
+def _unlink_pool() -> None:
+    """Unlinks the pooled files (whose arrays are gone)."""
+    for paths in _SHARED_POOL.values():
+        for path in paths:
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
+    _SHARED_POOL.clear()
+
+
+# at exit, the pool is unlinked and every file whose arrays' finalizer runs after that is unlinked
+# too (`_EXITING`), whichever order the finalizers' own exit hook and this one run in
+_EXITING = False
+
+
+@atexit.register
+def _at_exit() -> None:
+    global _EXITING
+    _EXITING = True
+    _unlink_pool()
+
+
+def _shared_output(size: int) -> Tuple[str, mmap.mmap]:
+    """A shared file of ``size`` bytes and this process's mapping of it: a pooled one whose
+    arrays are gone (its pages already in memory), else a new one. When the mapping is garbage
+    (every array over it gone), the file returns to the pool."""
+    pooled = _SHARED_POOL.get(size)
+    if pooled:
+        path = pooled.pop()
+        descriptor = os.open(path, os.O_RDWR)
+    else:
+        _remove_stale_files()
+        descriptor, path = tempfile.mkstemp(prefix=f"{_SHARED_PREFIX}{os.getpid()}-", dir=_SHARED_DIR)
+    try:
+        os.ftruncate(descriptor, size)
+        memory = mmap.mmap(descriptor, size)
+    except BaseException:
+        os.close(descriptor)
+        os.unlink(path)
+        raise
+    os.close(descriptor)
+    weakref.finalize(memory, _release_shared, path, size)
+    return path, memory
+
+
+def _worker_mapping(path: str) -> mmap.mmap:
+    """On a worker: its mapping of the shared file at ``path``, kept for the next fetches into
+    the same file (their pages then need no fault); the two most recent are kept."""
+    memory = _WORKER_MAPS.pop(path, None)
+    if memory is None:
+        with open(path, "r+b") as f:
+            memory = mmap.mmap(f.fileno(), 0)
+    _WORKER_MAPS[path] = memory
+    while len(_WORKER_MAPS) > 2:
+        _WORKER_MAPS.pop(next(iter(_WORKER_MAPS))).close()
+    return memory
+
+
+def _render_into(frame: Dict[str, np.ndarray], path: str, layout: Dict[str, Tuple[int, Tuple[int, ...]]],
+                 places: list) -> None:
+    """On a worker: copies a render's AOVs into the shared file at ``path`` that holds the output
+    arrays (``layout``: name → (byte offset, shape), float32), at their windows."""
+    memory = _worker_mapping(path)
+    for name, take, aov, window in places:
+        offset, shape = layout[name]
+        np.ndarray(shape, np.float32, buffer=memory, offset=offset)[window] = take(frame, aov)
+
+
+def _fetch_in_shared_memory(client: Any, arrays: Dict[str, da.Array], graph: Any, renders: Dict[Any, list],
+                            direct: Optional[bool]) -> Dict[str, np.ndarray]:
+    """``fetch`` of ``render`` / ``render_views`` arrays where every worker shares this
+    machine's memory: the output arrays live in one shared-memory file, each worker copies its
+    tiles into it where they go, and only an acknowledgement travels back (no tile is
+    serialised, sent or copied again here). The file is this process's until the arrays are
+    gone; it is then kept for the next fetch of the same size (the single-process render's
+    pooled memory does the same), and unlinked when this process ends."""
+    layout: Dict[str, Tuple[int, Tuple[int, ...]]] = {}
+    size = 0
+    for name, a in arrays.items():
+        layout[name] = (size, tuple(a.shape))
+        size += -(-int(np.prod(a.shape, dtype=np.int64)) * 4 // 64) * 64
+    path, memory = _shared_output(max(size, 64))
+    out = {name: np.ndarray(shape, np.float32, buffer=memory, offset=offset)
+           for name, (offset, shape) in layout.items()}
+    layer = "zeroset-into-" + tokenize(path, uuid.uuid4().hex)
+    tasks = {(layer, k): (_render_into, key, path, layout, places) for k, (key, places) in enumerate(renders.items())}
+    merged = HighLevelGraph({**graph.layers, layer: tasks},
+                            {**graph.dependencies, layer: {key[0] for key in renders}})
+    futures = client.compute([Delayed(key, merged, layer=layer) for key in tasks])
+    _collect(client, futures, direct, lambda future, result: None)
     return out
 
 
