@@ -210,6 +210,23 @@ def test_fetch_through_shared_memory(client, repo):
     assert _shared_files() == before
 
 
+def test_fetch_without_room_in_shared_memory_takes_the_network(client, repo, monkeypatch):
+    """Where the shared file cannot be made (a full ``/dev/shm``), fetch takes the network path
+    with the same arrays, leaving no file behind."""
+
+    def full(size):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(zdask, "_shared_output", full)
+    path = str(repo / "scenes" / "default.ron")
+    tiled = zdask.render(path, chunks=(40, 64), aovs=["Depth"], width=150, height=100)
+    before = _shared_files()
+    got = zdask.fetch(tiled, client)
+    ref = zeroset.Scene.load(path).render(aovs=["Depth"], width=150, height=100)
+    np.testing.assert_array_equal(got["Depth"], ref["Depth"])
+    assert _shared_files() == before
+
+
 def test_fetch_raises_a_failed_tile_s_error(client):
     """A block whose task fails makes fetch raise that error (not hang, not return a partial
     result)."""

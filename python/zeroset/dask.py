@@ -305,7 +305,9 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
         # of a tile) once, rather than one future and one task per tile and AOV
         graph, renders = grouped
         if _workers_share_memory(client):
-            return _fetch_in_shared_memory(client, arrays, graph, renders, direct)
+            shared = _fetch_in_shared_memory(client, arrays, graph, renders, direct)
+            if shared is not None:
+                return shared
         futures = client.compute([Delayed(key, graph, layer=key[0]) for key in renders])
         where = {f.key: renders[key] for f, key in zip(futures, renders)}
 
@@ -443,9 +445,12 @@ def _at_exit() -> None:
 
 def _shared_output(size: int) -> Tuple[str, mmap.mmap]:
     """A shared file of ``size`` bytes and this process's mapping of it: a pooled one whose
-    arrays are gone (its pages already in memory), else a new one. When the mapping is garbage
-    (every array over it gone), the file returns to the pool."""
+    arrays are gone (its pages already in memory), else a new one, its memory reserved at once
+    (``posix_fallocate``: a full ``/dev/shm`` is an ``OSError`` here, not a worker killed by
+    ``SIGBUS`` when it writes). When the mapping is garbage (every array over it gone), the file
+    returns to the pool."""
     pooled = _SHARED_POOL.get(size)
+    reused = bool(pooled)
     if pooled:
         path = pooled.pop()
         descriptor = os.open(path, os.O_RDWR)
@@ -454,6 +459,8 @@ def _shared_output(size: int) -> Tuple[str, mmap.mmap]:
         descriptor, path = tempfile.mkstemp(prefix=f"{_SHARED_PREFIX}{os.getpid()}-", dir=_SHARED_DIR)
     try:
         os.ftruncate(descriptor, size)
+        if not reused:
+            os.posix_fallocate(descriptor, 0, size)
         memory = mmap.mmap(descriptor, size)
     except BaseException:
         os.close(descriptor)
@@ -488,19 +495,23 @@ def _render_into(frame: Dict[str, np.ndarray], path: str, layout: Dict[str, Tupl
 
 
 def _fetch_in_shared_memory(client: Any, arrays: Dict[str, da.Array], graph: Any, renders: Dict[Any, list],
-                            direct: Optional[bool]) -> Dict[str, np.ndarray]:
+                            direct: Optional[bool]) -> Optional[Dict[str, np.ndarray]]:
     """``fetch`` of ``render`` / ``render_views`` arrays where every worker shares this
     machine's memory: the output arrays live in one shared-memory file, each worker copies its
     tiles into it where they go, and only an acknowledgement travels back (no tile is
     serialised, sent or copied again here). The file is this process's until the arrays are
     gone; it is then kept for the next fetch of the same size (the single-process render's
-    pooled memory does the same), and unlinked when this process ends."""
+    pooled memory does the same), and unlinked when this process ends. ``None`` (nothing done)
+    where shared memory has no room for the arrays."""
     layout: Dict[str, Tuple[int, Tuple[int, ...]]] = {}
     size = 0
     for name, a in arrays.items():
         layout[name] = (size, tuple(a.shape))
         size += -(-int(np.prod(a.shape, dtype=np.int64)) * 4 // 64) * 64
-    path, memory = _shared_output(max(size, 64))
+    try:
+        path, memory = _shared_output(max(size, 64))
+    except OSError:
+        return None  # no room in shared memory: the network path
     out = {name: np.ndarray(shape, np.float32, buffer=memory, offset=offset)
            for name, (offset, shape) in layout.items()}
     layer = "zeroset-into-" + tokenize(path, uuid.uuid4().hex)
