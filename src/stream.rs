@@ -116,6 +116,8 @@ pub fn render_view_to(
             .unwrap_or_else(PoisonError::into_inner)
             .get_or_insert(e);
     };
+    // band buffers every sink has written, for the next bands to trace into (see below)
+    let spare: Mutex<Vec<Vec<f32>>> = Mutex::new(Vec::new());
     let lock = |b: usize| slots[b].lock().unwrap_or_else(PoisonError::into_inner);
     let ready = |b: usize| b < bands && lock(b).rows.is_some();
     // writes sink `k`'s finished bands in order, unless another thread is already doing so
@@ -136,6 +138,9 @@ pub fn render_view_to(
                     fail(e);
                     return;
                 }
+                if let Ok(buffer) = Arc::try_unwrap(rows) {
+                    spare.lock().unwrap_or_else(PoisonError::into_inner).push(buffer);
+                }
                 *next += 1;
             }
             let following = *next;
@@ -155,7 +160,17 @@ pub fn render_view_to(
             return;
         }
         let (y0, y1) = band_range(b);
-        let mut rows = vec![0.0f32; row_len * (y1 - y0) as usize];
+        // a written band's buffer, whose pages are mapped and likely in cache, rather than fresh
+        // memory that the kernel faults in and zeroes page by page (3 % of the quadrics scene's
+        // default render); its old samples are all overwritten, as every path of the tracer
+        // writes every sample of every pixel (a hit's, a miss's or a pixel without a ray's)
+        let recycled = spare.lock().unwrap_or_else(PoisonError::into_inner).pop();
+        let mut rows = recycled.unwrap_or_default();
+        if cfg!(debug_assertions) {
+            // a sample the tracer failed to write would show as NaN in the tests' images
+            rows.fill(f32::NAN);
+        }
+        rows.resize(row_len * (y1 - y0) as usize, 0.0);
         tracer.rows(y0, &mut rows);
         traced_nanos.fetch_max(tracer.elapsed().as_nanos() as u64, Ordering::Relaxed);
         let prepared: Result<Vec<Option<Vec<u8>>>> =
