@@ -317,7 +317,7 @@ impl Scene {
         let mut raw: Option<(u32, RawHit)> = None;
         let object = self.hierarchy.bvh.closest(ray, range, |id, r| {
             let hit = test(id, r)?;
-            if !settles_tie(raw.as_ref(), id, hit.t, r) {
+            if !settles_tie(raw.map(|(holder, _)| holder), id, hit.t, r) {
                 return None;
             }
             raw = Some((id, hit));
@@ -366,7 +366,7 @@ impl Scene {
             let mut raw: [Option<(u32, RawHit)>; N] = [None; N];
             let objects = self.hierarchy.bvh.closest_packet(rays, &ranges[..n], |lane, id, r| {
                 let hit = self.objects[id as usize].primitive.intersect(&rays[lane], r)?;
-                if !settles_tie(raw[lane].as_ref(), id, hit.t, r) {
+                if !settles_tie(raw[lane].map(|(holder, _)| holder), id, hit.t, r) {
                     return None;
                 }
                 raw[lane] = Some((id, hit));
@@ -415,7 +415,7 @@ impl ClosestSoFar {
     /// [`settles_tie`] against the hit kept so far.
     #[inline(always)]
     fn settles_tie(&self, id: u32, t: f64, range: Interval) -> bool {
-        t < range.max || !self.found || id < self.object
+        settles_tie(self.found.then_some(self.object), id, t, range)
     }
 
     /// Keeps object `object`'s `hit`.
@@ -460,12 +460,13 @@ fn scaled_direction_size(ray: &Ray) -> Option<f64> {
 }
 
 /// Whether object `id`'s hit at `t` (within `range`, whose `max` is the closest hit so far)
-/// replaces `closest`: a nearer hit does; one at exactly `range.max` only if `id` is smaller
-/// than the object holding it. The hierarchy's closest hit is thus the smallest `(t, id)`,
-/// whatever order its leaves are visited in (single rays and packets agree).
+/// replaces the closest hit, held by object `holder` (`None`: none yet): a nearer hit does; one
+/// at exactly `range.max` only if `id` is smaller than `holder`. The hierarchy's closest hit is
+/// thus the smallest `(t, id)`, whatever order its leaves are visited in (single rays and packets
+/// agree).
 #[inline(always)]
-fn settles_tie(closest: Option<&(u32, RawHit)>, id: u32, t: f64, range: Interval) -> bool {
-    t < range.max || closest.is_none_or(|(holder, _)| id < *holder)
+fn settles_tie(holder: Option<u32>, id: u32, t: f64, range: Interval) -> bool {
+    t < range.max || holder.is_none_or(|holder| id < holder)
 }
 
 /// Largest angle between a packet's directions for tracing it together: `cos` of about 3.6°.

@@ -515,9 +515,9 @@ pub struct RowRays<'a> {
 
 impl RowRays<'_> {
     /// [`Camera::pixel_ray`] of the pixel in column `x0 + column` of this row, written into
-    /// `out` (left as it was where the pixel has no ray), one component at a time: the render loop's ray
-    /// lives in one place, written here and read by the tests, rather than being returned and
-    /// copied. (Returned, it was copied in 16-byte pieces that straddle the writes that made it,
+    /// `out` (left as it was where the pixel has no ray), one component at a time: the render
+    /// loop's ray lives in one place, written here and read by the intersection tests, rather
+    /// than being returned and copied. (Returned, it was copied in 16-byte pieces that straddle the writes that made it,
     /// which cannot be served from the store buffer: a store-forwarding stall on every pixel,
     /// about a sixth of the quadrics scene's Depth render.)
     #[inline(always)]
