@@ -19,6 +19,7 @@ rays.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import mmap
 import os
 import tempfile
@@ -355,6 +356,12 @@ _SHARING: Dict[Tuple[int, Tuple[str, ...]], bool] = {}
 _WORKER_MAPS: Dict[str, mmap.mmap] = {}
 
 
+def _unlink(path: str) -> None:
+    """Removes the file at ``path``, if it is still there."""
+    with contextlib.suppress(OSError):
+        os.unlink(path)
+
+
 def _read_token(path: str) -> Optional[str]:
     try:
         with open(path, encoding="ascii") as f:
@@ -388,10 +395,7 @@ def _workers_share_memory(client: Any) -> bool:
         except Exception:  # noqa: BLE001 - any failure: the network path
             _SHARING[key] = False
         finally:
-            try:
-                os.unlink(path)
-            except OSError:
-                pass
+            _unlink(path)
     return _SHARING[key]
 
 
@@ -401,33 +405,24 @@ def _remove_stale_files() -> None:
         if name.startswith(_SHARED_PREFIX):
             pid = name[len(_SHARED_PREFIX):].split("-")[0]
             if pid.isdigit() and int(pid) != os.getpid() and not os.path.exists(f"/proc/{pid}"):
-                try:
-                    os.unlink(os.path.join(_SHARED_DIR, name))
-                except OSError:
-                    pass
+                _unlink(os.path.join(_SHARED_DIR, name))
 
 
 def _release_shared(path: str, size: int) -> None:
     """The arrays over the file at ``path`` are gone: keep it for the next fetch of its size
     (within ``_SHARED_POOL_BYTES``) or, once this process is ending, unlink it."""
-    pooled = sum(size * len(paths) for size, paths in _SHARED_POOL.items())
+    pooled = sum(each * len(paths) for each, paths in _SHARED_POOL.items())
     if not _EXITING and pooled + size <= _SHARED_POOL_BYTES:
         _SHARED_POOL.setdefault(size, []).append(path)
     else:
-        try:
-            os.unlink(path)
-        except OSError:
-            pass
+        _unlink(path)
 
 
 def _unlink_pool() -> None:
     """Unlinks the pooled files (whose arrays are gone)."""
     for paths in _SHARED_POOL.values():
         for path in paths:
-            try:
-                os.unlink(path)
-            except OSError:
-                pass
+            _unlink(path)
     _SHARED_POOL.clear()
 
 
@@ -464,7 +459,7 @@ def _shared_output(size: int) -> Tuple[str, mmap.mmap]:
         memory = mmap.mmap(descriptor, size)
     except BaseException:
         os.close(descriptor)
-        os.unlink(path)
+        _unlink(path)
         raise
     os.close(descriptor)
     weakref.finalize(memory, _release_shared, path, size)
