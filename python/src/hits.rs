@@ -208,7 +208,9 @@ impl HitChunk<'_> {
             }
         }
         put_rows(self.point.as_deref_mut(), hits, |h| h.point.to_array());
-        put_rows(self.normal.as_deref_mut(), hits, |h| h.normal.unwrap_or_default().to_array());
+        put_rows(self.normal.as_deref_mut(), hits, |h| {
+            h.normal.unwrap_or_default().to_array()
+        });
         if let Some(out) = self.object_id.as_deref_mut() {
             for (o, q) in out.iter_mut().zip(hits) {
                 *o = found(q).map_or(-1, |(id, _)| *id as i32);

@@ -8,7 +8,10 @@
 
 use glam::{DAffine3, DMat3, DMat4, DVec3};
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArrayDyn,
+    PyUntypedArrayMethods,
+};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
@@ -255,25 +258,58 @@ fn parse_aovs(names: Option<Vec<String>>, scene: &Scene) -> PyResult<Vec<Aov>> {
     }
 }
 
-/// The requested AOVs of `window`, one plane per AOV (pixels row-major, channels interleaved
-/// within the AOV), rendered in bands of about a million pixels into one interleaved buffer
-/// (reused from band to band) and gathered from it into the planes: the peak memory is the
-/// returned planes plus one band. The planes are written in place, in memory numpy then owns
-/// ([`Plane`]: pooled mappings for large ones, so a loop of renders of one size faults no page
-/// in). Crops are exact, so the planes equal a single render of the window bit for bit.
-fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window: Window) -> (Vec<Aov>, Vec<Plane>) {
-    let (w, h) = (window.width() as usize, window.height() as usize);
-    let band_rows = ((1usize << 20) / w.max(1)).clamp(1, h.max(1)) as u32;
-    let layout = FrameLayout::new(
+/// The layout of a render of `window` (its AOVs, in the order their samples interleave).
+fn window_layout(camera: &Camera, options: &RenderOptions, window: Window) -> FrameLayout {
+    FrameLayout::new(
         camera,
         &RenderOptions {
             crop: Some(window),
             ..options.clone()
         },
-    );
-    let stride = layout.channel_count();
-    let aovs = layout.aovs;
+    )
+}
+
+/// The requested AOVs of `window`, one plane per AOV (pixels row-major, channels interleaved
+/// within the AOV), written in place ([`render_rows_into`]) in memory numpy then owns
+/// ([`Plane`]: pooled mappings for large ones, so a loop of renders of one size faults no page
+/// in). Crops are exact, so the planes equal a single render of the window bit for bit.
+fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window: Window) -> (Vec<Aov>, Vec<Plane>) {
+    let (w, h) = (window.width() as usize, window.height() as usize);
+    let aovs = window_layout(camera, options, window).aovs;
     let mut planes: Vec<Plane> = aovs.iter().map(|a| Plane::new(w * h * a.channels().len())).collect();
+    let mut rows: Vec<Option<Vec<&mut [f32]>>> = planes
+        .iter_mut()
+        .zip(&aovs)
+        .map(|(plane, aov)| {
+            Some(
+                plane
+                    .as_mut_slice()
+                    .chunks_exact_mut((w * aov.channels().len()).max(1))
+                    .collect(),
+            )
+        })
+        .collect();
+    render_rows_into(scene, camera, options, window, &mut rows);
+    (aovs, planes)
+}
+
+/// Renders `window` into `rows`: per AOV of its layout ([`window_layout`], in that order), the
+/// window's rows, each `width × channels` samples (channels interleaved), or `None` for an AOV
+/// the caller does not keep. The window is rendered in bands of about a million pixels into one
+/// interleaved buffer (reused from band to band) and gathered from it into the rows: the peak
+/// memory is the rows plus one band.
+fn render_rows_into(
+    scene: &Scene,
+    camera: &Camera,
+    options: &RenderOptions,
+    window: Window,
+    rows: &mut [Option<Vec<&mut [f32]>>],
+) {
+    let w = window.width() as usize;
+    let h = window.height() as usize;
+    let band_rows = ((1usize << 20) / w.max(1)).clamp(1, h.max(1)) as u32;
+    let layout = window_layout(camera, options, window);
+    let stride = layout.channel_count();
     // pooled like the planes: a Dask worker renders tile after tile of one size
     let mut band_buffer = Plane::new(w * band_rows as usize * stride);
     let band_samples = band_buffer.as_mut_slice();
@@ -286,19 +322,23 @@ fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window
         };
         let samples = &mut band_samples[..w * (y1 - y0) as usize * stride];
         render_view_into(scene, camera, &band, samples);
-        let first_pixel = (y0 - window.y0) as usize * w;
+        let first_row = (y0 - window.y0) as usize;
         let mut offset = 0;
-        for (aov, plane) in aovs.iter().zip(&mut planes) {
+        for (aov, rows) in layout.aovs.iter().zip(rows.iter_mut()) {
             let c = aov.channels().len();
-            let to = &mut plane.as_mut_slice()[first_pixel * c..(first_pixel + samples.len() / stride.max(1)) * c];
-            match c {
-                1 => gather::<1>(to, samples, stride, offset),
-                2 => gather::<2>(to, samples, stride, offset),
-                3 => gather::<3>(to, samples, stride, offset),
-                4 => gather::<4>(to, samples, stride, offset),
-                _ => {
-                    for (to, pixel) in to.chunks_exact_mut(c).zip(samples.chunks_exact(stride)) {
-                        to.copy_from_slice(&pixel[offset..offset + c]);
+            if let Some(rows) = rows {
+                let to = &mut rows[first_row..first_row + (y1 - y0) as usize];
+                match c {
+                    1 => gather::<1>(to, samples, w, stride, offset),
+                    2 => gather::<2>(to, samples, w, stride, offset),
+                    3 => gather::<3>(to, samples, w, stride, offset),
+                    4 => gather::<4>(to, samples, w, stride, offset),
+                    _ => {
+                        for (to, from) in to.iter_mut().zip(samples.chunks_exact(w * stride)) {
+                            for (to, pixel) in to.chunks_exact_mut(c).zip(from.chunks_exact(stride)) {
+                                to.copy_from_slice(&pixel[offset..offset + c]);
+                            }
+                        }
                     }
                 }
             }
@@ -306,16 +346,16 @@ fn render_planes(scene: &Scene, camera: &Camera, options: &RenderOptions, window
         }
         y0 = y1;
     }
-    (aovs, planes)
 }
 
-/// Writes into `to` the `C` channels from `offset` of every pixel of `samples` (interleaved,
-/// `stride` samples a pixel), in parallel over runs of 4096 pixels: copies of a size known when
-/// compiled, where a slice of run-time length would call `memmove` for each pixel.
-fn gather<const C: usize>(to: &mut [f32], samples: &[f32], stride: usize, offset: usize) {
-    const RUN: usize = 4096;
-    to.par_chunks_mut(RUN * C)
-        .zip(samples.par_chunks(RUN * stride.max(1)))
+/// Writes into each row of `rows` the `C` channels from `offset` of every pixel of the matching
+/// row of `samples` (`width` pixels a row, interleaved, `stride` samples a pixel), rows in
+/// parallel (at least 4096 pixels a task): copies of a size known when compiled, where a slice
+/// of run-time length would call `memmove` for each pixel.
+fn gather<const C: usize>(rows: &mut [&mut [f32]], samples: &[f32], width: usize, stride: usize, offset: usize) {
+    rows.par_iter_mut()
+        .zip(samples.par_chunks((width * stride).max(1)))
+        .with_min_len(4096usize.div_ceil(width.max(1)))
         .for_each(|(to, from)| {
             for (to, pixel) in to.chunks_exact_mut(C).zip(from.chunks_exact(stride)) {
                 let from: &[f32; C] = pixel[offset..offset + C].try_into().expect("C channels");
@@ -571,7 +611,10 @@ impl PyScene {
 
     /// Renders the scene's camera (see `zeroset.Scene.render`), on `threads` threads (default:
     /// rayon's global pool, one thread per core or `RAYON_NUM_THREADS`).
-    #[pyo3(signature = (aovs = None, width = None, height = None, crop = None, spp = None, depth_miss = f32::INFINITY, view = None, background = false, threads = None))]
+    /// With `out` (`{AOV name: writable float32 array}`, each shaped as the render returns that
+    /// AOV, every row contiguous), those AOVs are written into the given arrays (views into a
+    /// larger array too) and `out` is returned; the render's other AOVs are not kept.
+    #[pyo3(signature = (aovs = None, width = None, height = None, crop = None, spp = None, depth_miss = f32::INFINITY, view = None, background = false, threads = None, out = None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -585,6 +628,7 @@ impl PyScene {
         view: Option<([f64; 3], [f64; 3], [f64; 3])>,
         background: bool,
         threads: Option<usize>,
+        out: Option<Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let pool = threads.map(thread_pool).transpose()?;
         if depth_miss.is_nan() {
@@ -593,7 +637,15 @@ impl PyScene {
         if spp == Some(0) {
             return Err(error("spp must be at least 1"));
         }
-        let frame = self.with(py, |state| -> PyResult<RenderedPlanes> {
+        let mut borrowed = match &out {
+            Some(out) => Some(borrow_out_arrays(out)?),
+            None => None,
+        };
+        let mut given = match &mut borrowed {
+            Some(borrowed) => Some(out_rows(borrowed)?),
+            None => None,
+        };
+        let frame = self.with(py, |state| -> PyResult<Option<RenderedPlanes>> {
             state.built();
             let scene = &mut state.scene;
             let aovs = parse_aovs(aovs, scene)?;
@@ -624,11 +676,6 @@ impl PyScene {
                     .within(camera.width, camera.height)
                     .map_err(|m| error(format!("crop ({x0}, {y0}, {x1}, {y1}): {m}")))?,
             };
-            // the scene's own spp comes back after this render (the lock is held)
-            let saved_spp = scene.sampling.spp;
-            if let Some(spp) = spp {
-                scene.sampling.spp = spp;
-            }
             let options = RenderOptions {
                 aovs,
                 crop: None,
@@ -636,16 +683,40 @@ impl PyScene {
                 progress: false,
                 background,
             };
+            let mut targets = match given.take() {
+                Some(given) => Some(out_targets(
+                    given,
+                    &window_layout(&camera, &options, window).aovs,
+                    window,
+                )?),
+                None => None,
+            };
+            // the scene's own spp comes back after this render (the lock is held)
+            let saved_spp = scene.sampling.spp;
+            if let Some(spp) = spp {
+                scene.sampling.spp = spp;
+            }
             let scene = &*scene;
-            let render = || render_planes(scene, &camera, &options, window);
-            let (aovs, planes) = match &pool {
+            let mut render = || match &mut targets {
+                Some(targets) => {
+                    render_rows_into(scene, &camera, &options, window, targets);
+                    None
+                }
+                None => Some(render_planes(scene, &camera, &options, window)),
+            };
+            let planes = match &pool {
                 Some(pool) => pool.install(render),
                 None => render(),
             };
             state.scene.sampling.spp = saved_spp;
-            Ok(((window.width() as usize, window.height() as usize), aovs, planes))
+            Ok(planes.map(|(aovs, planes)| ((window.width() as usize, window.height() as usize), aovs, planes)))
         })?;
-        plane_arrays(py, frame.0, frame.1, frame.2)
+        drop(borrowed);
+        match (frame, out) {
+            (Some(frame), _) => plane_arrays(py, frame.0, frame.1, frame.2),
+            (None, Some(out)) => Ok(out),
+            (None, None) => unreachable!("a render without `out` returns its planes"),
+        }
     }
 
     /// The camera: pose, field of view, resolution and its matrices (see `zeroset.Camera`).
@@ -696,6 +767,87 @@ fn thread_pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
         .build()
         .map_err(|e| error(format!("threads: {e}")))?;
     Ok(Arc::clone(pools.entry(threads).or_insert(Arc::new(pool))))
+}
+
+/// The arrays of a render's `out` dict, borrowed for writing: `(AOV name, array)`.
+type OutArrays<'py> = Vec<(String, PyReadwriteArrayDyn<'py, f32>)>;
+
+/// The arrays of `out` borrowed for writing (an error names the entry that is not a writable
+/// float32 array, or that overlaps another).
+fn borrow_out_arrays<'py>(out: &Bound<'py, PyDict>) -> PyResult<OutArrays<'py>> {
+    out.iter()
+        .map(|(key, value)| {
+            let name: String = key
+                .extract()
+                .map_err(|_| error(format!("out: keys must be AOV names, got {key}")))?;
+            let array = value
+                .cast::<PyArrayDyn<f32>>()
+                .map_err(|_| error(format!("out[{name:?}]: a float32 numpy array expected")))?;
+            let array = array.try_readwrite().map_err(|e| {
+                error(format!(
+                    "out[{name:?}]: cannot be written ({e}: read-only, or it overlaps another array in use)"
+                ))
+            })?;
+            Ok((name, array))
+        })
+        .collect()
+}
+
+/// One `out` array as the render writes it: `(AOV name, shape, rows)`, each row the contiguous
+/// samples of one image row.
+type OutRows<'a> = (String, Vec<usize>, Vec<&'a mut [f32]>);
+
+/// The rows of every borrowed `out` array (an error names an array whose rows are not
+/// contiguous, or whose shape is not an image's).
+fn out_rows<'a>(arrays: &'a mut OutArrays<'_>) -> PyResult<Vec<OutRows<'a>>> {
+    arrays
+        .iter_mut()
+        .map(|(name, array)| {
+            let view = array.as_array_mut();
+            let shape = view.shape().to_vec();
+            if !(2..=3).contains(&shape.len()) {
+                return Err(error(format!(
+                    "out[{name:?}]: shape {shape:?} is not (H, W) or (H, W, C)"
+                )));
+            }
+            let rows = view
+                .into_outer_iter_mut()
+                .map(|row| row.into_slice())
+                .collect::<Option<Vec<_>>>()
+                .ok_or_else(|| {
+                    error(format!(
+                        "out[{name:?}]: each row must be contiguous (C order within a row)"
+                    ))
+                })?;
+            Ok((name.clone(), shape, rows))
+        })
+        .collect()
+}
+
+/// `given` matched to the AOVs of a render of `window` ([`window_layout`]'s order): each AOV's
+/// rows, or `None` where `out` has no array for it. An error names an array for an AOV the
+/// render does not make, or of the wrong shape.
+fn out_targets<'a>(given: Vec<OutRows<'a>>, aovs: &[Aov], window: Window) -> PyResult<Vec<Option<Vec<&'a mut [f32]>>>> {
+    let (w, h) = (window.width() as usize, window.height() as usize);
+    let mut targets: Vec<Option<Vec<&'a mut [f32]>>> = aovs.iter().map(|_| None).collect();
+    for (name, shape, rows) in given {
+        let Some(k) = aovs.iter().position(|a| format!("{a:?}") == name) else {
+            let made: Vec<String> = aovs.iter().map(|a| format!("{a:?}")).collect();
+            return Err(error(format!(
+                "out[{name:?}]: not an AOV of this render (it makes {})",
+                made.join(", ")
+            )));
+        };
+        let c = aovs[k].channels().len();
+        let want = if c == 1 { vec![h, w] } else { vec![h, w, c] };
+        if shape != want {
+            return Err(error(format!(
+                "out[{name:?}]: shape {shape:?}, the render's is {want:?}"
+            )));
+        }
+        targets[k] = Some(rows);
+    }
+    Ok(targets)
 }
 
 /// A rendered window: `(width, height)`, its AOVs and one plane per AOV.

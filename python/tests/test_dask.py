@@ -210,6 +210,42 @@ def test_fetch_through_shared_memory(client, repo):
     assert _shared_files() == before
 
 
+@pytest.mark.skipif(not os.path.isdir("/dev/shm"), reason="no /dev/shm")
+def test_fetch_through_shared_memory_renders_into_place(client, repo, monkeypatch):
+    """Tiles and views are rendered straight into the shared arrays (``_render_direct``, one
+    task a render, no render task before it), also where only some of a render's AOVs are
+    fetched; one array fetched under two names takes the render-then-copy path. Every way gives
+    the single-process arrays."""
+    assert zdask._workers_share_memory(client)
+    path = str(repo / "scenes" / "default.ron")
+    scene = zeroset.Scene.load(path)
+    aovs = ["Depth", "Normal"]
+    tiled = zdask.render(path, chunks=(40, 64), aovs=aovs, width=150, height=100)
+    ref = scene.render(aovs=aovs, width=150, height=100)
+    graph, renders = zdask._by_render(tiled)
+    assert all(zdask._direct_task(graph, key, places) is not None for key, places in renders.items())
+    got = zdask.fetch({"Depth": tiled["Depth"]}, client)
+    assert list(got) == ["Depth"]
+    np.testing.assert_array_equal(got["Depth"], ref["Depth"])
+    twice = {"a": tiled["Normal"], "b": tiled["Normal"]}
+    graph, renders = zdask._by_render(twice)
+    assert all(zdask._direct_task(graph, key, places) is None for key, places in renders.items())
+    got = zdask.fetch(twice, client)
+    np.testing.assert_array_equal(got["a"], ref["Normal"])
+    np.testing.assert_array_equal(got["b"], ref["Normal"])
+    views = [dict(eye=(0, 2.5, -7), look_at=(0, 0, 0)), dict(eye=(3, 2, -5), look_at=(0, 0.5, 0))]
+    stack = zdask.render_views(path, views, aovs=aovs, width=80, height=60)
+    got = zdask.fetch(stack, client)
+    for i, v in enumerate(views):
+        one = scene.render(aovs=aovs, width=80, height=60, view=v)
+        for name in aovs:
+            np.testing.assert_array_equal(got[name][i], one[name], err_msg=f"{name}, view {i}")
+    assert np.isfinite(got["Depth"]).sum() > 1000
+    del got
+    gc.collect()
+    zdask._unlink_pool()
+
+
 def test_fetch_without_room_in_shared_memory_takes_the_network(client, repo, monkeypatch):
     """Where the shared file cannot be made (a full ``/dev/shm``), fetch takes the network path
     with the same arrays, leaving no file behind."""

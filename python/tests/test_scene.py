@@ -170,6 +170,49 @@ def test_crop_matches_full_frame():
     np.testing.assert_array_equal(part["Normal"], full["Normal"][5:20, 10:30])
 
 
+def test_render_into_views_of_larger_arrays():
+    """``out`` takes views into larger arrays (rows contiguous, the views themselves not): the
+    window's AOVs land there, equal to the returned arrays of a plain render, nothing around
+    them is touched, and AOVs the render makes but ``out`` lacks are dropped."""
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    aovs = ["Depth", "Normal", "Alpha"]
+    crop = (10, 5, 30, 20)
+    ref = scene.render(aovs=aovs, crop=crop)
+    depth = np.full((40, 60), -7.0, np.float32)
+    normal = np.full((40, 60, 3), -7.0, np.float32)
+    out = {"Depth": depth[3:18, 20:40], "Normal": normal[10:25, 1:21]}
+    assert not out["Depth"].flags.c_contiguous
+    got = scene.render(aovs=aovs, crop=crop, out=out)
+    assert got is out
+    np.testing.assert_array_equal(depth[3:18, 20:40], ref["Depth"])
+    np.testing.assert_array_equal(normal[10:25, 1:21], ref["Normal"])
+    assert np.isfinite(ref["Depth"]).any() and np.isinf(ref["Depth"]).any()
+    depth[3:18, 20:40] = -7.0
+    normal[10:25, 1:21] = -7.0
+    assert (depth == -7.0).all() and (normal == -7.0).all()
+
+
+def test_render_into_rejects_arrays_it_cannot_fill():
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    kw = dict(aovs=["Depth", "Normal"], width=20, height=10)
+
+    def fails(out, pattern):
+        with pytest.raises(zeroset.ZerosetError, match=pattern):
+            scene.render(**kw, out=out)
+
+    fails({"Depth": np.zeros((10, 21), np.float32)}, r'out\["Depth"\]: shape \[10, 21\], the render.s is \[10, 20\]')
+    fails({"Normal": np.zeros((10, 20), np.float32)}, r'out\["Normal"\]: shape \[10, 20\], the render.s is \[10, 20, 3\]')
+    fails({"Depth": np.zeros((10, 20), np.float64)}, r'out\["Depth"\]: a float32 numpy array expected')
+    fails({"Alpha": np.zeros((10, 20), np.float32)}, r'out\["Alpha"\]: not an AOV of this render \(it makes Depth, Normal\)')
+    fails({"Depth": np.zeros((20, 10), np.float32).T}, r'out\["Depth"\]: each row must be contiguous')
+    fails({"Depth": np.zeros(200, np.float32)}, r'out\["Depth"\]: shape \[200\] is not \(H, W\) or \(H, W, C\)')
+    frozen = np.zeros((10, 20), np.float32)
+    frozen.flags.writeable = False
+    fails({"Depth": frozen}, r'out\["Depth"\]: cannot be written')
+    shared = np.zeros((10, 20, 3), np.float32)
+    fails({"Depth": shared[:, :, 0].copy(), "Normal": shared, "Alpha": shared}, "cannot be written")
+
+
 def test_rays_pinhole_reproduce_the_render():
     scene = zeroset.Scene.from_ron(SPHERE_SCENE)
     cam = scene.camera

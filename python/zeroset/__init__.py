@@ -295,7 +295,7 @@ class Scene:
                height: Optional[int] = None, crop: Optional[Tuple[int, int, int, int]] = None,
                spp: Optional[int] = None, depth_miss: float = float("inf"),
                view: Optional[Dict[str, Any]] = None, background: bool = False,
-               threads: Optional[int] = None) -> Dict[str, np.ndarray]:
+               threads: Optional[int] = None, out: Optional[Dict[str, np.ndarray]] = None) -> Dict[str, np.ndarray]:
         """Renders the scene's camera; returns ``{AOV name: float32 array}``, ``(H, W)`` for one
         channel and ``(H, W, C)`` for several, bit-identical to the EXR's channels.
 
@@ -309,6 +309,11 @@ class Scene:
         ``threads``: how many threads render (default: one per core, or ``RAYON_NUM_THREADS``);
         ``zeroset.dask`` passes a worker's thread count, so workers sharing a machine share its
         cores instead of each starting one thread per core.
+        ``out={AOV name: array}`` writes those AOVs into the given writable float32 arrays (each
+        shaped as it would be returned; a view into a larger array will do, as long as each of its
+        rows is contiguous) instead of new ones, and returns ``out``; AOVs rendered but not in
+        ``out`` are dropped. ``zeroset.dask.fetch`` renders tiles straight into the shared output
+        this way.
         """
         pose = None
         if view is not None:
@@ -319,7 +324,7 @@ class Scene:
                     tuple(map(float, view.get("up", (0, 1, 0)))))
         return self._core.render(None if aovs is None else list(aovs), width, height,
                                  None if crop is None else tuple(int(c) for c in crop), spp, float(depth_miss),
-                                 pose, bool(background), None if threads is None else int(threads))
+                                 pose, bool(background), None if threads is None else int(threads), out)
 
     def __repr__(self) -> str:
         return f"Scene({self.object_count} objects, camera {self.camera.width}x{self.camera.height})"

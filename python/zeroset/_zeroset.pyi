@@ -33,7 +33,8 @@ class _Scene:
     def render(self, aovs: Optional[List[str]] = None, width: Optional[int] = None, height: Optional[int] = None,
                crop: Optional[Tuple[int, int, int, int]] = None, spp: Optional[int] = None,
                depth_miss: float = ..., view: Optional[Tuple[Sequence[float], Sequence[float], Sequence[float]]] = None,
-               background: bool = False, threads: Optional[int] = None) -> Dict[str, npt.NDArray[np.float32]]: ...
+               background: bool = False, threads: Optional[int] = None,
+               out: Optional[Dict[str, npt.NDArray[np.float32]]] = None) -> Dict[str, npt.NDArray[np.float32]]: ...
     def camera(self) -> Dict[str, Any]: ...
 
 def rays_pinhole(intrinsics: List[List[float]], extrinsics: List[List[float]], width: int, height: int,

@@ -282,8 +282,9 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
     instead of 64 for a 4×4-tile frame of 4 AOVs). Where every worker shares this machine's
     memory (a ``LocalCluster``; checked once per client by a token file each worker reads back),
     those renders' tiles travel not at all: the arrays live in one shared-memory file in
-    ``/dev/shm``, each worker copies its tiles into it and returns only an acknowledgement, and the
-    file is kept for the next fetch of the same size once the arrays are gone (unlinked when this
+    ``/dev/shm``, each worker renders its tiles straight into it (``Scene.render(out=...)``: one
+    task a tile, no frame of its own, no copy) and returns only an acknowledgement, which is
+    waited for, never gathered; the file is kept for the next fetch of the same size once the arrays are gone (unlinked when this
     process ends; files of processes killed before that are unlinked by the next fetch). The
     values are those of ``.compute()``.
     ``client``: a ``distributed.Client`` (default: the current one); ``False``, or no client at
@@ -306,7 +307,7 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
         # of a tile) once, rather than one future and one task per tile and AOV
         graph, renders = grouped
         if _workers_share_memory(client):
-            shared = _fetch_in_shared_memory(client, arrays, graph, renders, direct)
+            shared = _fetch_in_shared_memory(client, arrays, graph, renders)
             if shared is not None:
                 return shared
         futures = client.compute([Delayed(key, graph, layer=key[0]) for key in renders])
@@ -489,12 +490,50 @@ def _render_into(frame: Dict[str, np.ndarray], path: str, layout: Dict[str, Tupl
         np.ndarray(shape, np.float32, buffer=memory, offset=offset)[window] = take(frame, aov)
 
 
-def _fetch_in_shared_memory(client: Any, arrays: Dict[str, da.Array], graph: Any, renders: Dict[Any, list],
-                            direct: Optional[bool]) -> Optional[Dict[str, np.ndarray]]:
+def _render_direct(scene: Scene, kwargs: Dict[str, Any], path: str, layout: Dict[str, Tuple[int, Tuple[int, ...]]],
+                   places: list) -> None:
+    """On a worker: ``_render_block`` written straight into the shared file at ``path`` that
+    holds the output arrays (``layout`` as in ``_render_into``): each AOV of ``places`` rendered
+    into its window there (``Scene.render(out=...)``), with no frame of its own and no copy."""
+    memory = _worker_mapping(path)
+    out = {}
+    for name, take, aov, window in places:
+        offset, shape = layout[name]
+        block = np.ndarray(shape, np.float32, buffer=memory, offset=offset)[window]
+        out[aov] = block[0] if take is _view_block else block
+    scene.render(**kwargs, threads=_worker_threads(), out=out)
+
+
+def _direct_task(graph: Any, key: Any, places: list) -> Optional[Tuple[Any, Dict[str, Any]]]:
+    """``(scene key, render keyword arguments)`` of the render task ``key`` where it is a
+    ``_render_block`` that ``_render_direct`` can replace: every place a different AOV of it."""
+    task = graph.layers[key[0]].get(key)
+    if not (isinstance(task, tuple) and len(task) == 3 and task[0] is _render_block and isinstance(task[2], dict)):
+        return None
+    if len({aov for _, _, aov, _ in places}) != len(places):
+        return None
+    return task[1], task[2]
+
+
+def _layers_under(graph: Any, names: Iterable[str]) -> set:
+    """The layers ``names`` of ``graph`` and every layer they depend on."""
+    found: set = set()
+    pending = list(names)
+    while pending:
+        name = pending.pop()
+        if name not in found:
+            found.add(name)
+            pending.extend(graph.dependencies.get(name, ()))
+    return found
+
+
+def _fetch_in_shared_memory(client: Any, arrays: Dict[str, da.Array], graph: Any,
+                            renders: Dict[Any, list]) -> Optional[Dict[str, np.ndarray]]:
     """``fetch`` of ``render`` / ``render_views`` arrays where every worker shares this
-    machine's memory: the output arrays live in one shared-memory file, each worker copies its
-    tiles into it where they go, and only an acknowledgement travels back (no tile is
-    serialised, sent or copied again here). The file is this process's until the arrays are
+    machine's memory: the output arrays live in one shared-memory file, each worker renders its
+    tiles into it where they go (``_render_direct``; a render it cannot take is rendered, then
+    copied in by ``_render_into``), and only an acknowledgement, waited for rather than gathered,
+    comes back (no tile is serialised, sent or copied again here). The file is this process's until the arrays are
     gone; it is then kept for the next fetch of the same size (the single-process render's
     pooled memory does the same), and unlinked when this process ends. ``None`` (nothing done)
     where shared memory has no room for the arrays."""
@@ -510,11 +549,31 @@ def _fetch_in_shared_memory(client: Any, arrays: Dict[str, da.Array], graph: Any
     out = {name: np.ndarray(shape, np.float32, buffer=memory, offset=offset)
            for name, (offset, shape) in layout.items()}
     layer = "zeroset-into-" + tokenize(path, uuid.uuid4().hex)
-    tasks = {(layer, k): (_render_into, key, path, layout, places) for k, (key, places) in enumerate(renders.items())}
-    merged = HighLevelGraph({**graph.layers, layer: tasks},
-                            {**graph.dependencies, layer: {key[0] for key in renders}})
+    # a render task that `_render_direct` can take renders into the file itself (one task, no
+    # frame, no copy); any other is rendered, then copied in by `_render_into`
+    tasks = {}
+    needs = set()
+    for k, (key, places) in enumerate(renders.items()):
+        direct_task = _direct_task(graph, key, places)
+        if direct_task is None:
+            tasks[(layer, k)] = (_render_into, key, path, layout, places)
+            needs.add(key[0])
+        else:
+            scene_key, kwargs = direct_task
+            tasks[(layer, k)] = (_render_direct, scene_key, kwargs, path, layout, places)
+            needs.update(graph.dependencies[key[0]])
+    kept = _layers_under(graph, needs)
+    merged = HighLevelGraph({**{name: graph.layers[name] for name in kept}, layer: tasks},
+                            {**{name: graph.dependencies[name] for name in kept}, layer: needs})
     futures = client.compute([Delayed(key, merged, layer=layer) for key in tasks])
-    _collect(client, futures, direct, lambda future, result: None)
+    # the results are acknowledgements (None): waited for, never gathered; a failed task (or a
+    # lost worker) raises its error here
+    from distributed import wait
+
+    wait(futures)
+    for future in futures:
+        if future.status != "finished":
+            future.result()
     return out
 
 
