@@ -276,6 +276,24 @@ impl Polygon {
         Some(-((ray.origin[k] - self.origin[k]) * s + 0.0) / denom)
     }
 
+    /// [`Intersect::intersect`] for a plane of any orientation (compensated dot products), the
+    /// whole test inlined into the AVX2+FMA copy where the CPU has them. Out of line: its frame
+    /// and register saves would otherwise be paid by every test of a plane across an axis (a
+    /// ground polygon under most pixels), which needs none of them.
+    #[inline(never)]
+    fn intersect_general(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        #[inline(always)]
+        fn test(this: &Polygon, ray: &Ray, range: Interval) -> Option<RawHit> {
+            let denom = dot_minus(ray.dir, this.normal, 0.0);
+            if denom == 0.0 {
+                return None;
+            }
+            let t = -dot_minus(ray.origin, this.normal, this.origin.dot(this.normal)) / denom;
+            this.hit_at(ray, range, t)
+        }
+        crate::with_fma!(test(this: &Polygon = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
+    }
+
     /// The hit at `t` on the plane, if `t` is in `range` and the hit inside the polygon.
     #[inline(always)]
     fn hit_at(&self, ray: &Ray, range: Interval, t: f64) -> Option<RawHit> {
@@ -300,17 +318,7 @@ impl Intersect for Polygon {
                 return self.hit_at(ray, range, self.axis_plane_t(k, s, ray)?);
             }
         }
-        // the whole test inlined into the AVX2+FMA copy where the CPU has them
-        #[inline(always)]
-        fn test(this: &Polygon, ray: &Ray, range: Interval) -> Option<RawHit> {
-            let denom = dot_minus(ray.dir, this.normal, 0.0);
-            if denom == 0.0 {
-                return None;
-            }
-            let t = -dot_minus(ray.origin, this.normal, this.origin.dot(this.normal)) / denom;
-            this.hit_at(ray, range, t)
-        }
-        crate::with_fma!(test(this: &Polygon = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
+        self.intersect_general(ray, range)
     }
 
     fn normal_at(&self, _ray: &Ray, _raw: &RawHit) -> DVec3 {

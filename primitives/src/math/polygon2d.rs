@@ -154,8 +154,9 @@ impl ConvexRing {
     }
 
     /// [`point_in_convex_polygon`]`(p, ring)`, or `None` where `p` lies beyond
-    /// [`ConvexRing::LIMIT`] (or is NaN).
-    #[inline]
+    /// [`ConvexRing::LIMIT`] (or is NaN). Inlined into the polygon's test, which calls it for
+    /// every pixel that meets a ground polygon's plane.
+    #[inline(always)]
     #[must_use]
     pub fn contains(&self, p: DVec2) -> Option<bool> {
         // false for NaN
@@ -163,14 +164,17 @@ impl ConvexRing {
             return None;
         }
         let bounded = (p.x >= self.x_at_least) & (p.x < self.x_below) & (p.y >= self.y_at_least) & (p.y < self.y_below);
-        Some(
-            bounded
-                && self.general.iter().all(|&(prev, cur)| {
-                    let side = orient2d(prev, cur, p);
-                    // on the line (`side` = 0): `d.y ≠ 0` here, so the rule drops `p` when `d.y > 0`
-                    !(side < 0.0 || (side == 0.0 && cur.y > prev.y))
-                }),
-        )
+        // the edges along neither axis, tested out of line (an axis-aligned rectangle, the usual
+        // ground, has none)
+        #[inline(never)]
+        fn inside_general(general: &[(DVec2, DVec2)], p: DVec2) -> bool {
+            general.iter().all(|&(prev, cur)| {
+                let side = orient2d(prev, cur, p);
+                // on the line (`side` = 0): `d.y ≠ 0` here, so the rule drops `p` when `d.y > 0`
+                !(side < 0.0 || (side == 0.0 && cur.y > prev.y))
+            })
+        }
+        Some(bounded && (self.general.is_empty() || inside_general(&self.general, p)))
     }
 }
 
