@@ -30,7 +30,7 @@
 use rayon::prelude::*;
 use zeroset_primitives::{Interval, Pieces, RawHit, Ray};
 
-use crate::camera::footprint::TIGHT_WIDENING;
+use crate::camera::footprint::{BoxProjector, TIGHT_WIDENING};
 use crate::camera::{Camera, Model};
 use crate::render::Window;
 use crate::scene::Scene;
@@ -121,45 +121,24 @@ impl<'a> PieceBins<'a> {
                 )
             }
         };
-        let piece_box = |number: u32| match &source {
-            Source::Lone { pieces, .. } => pieces.piece_box(number),
-            Source::Objects { .. } => Some(scene.objects[number as usize].primitive.bounds()),
-        };
         // every piece's footprint (a lone object's piece without one: no bins; an object
         // without one, even cut at the eye plane: tested by every pixel), kept where it holds
-        // a pixel
-        let no_footprint = std::sync::Mutex::new(Vec::new());
-        let seen: Vec<Seen> = numbers
-            .into_par_iter()
-            .filter_map(|number| {
-                let bounds = piece_box(number)?;
-                let rect = match &source {
-                    Source::Lone { .. } => projector.footprint(&bounds, TIGHT_WIDENING),
-                    Source::Objects { .. } => projector.footprint_clipped(&bounds, TIGHT_WIDENING),
-                };
-                let Some(rect) = rect else {
-                    no_footprint.lock().unwrap_or_else(|e| e.into_inner()).push(number);
-                    return None;
-                };
-                // the pixels whose centres `k + 0.5` lie in the rectangle, within the window
-                let first = |lo: f64, start: u32| (lo - 0.5).ceil().max(f64::from(start));
-                let last = |hi: f64, end: u32| (hi - 0.5).floor().min(f64::from(end) - 1.0);
-                let (c0, c1) = (first(rect.x0, window.x0), last(rect.x1, window.x1));
-                let (r0, r1) = (first(rect.y0, window.y0), last(rect.y1, window.y1));
-                let distance = (camera.eye.clamp(bounds.min, bounds.max) - camera.eye).length();
-                let near = match &source {
-                    Source::Lone { .. } => distance as f32,
-                    Source::Objects { .. } => f32_below((distance - projector.enlargement(&bounds)).max(0.0)),
-                };
-                (c0 <= c1 && r0 <= r1).then_some(Seen {
-                    number,
-                    near,
-                    columns: [c0 as u32, c1 as u32],
-                    rows: [r0 as u32, r1 as u32],
-                })
+        // a pixel; in runs of pieces, each run's pieces in order into vectors of its own (no
+        // lock, no per-piece item through rayon's collect), joined in the pieces' order
+        let runs: Vec<(Vec<Seen>, Vec<u32>)> = numbers
+            .par_chunks(FOOTPRINT_RUN)
+            .map(|run| {
+                let mut found = (Vec::with_capacity(run.len()), Vec::new());
+                footprints(run, scene, &source, &projector, window, &mut found);
+                found
             })
             .collect();
-        let mut no_footprint = no_footprint.into_inner().unwrap_or_else(|e| e.into_inner());
+        let mut seen = Vec::with_capacity(runs.iter().map(|r| r.0.len()).sum());
+        let mut no_footprint = Vec::new();
+        for (run_seen, run_without) in runs {
+            seen.extend(run_seen);
+            no_footprint.extend(run_without);
+        }
         let source = match source {
             Source::Lone { .. } if !no_footprint.is_empty() => return None,
             Source::Objects { mut near, .. } => {
@@ -250,6 +229,57 @@ impl<'a> PieceBins<'a> {
         match &self.source {
             Source::Lone { object, pieces } => scene.intersect_lone_pieces(*object, *pieces, ray, range, candidates),
             Source::Objects { always, near } => scene.intersect_candidates(ray, range, always, candidates, near),
+        }
+    }
+}
+
+/// Pieces a task of [`PieceBins::new`] projects ([`footprints`]).
+const FOOTPRINT_RUN: usize = 1024;
+
+/// The footprints of the pieces `numbers` of `source` through `projector` (module docs): into
+/// `found.0` each piece whose footprint holds a pixel centre of `window`, with its rows, columns
+/// and distance, in the order of `numbers`; into `found.1` each piece without a footprint.
+#[inline(always)]
+fn footprints(
+    numbers: &[u32],
+    scene: &Scene,
+    source: &Source<'_>,
+    projector: &BoxProjector<'_>,
+    window: &Window,
+    found: &mut (Vec<Seen>, Vec<u32>),
+) {
+    let eye = projector.eye();
+    for &number in numbers {
+        let bounds = match source {
+            Source::Lone { pieces, .. } => pieces.piece_box(number),
+            Source::Objects { .. } => Some(scene.objects[number as usize].primitive.bounds()),
+        };
+        let Some(bounds) = bounds else { continue };
+        let rect = match source {
+            Source::Lone { .. } => projector.footprint(&bounds, TIGHT_WIDENING),
+            Source::Objects { .. } => projector.footprint_clipped(&bounds, TIGHT_WIDENING),
+        };
+        let Some(rect) = rect else {
+            found.1.push(number);
+            continue;
+        };
+        // the pixels whose centres `k + 0.5` lie in the rectangle, within the window
+        let first = |lo: f64, start: u32| (lo - 0.5).ceil().max(f64::from(start));
+        let last = |hi: f64, end: u32| (hi - 0.5).floor().min(f64::from(end) - 1.0);
+        let (c0, c1) = (first(rect.x0, window.x0), last(rect.x1, window.x1));
+        let (r0, r1) = (first(rect.y0, window.y0), last(rect.y1, window.y1));
+        let distance = (eye.clamp(bounds.min, bounds.max) - eye).length();
+        let near = match source {
+            Source::Lone { .. } => distance as f32,
+            Source::Objects { .. } => f32_below((distance - projector.enlargement(&bounds)).max(0.0)),
+        };
+        if c0 <= c1 && r0 <= r1 {
+            found.0.push(Seen {
+                number,
+                near,
+                columns: [c0 as u32, c1 as u32],
+                rows: [r0 as u32, r1 as u32],
+            });
         }
     }
 }

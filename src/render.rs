@@ -504,6 +504,7 @@ pub fn render_view_into(scene: &Scene, camera: &Camera, options: &RenderOptions,
 /// together in packets ([`Scene::intersect_packet`], the same hits as one by one) of 4 × 2
 /// pixels (8 × 1 for a single row), except when the `Uncertain` AOV needs each pixel's
 /// root-finder events on their own.
+#[inline(never)]
 fn render_rows(scene: &Scene, context: &RowContext, pixel_rays: &PixelRays, y: u32, row_len: usize, out: &mut [f32]) {
     let x0 = pixel_rays.x0();
     const N: usize = zeroset_primitives::PACKET;
@@ -563,7 +564,10 @@ fn render_rows(scene: &Scene, context: &RowContext, pixel_rays: &PixelRays, y: u
 
 /// Renders the rows in `out` (whole rows of `row_len` samples) from row `y` and column `x0` on,
 /// each pixel's ray tested against the pieces it can see ([`PieceBins`]): the same values as
-/// [`render_rows`].
+/// [`render_rows`]. Out of line, as are [`render_rows`] and [`render_row_sampled`]: inlined,
+/// the three paths made [`Tracer::rows`] one function of 36 KB, whose hot loop the compiler laid
+/// out anew at any change elsewhere in the crate (±3 % from one build to the next).
+#[inline(never)]
 fn render_rows_binned(
     scene: &Scene,
     context: &RowContext,
@@ -710,6 +714,7 @@ struct SampleHit {
 
 /// Renders row `y` from column `x0` with the scene's samples per pixel, resolving each pixel's
 /// samples per AOV as the module table says.
+#[inline(never)]
 fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y: u32, out: &mut [f32]) {
     let camera = context.camera;
     let filter = scene.sampling.filter;

@@ -52,6 +52,7 @@ const MARGIN: f64 = 1e-4;
 /// How much a box is enlarged before its corners are projected: `10⁻⁴·(|diagonal| +
 /// |centre − eye|) + 100·r`, `r` how far off the exact ray a hit may lie for the way the
 /// surface stores the ray's origin (a mesh's f32 copy: `2⁻²³·max |eyeᵢ|`, however near the box).
+#[inline(always)]
 fn enlargement(bounds: &Aabb, eye: DVec3, origin_rounding: f64) -> f64 {
     MARGIN * (bounds.diagonal_length() + (bounds.center() - eye).length()) + 100.0 * origin_rounding
 }
@@ -187,8 +188,16 @@ pub struct BoxProjector<'a> {
 }
 
 impl BoxProjector<'_> {
+    /// The eye the boxes are projected from.
+    #[inline(always)]
+    #[must_use]
+    pub fn eye(&self) -> DVec3 {
+        self.camera.eye
+    }
+
     /// How much [`BoxProjector::footprint`] enlarges `bounds` before projecting it: a hit
     /// farther than this from the box would not be found by a footprint's pixels.
+    #[inline(always)]
     #[must_use]
     pub fn enlargement(&self, bounds: &Aabb) -> f64 {
         enlargement(bounds, self.camera.eye, self.origin_rounding)
@@ -196,6 +205,7 @@ impl BoxProjector<'_> {
 
     /// The bounding rectangle of the images of the enlarged box's corners (module docs),
     /// widened by `widening` pixels on every side.
+    #[inline(always)]
     #[must_use]
     pub fn footprint(&self, bounds: &Aabb, widening: f64) -> Option<ImageRect> {
         let (delta, corners) = self.local_corners(bounds)?;
@@ -273,6 +283,7 @@ impl BoxProjector<'_> {
     /// corners, one array per axis (corner `c` is the low corner plus edge `a` where bit `a`
     /// of `c` is set): the first corner's coordinates plus the box's edges mapped once (sums of
     /// f64 terms: their rounding, like the projection's, is covered by `δ`).
+    #[inline(always)]
     fn local_corners(&self, bounds: &Aabb) -> Option<(f64, [[f64; 8]; 3])> {
         let camera = self.camera;
         if !bounds.is_finite() || bounds.is_empty() || !camera.eye.is_finite() {
@@ -311,6 +322,7 @@ impl PinholeScales {
 
     /// [`bounding_rect`] of the images of eight camera-local corners (one array per axis, as
     /// [`BoxProjector::local_corners`] gives them), all in front of the eye.
+    #[inline(always)]
     fn corners_rect(&self, [lx, ly, lz]: &[[f64; 8]; 3], widening: f64) -> Option<ImageRect> {
         let (mut xs, mut ys) = ([0.0; 8], [0.0; 8]);
         for c in 0..8 {
@@ -322,6 +334,7 @@ impl PinholeScales {
 
 /// The bounding rectangle of the image positions `(xs[i], ys[i])`, widened by `widening` pixels
 /// on every side; `None` unless it is finite.
+#[inline(always)]
 fn bounding_rect(xs: &[f64], ys: &[f64], widening: f64) -> Option<ImageRect> {
     // plain comparisons: every value here is finite or ±∞, never NaN (checked below)
     let lowest = |v: &[f64]| v.iter().fold(f64::INFINITY, |m, &x| if x < m { x } else { m });
