@@ -44,11 +44,15 @@ const BUCKET_ROWS: u32 = 16;
 /// listing pays for itself from about one traced pixel per leaf, two window pixels.
 const PIXELS_PER_PIECE: u64 = 2;
 
-/// A piece seen in the window: its number, the distance from the eye to its box, and the
-/// pixels (columns and rows, inclusive) whose centres its footprint holds.
+/// A piece seen in the window: its number, a lower bound on the distance from the eye to any
+/// hit on it, and the pixels (columns and rows, inclusive) whose centres its footprint holds.
 #[derive(Clone, Copy, Debug)]
 struct Seen {
     number: u32,
+    /// The distance from the eye to the piece's box less the box's enlargement
+    /// ([`BoxProjector::enlargement`], at least the margin [`Pieces`] asks for), rounded down to
+    /// f32: the pieces are listed by it, nearest first, and a pixel's test ends at the first
+    /// piece beyond its closest hit so far.
     near: f32,
     columns: [u32; 2],
     rows: [u32; 2],
@@ -60,9 +64,8 @@ enum Source<'a> {
     Lone { object: u32, pieces: &'a dyn Pieces },
     /// The scene's bounded objects, piece `i` being object `i` (its world box); every pixel
     /// also tests the unbounded objects and `always`, the bounded ones with no footprint (a box
-    /// reaching behind the eye plane). `near[i]` is a lower bound on the distance from the eye
-    /// to object `i`'s enlarged box, hence to any hit on it.
-    Objects { always: Vec<u32>, near: Vec<f32> },
+    /// reaching behind the eye plane).
+    Objects { always: Vec<u32> },
 }
 
 /// The pieces each row of a view's window can see (module docs).
@@ -110,15 +113,7 @@ impl<'a> PieceBins<'a> {
                     return None;
                 }
                 let projector = camera.box_projector(scene.origin_rounding(camera.eye));
-                let near = vec![0.0; scene.objects.len()];
-                (
-                    Source::Objects {
-                        always: Vec::new(),
-                        near,
-                    },
-                    numbers,
-                    projector,
-                )
+                (Source::Objects { always: Vec::new() }, numbers, projector)
             }
         };
         // every piece's footprint (a lone object's piece without one: no bins; an object
@@ -141,15 +136,9 @@ impl<'a> PieceBins<'a> {
         }
         let source = match source {
             Source::Lone { .. } if !no_footprint.is_empty() => return None,
-            Source::Objects { mut near, .. } => {
+            Source::Objects { .. } => {
                 no_footprint.sort_unstable();
-                for piece in &seen {
-                    near[piece.number as usize] = piece.near;
-                }
-                Source::Objects {
-                    always: no_footprint,
-                    near,
-                }
+                Source::Objects { always: no_footprint }
             }
             lone => lone,
         };
@@ -211,24 +200,29 @@ impl<'a> PieceBins<'a> {
                     continue;
                 }
                 for y in top..=bottom {
-                    band.rows[(y - y0) as usize].push((piece.number, (first - x0) as usize, (last - x0) as usize));
+                    band.rows[(y - y0) as usize].push((
+                        (piece.number, piece.near),
+                        (first - x0) as usize,
+                        (last - x0) as usize,
+                    ));
                 }
             }
         }
     }
 
-    /// [`Scene::intersect`]`(ray, range)` for the ray of a pixel whose pieces are `candidates`.
+    /// [`Scene::intersect`]`(ray, range)` for the ray of a pixel whose pieces are `candidates`
+    /// (nearest first, each with its [`Seen::near`]).
     #[inline]
     pub(crate) fn intersect(
         &self,
         scene: &Scene,
         ray: &Ray,
         range: Interval,
-        candidates: &[u32],
+        candidates: &[Listed],
     ) -> Option<(u32, RawHit)> {
         match &self.source {
             Source::Lone { object, pieces } => scene.intersect_lone_pieces(*object, *pieces, ray, range, candidates),
-            Source::Objects { always, near } => scene.intersect_candidates(ray, range, always, candidates, near),
+            Source::Objects { always } => scene.intersect_candidates(ray, range, always, candidates),
         }
     }
 }
@@ -269,10 +263,7 @@ fn footprints(
         let (c0, c1) = (first(rect.x0, window.x0), last(rect.x1, window.x1));
         let (r0, r1) = (first(rect.y0, window.y0), last(rect.y1, window.y1));
         let distance = (eye.clamp(bounds.min, bounds.max) - eye).length();
-        let near = match source {
-            Source::Lone { .. } => distance as f32,
-            Source::Objects { .. } => f32_below((distance - projector.enlargement(&bounds)).max(0.0)),
-        };
+        let near = f32_below((distance - projector.enlargement(&bounds)).max(0.0));
         if c0 <= c1 && r0 <= r1 {
             found.0.push(Seen {
                 number,
@@ -310,8 +301,11 @@ fn f32_below(x: f64) -> f32 {
 /// the band's first column) ([`PieceBins::band`]).
 #[derive(Default)]
 pub(crate) struct BandBins {
-    rows: Vec<Vec<(u32, usize, usize)>>,
+    rows: Vec<Vec<(Listed, usize, usize)>>,
 }
+
+/// A piece as a pixel's list holds it: its number and its [`Seen::near`].
+pub(crate) type Listed = (u32, f32);
 
 impl BandBins {
     /// The pieces of each pixel of the band's row `r` (of `columns` pixels), into `bins`.
@@ -321,8 +315,8 @@ impl BandBins {
 }
 
 /// The pieces of each pixel of one row, nearest first ([`BandBins::row`]), listed under the
-/// row's columns.
-pub(crate) type RowBins = RangeLists<u32>;
+/// row's columns, each with its [`Seen::near`].
+pub(crate) type RowBins = RangeLists<Listed>;
 
 /// Values listed under numbered slots: `values[starts[s]..starts[s + 1]]` are those under slot
 /// `s`, in the order they were given.

@@ -183,13 +183,15 @@ impl Scene {
         pieces: &dyn zeroset_primitives::Pieces,
         ray: &Ray,
         range: Interval,
-        candidates: &[u32],
+        candidates: &[(u32, f32)],
     ) -> Option<(u32, RawHit)> {
         debug_assert_eq!(self.lone_object(), Some(object));
         if scaled_direction_size(ray).is_some() {
             return self.intersect(ray, range);
         }
-        pieces.intersect_pieces(ray, range, candidates).map(|raw| (object, raw))
+        pieces
+            .intersect_pieces_nearest_first(ray, range, candidates)
+            .map(|raw| (object, raw))
     }
 
     /// Whether some object has infinite bounds (a plane): tested by every ray.
@@ -201,8 +203,9 @@ impl Scene {
     }
 
     /// [`Scene::intersect`] for a ray from the eye of a scene with a hierarchy, whose hits among
-    /// the hierarchy's objects can only lie on `always` and `candidates`, these nearest first by
-    /// `near`: `near[i]` is at most the distance from the ray's origin to any hit on object `i`.
+    /// the hierarchy's objects can only lie on `always` and `candidates`, these `(object, near)`
+    /// nearest first: `near` is at most the distance from the ray's origin to any hit on the
+    /// object.
     /// The unbounded objects are tested first and the others settled by the hierarchy's rules
     /// ([`settles_tie`]), so the answer is the hierarchy's: a candidate whose `near` lies beyond
     /// the closest hit so far, and all after it, cannot hold a hit in range.
@@ -211,8 +214,7 @@ impl Scene {
         ray: &Ray,
         range: Interval,
         always: &[u32],
-        candidates: &[u32],
-        near: &[f32],
+        candidates: &[(u32, f32)],
     ) -> Option<(u32, RawHit)> {
         if scaled_direction_size(ray).is_some() {
             return self.intersect(ray, range);
@@ -241,10 +243,10 @@ impl Scene {
         // 2⁻¹⁴⁹ in f32, and a `t` whose square underflows reaches less than that along a
         // direction of at most `√3·2⁶⁰` (`DIR_SCALE_MAX`).
         let mut length_squared = None;
-        for &id in candidates {
+        for &(id, near) in candidates {
             if range.max.is_finite() {
                 let length_squared = *length_squared.get_or_insert_with(|| ray.dir.length_squared() * (1.0 + 1e-9));
-                let near = f64::from(near[id as usize]);
+                let near = f64::from(near);
                 if near > 0.0 && near * near > range.max * range.max * length_squared {
                     break;
                 }

@@ -257,6 +257,18 @@ pub trait Pieces: Sync {
     /// [`Intersect::origin_rounding`] of inside `range`: no other piece can hold the closest hit.
     /// Nearer pieces first make it faster (farther ones are then dismissed by their box).
     fn intersect_pieces(&self, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<RawHit>;
+
+    /// [`Pieces::intersect_pieces`] for candidates listed nearest first, each `(number, near)`
+    /// with `near` at most the distance from the ray's origin to the piece's box less
+    /// `10⁻⁶·(|box diagonal| + |box centre − ray origin|)` plus four times
+    /// [`Intersect::origin_rounding`] (the margin of [`Pieces::intersect_pieces`]), and `near`
+    /// never decreasing along the list: once the closest hit so far lies nearer than a
+    /// candidate's `near`, that candidate and all after it can be left untested. The default
+    /// tests them all.
+    fn intersect_pieces_nearest_first(&self, ray: &Ray, range: Interval, candidates: &[(u32, f32)]) -> Option<RawHit> {
+        let numbers: Vec<u32> = candidates.iter().map(|&(number, _)| number).collect();
+        self.intersect_pieces(ray, range, &numbers)
+    }
 }
 
 /// What a scene stores: anything that intersects, is printable and can be shared across threads.

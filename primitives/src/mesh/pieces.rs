@@ -31,18 +31,32 @@ impl Mesh {
     }
 
     /// The closest candidate among the leaves `candidates` for a ray whose axes are
-    /// `[KX, KY, KZ]` (module docs).
+    /// `[KX, KY, KZ]` (module docs); with `near` (the candidates' distances, see
+    /// [`Pieces::intersect_pieces_nearest_first`]), the list ends at the first candidate whose
+    /// `near` lies beyond the closest hit so far.
     #[inline(always)]
     fn closest_among<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
         ray: &Ray,
         range: Interval,
         query: &MeshQuery,
-        candidates: &[u32],
+        candidates: impl Iterator<Item = (u32, Option<f32>)>,
     ) -> Option<Candidate> {
         let mut best = None;
         let mut t_far = query.t_max;
-        for &number in candidates {
+        // `near²` beyond which a candidate cannot be entered by the slab test below: the
+        // distance along the ray of `cull_bound(t_far)` (f32 `t` along the scaled direction, `t`
+        // along the ray's times `scale`), enlarged by `10⁻⁶` for the rounding of the slab test
+        // and of this bound (`near` already lies below the box by the trait's margin, far more
+        // than the f32 origin's rounding)
+        let mut reach_squared = f64::INFINITY;
+        for (number, near) in candidates {
+            if let Some(near) = near {
+                let near = f64::from(near);
+                if near * near > reach_squared {
+                    break;
+                }
+            }
             let Some((quad, slot)) = self.leaf_slot(number) else {
                 continue;
             };
@@ -53,6 +67,8 @@ impl Mesh {
             let (first, count) = (quad.child[slot], u32::from(quad.count[slot]));
             if let Some(t) = self.leaf_closest(ray, range, query, [KX, KY, KZ], first, count, t_far, &mut best) {
                 t_far = t;
+                let reach = f64::from(cull_bound(t_far)) * query.scale;
+                reach_squared = reach * reach * ray.dir.length_squared() * (1.0 + 1e-6);
             }
         }
         best
@@ -66,7 +82,21 @@ fn among(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<
         return None;
     }
     let query = mesh.entry(ray, range)?.query();
-    let best = by_axes!(query.ray.k, mesh.closest_among(ray, range, &query, candidates));
+    let listed = || candidates.iter().map(|&number| (number, None));
+    let best = by_axes!(query.ray.k, mesh.closest_among(ray, range, &query, listed()));
+    mesh.finish(ray, range, &query, best)
+}
+
+/// [`Pieces::intersect_pieces_nearest_first`] of `mesh`: [`among`], the list ending where the
+/// candidates lie beyond the closest hit so far.
+#[inline(always)]
+fn among_nearest_first(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[(u32, f32)]) -> Option<RawHit> {
+    if candidates.is_empty() {
+        return None;
+    }
+    let query = mesh.entry(ray, range)?.query();
+    let listed = || candidates.iter().map(|&(number, near)| (number, Some(near)));
+    let best = by_axes!(query.ray.k, mesh.closest_among(ray, range, &query, listed()));
     mesh.finish(ray, range, &query, best)
 }
 
@@ -88,6 +118,16 @@ impl Pieces for Mesh {
             ray: &Ray = ray,
             range: Interval = range,
             candidates: &[u32] = candidates,
+        ) -> Option<RawHit>)
+    }
+
+    /// [`among_nearest_first`] in its AVX2+FMA copy where the CPU has them.
+    fn intersect_pieces_nearest_first(&self, ray: &Ray, range: Interval, candidates: &[(u32, f32)]) -> Option<RawHit> {
+        crate::with_fma!(among_nearest_first(
+            mesh: &Mesh = self,
+            ray: &Ray = ray,
+            range: Interval = range,
+            candidates: &[(u32, f32)] = candidates,
         ) -> Option<RawHit>)
     }
 }
@@ -217,6 +257,80 @@ mod tests {
             mesh.intersect_pieces(&Ray::new(DVec3::ZERO, DVec3::X), Interval::POSITIVE, &[]),
             None
         );
+    }
+
+    /// Listed nearest first with their distances (as the trait allows them: the distance from
+    /// the origin to the box less the trait's margin, rounded down), the candidates give the
+    /// walk's answer, bit for bit, for directions of any length; and the candidates whose
+    /// distance lies beyond the hit, which the list's early end leaves untested, are never
+    /// needed: without them the answer is the same.
+    #[test]
+    fn candidates_listed_nearest_first_give_the_walk_s_answer() {
+        let mesh = bumpy_sphere(40);
+        let boxes: Vec<(u32, Aabb)> = mesh
+            .piece_numbers()
+            .into_iter()
+            .map(|n| (n, mesh.piece_box(n).unwrap()))
+            .collect();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        let mut hits = 0;
+        for trial in 0..3000 {
+            let origin = if trial % 5 == 0 {
+                DVec3::new(
+                    rng.random_range(-0.3..0.3),
+                    rng.random_range(-0.3..0.3),
+                    rng.random_range(-0.3..0.3),
+                )
+            } else {
+                DVec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), -4.0)
+            };
+            let target = DVec3::new(
+                rng.random_range(-1.3..1.3),
+                rng.random_range(-1.3..1.3),
+                rng.random_range(-1.0..1.0),
+            );
+            // directions of any length: the distances are compared along the ray itself
+            let ray = Ray::new(origin, (target - origin) * rng.random_range(0.01..100.0));
+            let range = Interval::POSITIVE;
+            let mut listed: Vec<(u32, f32)> = boxes
+                .iter()
+                .filter_map(|(n, b)| {
+                    let margin = 1e-6 * (b.diagonal_length() + (b.center() - origin).length())
+                        + 4.0 * mesh.origin_rounding(origin);
+                    if !passes_near(b, margin, &ray, range) {
+                        return None;
+                    }
+                    let distance = (origin.clamp(b.min, b.max) - origin).length();
+                    let near = (distance - margin).max(0.0);
+                    let near32 = near as f32;
+                    let near32 = if f64::from(near32) > near {
+                        near32.next_down()
+                    } else {
+                        near32
+                    };
+                    Some((*n, near32))
+                })
+                .collect();
+            listed.sort_by(|a, b| a.1.total_cmp(&b.1));
+            let walk = mesh.intersect(&ray, range);
+            assert_eq!(
+                mesh.intersect_pieces_nearest_first(&ray, range, &listed),
+                walk,
+                "trial {trial}"
+            );
+            if let Some(hit) = walk {
+                hits += 1;
+                // the pieces whose `near` lies beyond the hit, by more than rounding: never needed
+                let reach = hit.t * ray.dir.length() * (1.0 + 1e-6);
+                let kept: Vec<(u32, f32)> = listed.iter().copied().filter(|c| f64::from(c.1) <= reach).collect();
+                assert_eq!(
+                    mesh.intersect_pieces_nearest_first(&ray, range, &kept),
+                    walk,
+                    "trial {trial} kept"
+                );
+            }
+        }
+        assert!(hits > 1500, "{hits} hits");
     }
 
     /// The pieces' boxes hold their triangles, and the pieces partition the triangles; the
