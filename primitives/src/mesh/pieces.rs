@@ -172,6 +172,39 @@ mod tests {
         bounds.expanded(margin).clip(ray, range).is_some()
     }
 
+    /// Every piece of `mesh` with its box.
+    fn piece_boxes(mesh: &Mesh) -> Vec<(u32, Aabb)> {
+        mesh.piece_numbers()
+            .into_iter()
+            .map(|n| (n, mesh.piece_box(n).unwrap()))
+            .collect()
+    }
+
+    /// The margin the trait asks candidates to be chosen with, for `bounds` seen from `origin`.
+    fn trait_margin(mesh: &Mesh, bounds: &Aabb, origin: DVec3) -> f64 {
+        1e-6 * (bounds.diagonal_length() + (bounds.center() - origin).length()) + 4.0 * mesh.origin_rounding(origin)
+    }
+
+    /// A random ray through the bumpy sphere's box (direction `target − origin`): from inside it
+    /// one trial in `inside_every`, else from in front of it.
+    fn random_ray(rng: &mut impl Rng, trial: usize, inside_every: usize) -> (DVec3, DVec3) {
+        let origin = if trial % inside_every == 0 {
+            DVec3::new(
+                rng.random_range(-0.3..0.3),
+                rng.random_range(-0.3..0.3),
+                rng.random_range(-0.3..0.3),
+            )
+        } else {
+            DVec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), -4.0)
+        };
+        let target = DVec3::new(
+            rng.random_range(-1.3..1.3),
+            rng.random_range(-1.3..1.3),
+            rng.random_range(-1.0..1.0),
+        );
+        (origin, target - origin)
+    }
+
     /// With the candidates chosen as the trait asks (every piece whose box the ray passes within
     /// the margin), shuffled or not, the answer is `intersect`'s, bit for bit, over random rays
     /// from outside and inside, hitting and missing; the candidates are a small share of the
@@ -179,38 +212,17 @@ mod tests {
     #[test]
     fn candidate_pieces_give_the_walk_s_answer() {
         let mesh = bumpy_sphere(40);
-        let boxes: Vec<(u32, Aabb)> = mesh
-            .piece_numbers()
-            .into_iter()
-            .map(|n| (n, mesh.piece_box(n).unwrap()))
-            .collect();
+        let boxes = piece_boxes(&mesh);
         assert!(boxes.len() > 100, "{} pieces", boxes.len());
         let mut rng = rand::rngs::StdRng::seed_from_u64(5);
         let (mut hits, mut candidates_seen, mut lost) = (0, 0usize, 0);
         for trial in 0..3000 {
-            let origin = if trial % 4 == 0 {
-                DVec3::new(
-                    rng.random_range(-0.3..0.3),
-                    rng.random_range(-0.3..0.3),
-                    rng.random_range(-0.3..0.3),
-                )
-            } else {
-                DVec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), -4.0)
-            };
-            let target = DVec3::new(
-                rng.random_range(-1.3..1.3),
-                rng.random_range(-1.3..1.3),
-                rng.random_range(-1.0..1.0),
-            );
-            let ray = Ray::new(origin, target - origin);
+            let (origin, dir) = random_ray(&mut rng, trial, 4);
+            let ray = Ray::new(origin, dir);
             let range = Interval::POSITIVE;
             let mut candidates: Vec<u32> = boxes
                 .iter()
-                .filter(|(_, b)| {
-                    let margin = 1e-6 * (b.diagonal_length() + (b.center() - origin).length())
-                        + 4.0 * mesh.origin_rounding(origin);
-                    passes_near(b, margin, &ray, range)
-                })
+                .filter(|(_, b)| passes_near(b, trait_margin(&mesh, b, origin), &ray, range))
                 .map(|&(n, _)| n)
                 .collect();
             candidates_seen += candidates.len();
@@ -267,36 +279,18 @@ mod tests {
     #[test]
     fn candidates_listed_nearest_first_give_the_walk_s_answer() {
         let mesh = bumpy_sphere(40);
-        let boxes: Vec<(u32, Aabb)> = mesh
-            .piece_numbers()
-            .into_iter()
-            .map(|n| (n, mesh.piece_box(n).unwrap()))
-            .collect();
+        let boxes = piece_boxes(&mesh);
         let mut rng = rand::rngs::StdRng::seed_from_u64(9);
         let mut hits = 0;
         for trial in 0..3000 {
-            let origin = if trial % 5 == 0 {
-                DVec3::new(
-                    rng.random_range(-0.3..0.3),
-                    rng.random_range(-0.3..0.3),
-                    rng.random_range(-0.3..0.3),
-                )
-            } else {
-                DVec3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), -4.0)
-            };
-            let target = DVec3::new(
-                rng.random_range(-1.3..1.3),
-                rng.random_range(-1.3..1.3),
-                rng.random_range(-1.0..1.0),
-            );
+            let (origin, dir) = random_ray(&mut rng, trial, 5);
             // directions of any length: the distances are compared along the ray itself
-            let ray = Ray::new(origin, (target - origin) * rng.random_range(0.01..100.0));
+            let ray = Ray::new(origin, dir * rng.random_range(0.01..100.0));
             let range = Interval::POSITIVE;
             let mut listed: Vec<(u32, f32)> = boxes
                 .iter()
                 .filter_map(|(n, b)| {
-                    let margin = 1e-6 * (b.diagonal_length() + (b.center() - origin).length())
-                        + 4.0 * mesh.origin_rounding(origin);
+                    let margin = trait_margin(&mesh, b, origin);
                     if !passes_near(b, margin, &ray, range) {
                         return None;
                     }
