@@ -342,11 +342,14 @@ impl<T: Copy + Default> RangeLists<T> {
             self.starts[last + 2] = self.starts[last + 2].wrapping_sub(1);
         }
         self.starts.truncate(slots + 1);
-        // `starts[s + 1]` holds the change of slot `s`'s count from slot `s − 1`'s
-        let mut count = 0usize;
-        for s in 0..slots {
-            count = count.wrapping_add(self.starts[s + 1]);
-            self.starts[s + 1] = self.starts[s] + count;
+        // `starts[s + 1]` holds the change of slot `s`'s count from slot `s − 1`'s; the running
+        // count and start stay in registers (read back from the array, each slot waited on the
+        // store of the one before: a sixteenth of a quadrics Depth render)
+        let (mut count, mut start) = (0usize, 0usize);
+        for change in &mut self.starts[1..=slots] {
+            count = count.wrapping_add(*change);
+            start += count;
+            *change = start;
         }
         self.values.clear();
         self.values.resize(self.starts[slots], T::default());
@@ -381,5 +384,38 @@ impl<T: Copy + Default> RangeLists<T> {
             rest = after;
         }
         lists
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// Every slot lists exactly the items covering it, in the items' order, whatever was listed
+    /// before (the lists are refilled, not appended to), with slots that no item covers empty.
+    #[test]
+    fn range_lists_hold_each_slot_s_items_in_order() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+        let mut lists = RangeLists::<u32>::default();
+        for round in 0..200 {
+            let slots = rng.random_range(1..300);
+            let items: Vec<(u32, usize, usize)> = (0..rng.random_range(0..60))
+                .map(|k| {
+                    let first = rng.random_range(0..slots);
+                    (k, first, rng.random_range(first..slots))
+                })
+                .collect();
+            lists.fill(slots, || items.iter().copied());
+            assert_eq!(lists.slots(), slots, "round {round}");
+            for s in 0..slots {
+                let expected: Vec<u32> = items
+                    .iter()
+                    .filter(|&&(_, first, last)| first <= s && s <= last)
+                    .map(|&(value, _, _)| value)
+                    .collect();
+                assert_eq!(lists.get(s), &expected[..], "round {round}, slot {s}");
+            }
+        }
     }
 }
