@@ -480,14 +480,20 @@ def _worker_mapping(path: str) -> mmap.mmap:
     return memory
 
 
+def _shared_array(memory: mmap.mmap, layout: Dict[str, Tuple[int, Tuple[int, ...]]], name: str) -> np.ndarray:
+    """Output array ``name`` of the shared file mapped at ``memory`` (``layout``: name → (byte
+    offset, shape), float32), as a view of the mapping."""
+    offset, shape = layout[name]
+    return np.ndarray(shape, np.float32, buffer=memory, offset=offset)
+
+
 def _render_into(frame: Dict[str, np.ndarray], path: str, layout: Dict[str, Tuple[int, Tuple[int, ...]]],
                  places: list) -> None:
     """On a worker: copies a render's AOVs into the shared file at ``path`` that holds the output
-    arrays (``layout``: name → (byte offset, shape), float32), at their windows."""
+    arrays (``layout`` as in ``_shared_array``), at their windows."""
     memory = _worker_mapping(path)
     for name, take, aov, window in places:
-        offset, shape = layout[name]
-        np.ndarray(shape, np.float32, buffer=memory, offset=offset)[window] = take(frame, aov)
+        _shared_array(memory, layout, name)[window] = take(frame, aov)
 
 
 def _render_direct(scene: Scene, kwargs: Dict[str, Any], path: str, layout: Dict[str, Tuple[int, Tuple[int, ...]]],
@@ -498,8 +504,7 @@ def _render_direct(scene: Scene, kwargs: Dict[str, Any], path: str, layout: Dict
     memory = _worker_mapping(path)
     out = {}
     for name, take, aov, window in places:
-        offset, shape = layout[name]
-        block = np.ndarray(shape, np.float32, buffer=memory, offset=offset)[window]
+        block = _shared_array(memory, layout, name)[window]
         out[aov] = block[0] if take is _view_block else block
     scene.render(**kwargs, threads=_worker_threads(), out=out)
 
@@ -546,8 +551,7 @@ def _fetch_in_shared_memory(client: Any, arrays: Dict[str, da.Array], graph: Any
         path, memory = _shared_output(max(size, 64))
     except OSError:
         return None  # no room in shared memory: the network path
-    out = {name: np.ndarray(shape, np.float32, buffer=memory, offset=offset)
-           for name, (offset, shape) in layout.items()}
+    out = {name: _shared_array(memory, layout, name) for name in layout}
     layer = "zeroset-into-" + tokenize(path, uuid.uuid4().hex)
     # a render task that `_render_direct` can take renders into the file itself (one task, no
     # frame, no copy); any other is rendered, then copied in by `_render_into`

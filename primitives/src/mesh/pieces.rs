@@ -75,29 +75,39 @@ impl Mesh {
     }
 }
 
-/// [`Pieces::intersect_pieces`] of `mesh`: the ray's set-up, the copy for its axes, the f64 `t`.
+/// The candidates `listed()` of `mesh` (`(number, near)`, see [`Mesh::closest_among`]; `empty`
+/// where there are none): the ray's set-up, the copy for its axes, the f64 `t`.
 #[inline(always)]
-fn among(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<RawHit> {
-    if candidates.is_empty() {
+fn among_listed<I: Iterator<Item = (u32, Option<f32>)>>(
+    mesh: &Mesh,
+    ray: &Ray,
+    range: Interval,
+    empty: bool,
+    listed: impl Fn() -> I,
+) -> Option<RawHit> {
+    if empty {
         return None;
     }
     let query = mesh.entry(ray, range)?.query();
-    let listed = || candidates.iter().map(|&number| (number, None));
     let best = by_axes!(query.ray.k, mesh.closest_among(ray, range, &query, listed()));
     mesh.finish(ray, range, &query, best)
 }
 
-/// [`Pieces::intersect_pieces_nearest_first`] of `mesh`: [`among`], the list ending where the
-/// candidates lie beyond the closest hit so far.
+/// [`Pieces::intersect_pieces`] of `mesh` ([`among_listed`], every candidate tested).
+#[inline(always)]
+fn among(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<RawHit> {
+    among_listed(mesh, ray, range, candidates.is_empty(), || {
+        candidates.iter().map(|&number| (number, None))
+    })
+}
+
+/// [`Pieces::intersect_pieces_nearest_first`] of `mesh` ([`among_listed`], the list ending where
+/// the candidates lie beyond the closest hit so far).
 #[inline(always)]
 fn among_nearest_first(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[(u32, f32)]) -> Option<RawHit> {
-    if candidates.is_empty() {
-        return None;
-    }
-    let query = mesh.entry(ray, range)?.query();
-    let listed = || candidates.iter().map(|&(number, near)| (number, Some(near)));
-    let best = by_axes!(query.ray.k, mesh.closest_among(ray, range, &query, listed()));
-    mesh.finish(ray, range, &query, best)
+    among_listed(mesh, ray, range, candidates.is_empty(), || {
+        candidates.iter().map(|&(number, near)| (number, Some(near)))
+    })
 }
 
 impl Pieces for Mesh {
