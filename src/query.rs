@@ -290,13 +290,68 @@ fn completed(scene: &Scene, ray: &Ray, (object, raw): (u32, RawHit), request: Hi
     (object, SurfaceHit::complete(primitive, ray, &raw, request))
 }
 
-/// Room reused from batch to batch by [`trace_many_for`].
+/// Room reused from batch to batch by [`trace_many_for`]: the rays of a batch, pushed one by one
+/// ([`TraceWork::push`]), then traced together ([`TraceWork::trace`]).
 #[derive(Debug, Default)]
 pub struct TraceWork {
     rays: Vec<Ray>,
     ranges: Vec<Interval>,
     hits: Vec<Option<(u32, RawHit)>>,
     uncertain: Vec<bool>,
+}
+
+impl TraceWork {
+    /// Forgets the rays of the last batch.
+    #[inline]
+    pub(crate) fn clear(&mut self) {
+        self.rays.clear();
+        self.ranges.clear();
+    }
+
+    /// Adds a ray and its accepted range to the batch.
+    #[inline(always)]
+    pub(crate) fn push(&mut self, ray: Ray, range: Interval) {
+        self.rays.push(ray);
+        self.ranges.push(range);
+    }
+
+    /// The rays pushed since the last [`TraceWork::clear`].
+    #[cfg(test)]
+    pub(crate) fn pushed(&self) -> Vec<QueryRay> {
+        self.rays
+            .iter()
+            .zip(&self.ranges)
+            .map(|(&ray, &range)| QueryRay { ray, range })
+            .collect()
+    }
+
+    /// [`trace_one_for`] of every ray pushed, handed to `answer(i, hit, uncertain)` in the order
+    /// pushed: the rays go to the scene together ([`Scene::intersect_each`]), then each hit is
+    /// completed as far as `request` asks (a hit whose completion ran out of budget is
+    /// uncertain too, as in [`trace_one_for`]).
+    #[inline]
+    pub(crate) fn trace(
+        &mut self,
+        scene: &Scene,
+        request: HitRequest,
+        mut answer: impl FnMut(usize, Option<&(u32, SurfaceHit)>, bool),
+    ) {
+        let n = self.rays.len();
+        self.hits.clear();
+        self.hits.resize(n, None);
+        self.uncertain.clear();
+        self.uncertain.resize(n, false);
+        scene.intersect_each(&self.rays, &self.ranges, &mut self.hits, &mut self.uncertain);
+        for (i, ((ray, &hit), &traced_uncertain)) in self.rays.iter().zip(&self.hits).zip(&self.uncertain).enumerate() {
+            match hit {
+                None => answer(i, None, traced_uncertain),
+                Some(hit) => {
+                    let (hit, completed_uncertain) = uncertain_while(|| completed(scene, ray, hit, request));
+                    answer(i, Some(&hit), traced_uncertain || completed_uncertain);
+                }
+            }
+        }
+    }
 }
 
 /// [`trace_one_for`] of every ray of `rays`, into `answers` (of the same length): the same
@@ -309,31 +364,16 @@ pub fn trace_many_for(
     work: &mut TraceWork,
     answers: &mut [QueryHit],
 ) {
-    work.rays.clear();
-    work.rays.extend(rays.iter().map(|q| q.ray));
-    work.ranges.clear();
-    work.ranges.extend(rays.iter().map(|q| q.range));
-    work.hits.clear();
-    work.hits.resize(rays.len(), None);
-    work.uncertain.clear();
-    work.uncertain.resize(rays.len(), false);
-    scene.intersect_each(&work.rays, &work.ranges, &mut work.hits, &mut work.uncertain);
-    for (((q, &hit), &traced_uncertain), answer) in rays.iter().zip(&work.hits).zip(&work.uncertain).zip(answers) {
-        *answer = match hit {
-            None => QueryHit {
-                hit: None,
-                uncertain: traced_uncertain,
-            },
-            Some(hit) => {
-                // as in `trace_one_for`, completing the hit counts too
-                let (hit, completed_uncertain) = uncertain_while(|| completed(scene, &q.ray, hit, request));
-                QueryHit {
-                    hit: Some(hit),
-                    uncertain: traced_uncertain || completed_uncertain,
-                }
-            }
-        };
+    work.clear();
+    for q in rays {
+        work.push(q.ray, q.range);
     }
+    work.trace(scene, request, |i, hit, uncertain| {
+        answers[i] = QueryHit {
+            hit: hit.copied(),
+            uncertain,
+        };
+    });
 }
 
 /// A permutation of `rays` that puts coherent rays together: sorted by direction octant, then

@@ -23,14 +23,14 @@
 //! records only ever exist for the chunks in flight (cache-sized), and the caller writes the
 //! answers straight into its own output buffers.
 
-use crate::query::{trace_many_for, QueryHit, QueryRay, TraceWork, MISS};
+use crate::query::{QueryRay, TraceWork};
 use crate::scene::Scene;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 use zeroset_primitives::offset::{spawn_origin, PointPrecision};
-use zeroset_primitives::{HitRequest, Interval, Ray};
+use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
 
 /// Whether the query range includes its start.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -243,14 +243,14 @@ impl<'a> RayColumns<'a> {
         Ok(QueryRay { ray, range })
     }
 
-    /// Rays `chunk` (indices) appended to `out` as [`RayColumns::ray`] builds them, when every
+    /// Rays `chunk` (indices) pushed to `out` as [`RayColumns::ray`] builds them, when every
     /// one is plain: no normals and no spawned origin, origin and direction finite, direction
     /// non-zero, `tmin ≤ tmax` (neither NaN). The checks run over the whole chunk at once, in
     /// loops without early exits (which the compiler vectorises), so a batch of good rays skips
     /// the per-ray error paths. `false`, with `out` untouched, where any ray is not plain: build
     /// that chunk ray by ray, which says what is wrong.
     #[inline]
-    fn plain_rays(&self, chunk: std::ops::Range<usize>, setup: &RaySetup, out: &mut Vec<QueryRay>) -> bool {
+    fn plain_rays(&self, chunk: std::ops::Range<usize>, setup: &RaySetup, out: &mut TraceWork) -> bool {
         if self.normals.is_some() || setup.origin_precision.is_some() {
             return false;
         }
@@ -287,12 +287,13 @@ impl<'a> RayColumns<'a> {
         if let ([tmin], [tmax]) = (tmin, tmax) {
             // one range for every ray (the common call): made once
             let range = setup.range.range(*tmin, *tmax);
-            out.extend(rays.map(|ray| QueryRay { ray, range }));
+            for ray in rays {
+                out.push(ray, range);
+            }
         } else {
-            out.extend(rays.enumerate().map(|(k, ray)| QueryRay {
-                ray,
-                range: setup.range.range(per_ray(tmin, k), per_ray(tmax, k)),
-            }));
+            for (k, ray) in rays.enumerate() {
+                out.push(ray, setup.range.range(per_ray(tmin, k), per_ray(tmax, k)));
+            }
         }
         true
     }
@@ -318,13 +319,13 @@ impl<'a> RayColumns<'a> {
 }
 
 /// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, traced as
-/// [`crate::query::trace_one_for`] traces each, completed as far as `request` asks), handed to
-/// `put(out, hits)` a chunk at a time: `outputs[k]` receives the hits of rays
-/// `k·COLUMN_CHUNK ..` (up to [`COLUMN_CHUNK`] of them, in ray order), so that the caller can
-/// write them field by field. Chunks run in parallel on rayon's pool, each built, traced
-/// ([`crate::query::trace_many_for`]: handed to the scene together) and handed over while in
-/// cache (no hit record is kept beyond the chunk's); with the full request
-/// ([`crate::query::ANSWER`]) the hits equal [`crate::query::trace_batch`] on all the rays at
+/// [`crate::query::trace_one_for`] traces each, completed as far as `request` asks), handed over
+/// ray by ray as `put(out, i, hit, uncertain)`: `outputs[k]` receives those of rays
+/// `k·COLUMN_CHUNK + i` (`i` below [`COLUMN_CHUNK`]), in ray order, so that the caller writes
+/// each answer straight into its own buffers. Chunks run in parallel on rayon's pool, each
+/// built, traced (handed to the scene together, [`crate::scene::Scene::intersect_each`]) and
+/// handed over while in cache: no ray or hit record outlives its chunk. With the full request
+/// ([`crate::query::ANSWER`]) the answers equal [`crate::query::trace_batch`] on all the rays at
 /// once (every ray is traced on its own).
 ///
 /// # Errors
@@ -340,28 +341,23 @@ pub fn trace_columns<O: Send>(
     setup: &RaySetup,
     request: HitRequest,
     outputs: Vec<O>,
-    put: impl Fn(&mut O, &[QueryHit]) + Sync,
+    put: impl Fn(&mut O, usize, Option<&(u32, SurfaceHit)>, bool) + Sync,
 ) -> Result<(), (usize, String)> {
     let n = columns.len();
     assert_eq!(outputs.len(), n.div_ceil(COLUMN_CHUNK), "one output per chunk of rays");
     let failed = AtomicBool::new(false);
     let first_error: Mutex<Option<(usize, String)>> = Mutex::new(None);
-    outputs.into_par_iter().enumerate().for_each_init(
-        || {
-            (
-                Vec::with_capacity(COLUMN_CHUNK),
-                TraceWork::default(),
-                Vec::with_capacity(COLUMN_CHUNK),
-            )
-        },
-        |(rays, work, answers): &mut (Vec<QueryRay>, TraceWork, Vec<QueryHit>), (k, mut out)| {
+    outputs
+        .into_par_iter()
+        .enumerate()
+        .for_each_init(TraceWork::default, |work, (k, mut out)| {
             let chunk = k * COLUMN_CHUNK..((k + 1) * COLUMN_CHUNK).min(n);
-            rays.clear();
+            work.clear();
             // the chunk's rays at once where all are plain, else one by one (which finds the bad one)
-            if !columns.plain_rays(chunk.clone(), setup, rays) {
+            if !columns.plain_rays(chunk.clone(), setup, work) {
                 for i in chunk {
                     match columns.ray(i, setup) {
-                        Ok(ray) => rays.push(ray),
+                        Ok(q) => work.push(q.ray, q.range),
                         Err(message) => {
                             failed.store(true, Ordering::Relaxed);
                             let mut first = first_error.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -374,12 +370,9 @@ pub fn trace_columns<O: Send>(
                 }
             }
             if !failed.load(Ordering::Relaxed) {
-                answers.resize(rays.len(), MISS);
-                trace_many_for(scene, rays, request, work, answers);
-                put(&mut out, answers);
+                work.trace(scene, request, |i, hit, uncertain| put(&mut out, i, hit, uncertain));
             }
-        },
-    );
+        });
     match first_error
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
@@ -392,7 +385,7 @@ pub fn trace_columns<O: Send>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::query::{trace_batch, ANSWER};
+    use crate::query::{trace_batch, QueryHit, ANSWER};
 
     /// Rays built from columns equal the rays (or the errors) `ray_from_fields` makes of the same
     /// numbers on one line, under both range conventions, good rays and bad ones alike (the two
@@ -520,8 +513,10 @@ mod tests {
                     start = chunk.end;
                     let one_by_one: Vec<Result<QueryRay, String>> =
                         chunk.clone().map(|i| columns.ray(i, &setup)).collect();
-                    let mut out = vec![];
-                    if columns.plain_rays(chunk.clone(), &setup, &mut out) {
+                    let mut work = TraceWork::default();
+                    let plain = columns.plain_rays(chunk.clone(), &setup, &mut work);
+                    let out = work.pushed();
+                    if plain {
                         built += 1;
                         let expected: Vec<QueryRay> = one_by_one.into_iter().map(Result::unwrap).collect();
                         // bit for bit (the rays are finite)
@@ -650,10 +645,13 @@ mod tests {
             &setup,
             ANSWER,
             slots.iter().collect(),
-            |slot, hits| {
+            |slot, i, hit, uncertain| {
                 let mut slot = slot.lock().unwrap();
-                assert!(slot.is_empty(), "each chunk handed over once");
-                slot.extend_from_slice(hits);
+                assert_eq!(slot.len(), i, "each chunk's answers handed over once, in order");
+                slot.push(QueryHit {
+                    hit: hit.copied(),
+                    uncertain,
+                });
             },
         )
         .unwrap();
@@ -672,8 +670,8 @@ mod tests {
         let columns = RayColumns::new(&origins, &directions, &[0.0], &tmax, None).unwrap();
         let setup = RaySetup::default();
         let traced = std::sync::atomic::AtomicUsize::new(0);
-        let error = trace_columns(&scene, &columns, &setup, ANSWER, vec![(); 3], |(), hits| {
-            traced.fetch_add(hits.len(), Ordering::Relaxed);
+        let error = trace_columns(&scene, &columns, &setup, ANSWER, vec![(); 3], |(), _, _, _| {
+            traced.fetch_add(1, Ordering::Relaxed);
         })
         .unwrap_err();
         assert_eq!(

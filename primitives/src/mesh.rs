@@ -103,6 +103,9 @@ pub struct Mesh {
     /// The corners of the triangles in the hierarchy, leaf by leaf in rows (see [`leaf_rows`]):
     /// what the leaf tests read, up to eight triangles' values of one coordinate at a time.
     leaf_corners: Vec<f32>,
+    /// For each leaf position, where its triangle sits in its leaf (see [`leaf_places`]): with
+    /// it, a hit's leaf position alone finds the triangle's rows.
+    leaf_places: Vec<u8>,
     /// The same hierarchy collapsed into 8-wide nodes: single rays walk it (fewer levels to wait
     /// on memory for, see `bvh/oct.rs`). Made when a single ray first needs it ([`Mesh::octs`]):
     /// a render whose camera rays all travel in packets never pays for it.
@@ -171,6 +174,18 @@ fn leaf_rows(bvh: &QuadBvh, tris: &[[u32; 3]], vertices: &[[f32; 3]]) -> Vec<f32
     rows
 }
 
+/// For each of the `len` leaf positions of `bvh`'s leaves: `i | count << 3`, the triangle being
+/// the leaf's `i`-th of `count` (`count ≤ 8`), so that its leaf starts at position `k − i`.
+fn leaf_places(bvh: &QuadBvh, len: usize) -> Vec<u8> {
+    let mut places = vec![0u8; len];
+    for (first, count) in bvh.leaves() {
+        for (i, place) in places[first..first + count].iter_mut().enumerate() {
+            *place = (i | count << 3) as u8;
+        }
+    }
+    places
+}
+
 /// One leaf's rows (see [`leaf_rows`]).
 #[derive(Clone, Copy)]
 struct LeafRows<'a> {
@@ -206,6 +221,21 @@ impl LeafRows<'_> {
         [self.corner_rows(0, k), self.corner_rows(1, k), self.corner_rows(2, k)]
     }
 
+    /// [`Mesh::plane`] of the leaf's `i`-th triangle, from its rows: the same f32 corners, the
+    /// same arithmetic, so the same values.
+    #[inline(always)]
+    fn plane(&self, i: usize) -> (DVec3, DVec3) {
+        let corner = |c: usize| {
+            DVec3::new(
+                f64::from(self.block[3 * c * self.count + i]),
+                f64::from(self.block[(3 * c + 1) * self.count + i]),
+                f64::from(self.block[(3 * c + 2) * self.count + i]),
+            )
+        };
+        let (a, b, c) = (corner(0), corner(1), corner(2));
+        ((b - a).cross(c - a), a)
+    }
+
     /// The corners of the leaf's `i`-th triangle, components in the order `k`.
     #[inline(always)]
     fn permuted_corners(&self, i: usize, k: [usize; 3]) -> [[f32; 3]; 3] {
@@ -217,6 +247,27 @@ impl LeafRows<'_> {
         }
         corners
     }
+}
+
+/// Asks memory for the cache line holding `*p` (a hint: it never faults, whatever the address;
+/// nothing on other architectures than x86-64).
+#[inline(always)]
+fn prefetch<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        // SAFETY: a prefetch never faults, whatever the address
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast::<i8>()) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
+/// `t` of `ray` on the plane through `a` with normal `n` (any length), if finite (f64).
+#[inline(always)]
+fn plane_t(n: DVec3, a: DVec3, ray: &Ray) -> Option<f64> {
+    let t = n.dot(a - ray.origin) / n.dot(ray.dir);
+    t.is_finite().then_some(t)
 }
 
 /// One f32 per SIMD lane.
@@ -566,6 +617,7 @@ impl Mesh {
         let tris: Vec<[u32; 3]> = leaf_to_file.par_iter().map(|&f| indices[f as usize]).collect();
         drop(indices);
         let leaf_corners = leaf_rows(&bvh, &tris[..in_bvh], &vertices);
+        let leaf_places = leaf_places(&bvh, in_bvh);
         let bounds = Aabb::new(v64(bvh.root.lo), v64(bvh.root.hi));
         Ok(Self {
             center: bounds.center(),
@@ -577,6 +629,7 @@ impl Mesh {
             file_to_leaf,
             in_bvh,
             leaf_corners,
+            leaf_places,
             octs: std::sync::OnceLock::new(),
             bvh,
             bounds,
@@ -639,6 +692,7 @@ impl Mesh {
             + self.normals.as_ref().map_or(0, |n| n.capacity() * 12)
             + self.tris.capacity() * 12
             + self.leaf_corners.capacity() * 4
+            + self.leaf_places.capacity()
             + (self.leaf_to_file.capacity() + self.file_to_leaf.capacity()) * 4
             + self.bvh.memory_bytes()
             + self.octs.get().map_or(0, Octs::memory_bytes)
@@ -664,6 +718,37 @@ impl Mesh {
         (n != DVec3::ZERO).then_some(n)
     }
 
+    /// The leaf of the triangle at leaf position `k`: `(first, count, i)`, the triangle being
+    /// the `i`-th of the `count` from leaf position `first`; `None` beyond the hierarchy's
+    /// triangles.
+    #[inline(always)]
+    fn leaf_place(&self, k: usize) -> Option<(usize, usize, usize)> {
+        let place = usize::from(*self.leaf_places.get(k)?);
+        let i = place & 7;
+        Some((k - i, place >> 3, i))
+    }
+
+    /// [`Mesh::plane`] of the triangle of a hit (`raw.feature`), read from its leaf's rows
+    /// rather than through its index triple: the rows were read by the test that found the hit
+    /// (still in cache), the vertices maybe never (a miss each on a large mesh). `None` if
+    /// `raw.feature` is no triangle of the hierarchy.
+    #[inline(always)]
+    fn hit_plane(&self, raw: &RawHit) -> Option<(DVec3, DVec3)> {
+        let k = *self.file_to_leaf.get(raw.feature as usize)? as usize;
+        let (first, count, i) = self.leaf_place(k)?;
+        if i >= count {
+            return None;
+        }
+        let block = self.leaf_corners.get(9 * first..9 * (first + count))?;
+        let mut values = [0.0f64; 9];
+        for (value, row) in values.iter_mut().zip(block.chunks_exact(count)) {
+            *value = f64::from(row[i]);
+        }
+        let [ax, ay, az, bx, by, bz, cx, cy, cz] = values;
+        let (a, b, c) = (DVec3::new(ax, ay, az), DVec3::new(bx, by, bz), DVec3::new(cx, cy, cz));
+        Some(((b - a).cross(c - a), a))
+    }
+
     /// The f32 corners of the triangle at leaf position `k`.
     #[inline(always)]
     fn corners(&self, k: usize) -> [[f32; 3]; 3] {
@@ -687,8 +772,7 @@ impl Mesh {
     /// `t` of `ray` on the plane of the triangle at leaf position `k` (f64).
     fn plane_t(&self, ray: &Ray, k: usize) -> Option<f64> {
         let (n, a) = self.plane(k);
-        let t = n.dot(a - ray.origin) / n.dot(ray.dir);
-        t.is_finite().then_some(t)
+        plane_t(n, a, ray)
     }
 
     /// The closest hit found by running the watertight test on every triangle, without the BVH
@@ -828,8 +912,30 @@ impl MeshEntry {
     }
 }
 
-/// The closest candidate so far: leaf position, f32 `t` along the scaled direction, barycentrics.
-type Candidate = (usize, f32, f32, f32);
+/// The closest candidate so far.
+#[derive(Clone, Copy, Debug)]
+struct Candidate {
+    /// `t` along the f32 ray's scaled direction.
+    t: f32,
+    /// Barycentrics of the hit.
+    u: f32,
+    v: f32,
+    /// The leaf holding the triangle, its first leaf position and its number of triangles
+    /// (whose rows, [`Mesh::leaf`], just read by the test, give the triangle's plane without the
+    /// index and vertex loads of [`Mesh::plane`]: two cache misses in a row on a large mesh),
+    /// and the triangle's place in it. 20 bytes in all, as small as the tuple it replaced.
+    first: u32,
+    count: u16,
+    i: u16,
+}
+
+impl Candidate {
+    /// The triangle's leaf position.
+    #[inline(always)]
+    fn k(&self) -> usize {
+        self.first as usize + usize::from(self.i)
+    }
+}
 
 /// For a direction whose largest component magnitude is `m` (finite, > 0): the power of two `s`
 /// that brings `s·m` into `[1, 2)` (into `[2⁻⁵³, 8)` at the ends of the f64 range, where `s`
@@ -938,24 +1044,29 @@ impl Mesh {
     /// `(t, k)`, whatever order the leaves are visited in (single rays and packets agree).
     #[inline(always)]
     fn beats(best: Option<&Candidate>, k: usize, t: f32, t_far: f32) -> bool {
-        t < t_far || best.is_none_or(|b| k < b.0)
+        t < t_far || best.is_none_or(|b| k < b.k())
     }
 
     /// The raw hit of the closest candidate: `t` recomputed in f64 on the triangle's plane.
     #[inline(always)]
     fn finish(&self, ray: &Ray, range: Interval, query: &MeshQuery, best: Option<Candidate>) -> Option<RawHit> {
-        let (k, t32, u, v) = best?;
-        let t = self
-            .plane_t(ray, k)
-            .unwrap_or(f64::from(t32) * query.scale)
+        let best = best?;
+        let (n, a) = self.leaf(best.first, u32::from(best.count)).plane(usize::from(best.i));
+        let t = plane_t(n, a, ray)
+            .unwrap_or(f64::from(best.t) * query.scale)
             .max(range.min);
         if t > range.max {
             return None;
         }
+        let feature = self.leaf_to_file[best.k()];
+        // what finishing the hit reads next ([`Mesh::placed_plane`]): asked for now, it arrives
+        // while other rays are traced (on a large mesh, a cache miss each)
+        prefetch(self.file_to_leaf.as_ptr().wrapping_add(feature as usize));
+        prefetch(self.leaf_places.as_ptr().wrapping_add(best.k()));
         Some(RawHit {
             t,
-            feature: self.leaf_to_file[k],
-            local: DVec2::new(f64::from(u), f64::from(v)),
+            feature,
+            local: DVec2::new(f64::from(best.u), f64::from(best.v)),
         })
     }
 }
@@ -1089,7 +1200,14 @@ impl Mesh {
             }
             t_far = hit.0;
             found = Some(t_far);
-            *best = Some((k, hit.0, hit.1, hit.2));
+            *best = Some(Candidate {
+                t: hit.0,
+                u: hit.1,
+                v: hit.2,
+                first,
+                count: count as u16,
+                i: i as u16,
+            });
         }
         found
     }
@@ -1162,10 +1280,7 @@ impl Intersect for Mesh {
 
     /// The hit triangle's geometric normal, `(b − a) × (c − a)` normalised.
     fn normal_at(&self, _ray: &Ray, raw: &RawHit) -> DVec3 {
-        match self.file_to_leaf.get(raw.feature as usize) {
-            Some(&k) => self.plane(k as usize).0.normalize_or_zero(),
-            None => DVec3::ZERO,
-        }
+        self.hit_plane(raw).map_or(DVec3::ZERO, |(n, _)| n.normalize_or_zero())
     }
 
     /// The barycentrics `(u, v)` of the hit (see the module docs).
@@ -1343,12 +1458,19 @@ mod tests {
         assert!(uncertain.iter().all(|u| !u));
         let single: Vec<Option<RawHit>> = rays.iter().zip(&ranges).map(|(r, g)| m.intersect(r, *g)).collect();
         assert_eq!(hits, single);
+        // a hit's normal, read from its leaf's rows, is the one its index triple gives
+        for (ray, hit) in rays.iter().zip(&single) {
+            let Some(hit) = hit else { continue };
+            let [a, b, c] = m.triangle(hit.feature as usize);
+            assert_eq!(m.normal_at(ray, hit), (b - a).cross(c - a).normalize());
+        }
         let found = single.iter().flatten().count();
         assert!(found > 200 && found < 1800, "{found} hits");
     }
 
-    /// Every leaf's rows hold its triangles' corners (as the index triples give them), each
-    /// row readable as eight lanes, and the leaves' blocks tile the buffer in leaf order.
+    /// Every leaf's rows hold its triangles' corners (as the index triples give them) and give
+    /// their planes, each row readable as eight lanes, and the leaves' blocks tile the buffer in
+    /// leaf order.
     #[test]
     fn leaf_rows_hold_each_leaf_s_corners() {
         let m = height_field(40, |i, j| (((j * 40 + i) * 7919) % 13) as f32 * 0.1);
@@ -1369,6 +1491,11 @@ mod tests {
                 for r in 0..9 {
                     assert_eq!(leaf.row(r)[i], corners[r / 3][r % 3], "triangle {k}, row {r}");
                 }
+                // the plane from the rows is the plane from the index triple, bit for bit
+                let [a, b, c] = corners.map(v64);
+                assert_eq!(leaf.plane(i), ((b - a).cross(c - a), a), "triangle {k}");
+                // and the triangle's leaf is found again from its position
+                assert_eq!(m.leaf_place(k), Some((first, count, i)));
             }
         }
         assert!(covered.iter().all(|&c| c == 1), "every triangle in exactly one leaf");

@@ -2,8 +2,8 @@
 //!
 //! Each requested field is one numpy array, allocated (uninitialised) while the GIL is held and
 //! then split into one piece per chunk of [`COLUMN_CHUNK`] rays; [`trace_columns`] hands each
-//! chunk's hits to its piece on a rayon thread, with the GIL released, which writes them field
-//! by field (a miss writes the miss values). Nothing is copied after that: the arrays go
+//! ray's answer to its chunk's piece on a rayon thread, with the GIL released, which writes its
+//! row of every field (a miss writes the miss values) while the chunk is in cache. Nothing is copied after that: the arrays go
 //! back to Python as they are.
 //!
 //! Fields (one row per ray): `t` f64 (`+∞` on a miss), `hit` bool, `point` f64 ×3 and `normal`
@@ -16,7 +16,6 @@ use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use zeroset::primitives::{HitRequest, SurfaceHit};
-use zeroset::query::QueryHit;
 use zeroset::query_rays::COLUMN_CHUNK;
 
 use crate::pages::uninit_array;
@@ -191,51 +190,38 @@ impl<'py> HitArrays<'py> {
 }
 
 impl HitChunk<'_> {
-    /// Writes this chunk's rows (of every requested field) from its rays' hits, in ray order:
-    /// one field at a time, each a short loop over the hits.
-    pub fn put(&mut self, hits: &[QueryHit]) {
-        fn found(q: &QueryHit) -> Option<&(u32, SurfaceHit)> {
-            q.hit.as_ref()
-        }
-        if let Some(out) = self.t.as_deref_mut() {
-            for (o, q) in out.iter_mut().zip(hits) {
-                *o = found(q).map_or(f64::INFINITY, |(_, h)| h.t);
+    /// Writes row `i` of this chunk (of every requested field) from its ray's answer: the hit
+    /// `(object, record)`, or the miss values where there is none.
+    #[inline(always)]
+    pub fn put(&mut self, i: usize, found: Option<&(u32, SurfaceHit)>, uncertain: bool) {
+        match found {
+            Some((object, hit)) => {
+                put(self.t.as_deref_mut(), i, [hit.t]);
+                put(self.hit.as_deref_mut(), i, [true]);
+                put(self.point.as_deref_mut(), i, hit.point.to_array());
+                put(self.normal.as_deref_mut(), i, hit.normal.unwrap_or_default().to_array());
+                put(self.object_id.as_deref_mut(), i, [*object as i32]);
+                put(self.uv.as_deref_mut(), i, hit.uv.unwrap_or_default().to_array());
+                put(self.primitive_id.as_deref_mut(), i, [i64::from(hit.feature)]);
+            }
+            None => {
+                put(self.t.as_deref_mut(), i, [f64::INFINITY]);
+                put(self.hit.as_deref_mut(), i, [false]);
+                put(self.point.as_deref_mut(), i, [0.0; 3]);
+                put(self.normal.as_deref_mut(), i, [0.0; 3]);
+                put(self.object_id.as_deref_mut(), i, [-1]);
+                put(self.uv.as_deref_mut(), i, [0.0; 2]);
+                put(self.primitive_id.as_deref_mut(), i, [-1]);
             }
         }
-        if let Some(out) = self.hit.as_deref_mut() {
-            for (o, q) in out.iter_mut().zip(hits) {
-                *o = q.hit.is_some();
-            }
-        }
-        put_rows(self.point.as_deref_mut(), hits, |h| h.point.to_array());
-        put_rows(self.normal.as_deref_mut(), hits, |h| {
-            h.normal.unwrap_or_default().to_array()
-        });
-        if let Some(out) = self.object_id.as_deref_mut() {
-            for (o, q) in out.iter_mut().zip(hits) {
-                *o = found(q).map_or(-1, |(id, _)| *id as i32);
-            }
-        }
-        put_rows(self.uv.as_deref_mut(), hits, |h| h.uv.unwrap_or_default().to_array());
-        if let Some(out) = self.primitive_id.as_deref_mut() {
-            for (o, q) in out.iter_mut().zip(hits) {
-                *o = found(q).map_or(-1, |(_, h)| i64::from(h.feature));
-            }
-        }
-        if let Some(out) = self.uncertain.as_deref_mut() {
-            for (o, q) in out.iter_mut().zip(hits) {
-                *o = q.uncertain;
-            }
-        }
+        put(self.uncertain.as_deref_mut(), i, [uncertain]);
     }
 }
 
-/// Writes a field of `W` elements a ray, when requested: `value` of each hit, zeros on a miss.
-#[inline]
-fn put_rows<const W: usize>(out: Option<&mut [f64]>, hits: &[QueryHit], value: impl Fn(&SurfaceHit) -> [f64; W]) {
+/// Writes row `i` of a field of `W` elements a ray, when requested.
+#[inline(always)]
+fn put<T: Copy, const W: usize>(out: Option<&mut [T]>, i: usize, value: [T; W]) {
     if let Some(out) = out {
-        for (o, q) in out.chunks_exact_mut(W).zip(hits) {
-            o.copy_from_slice(&q.hit.as_ref().map_or([0.0; W], |(_, h)| value(h)));
-        }
+        out[W * i..W * (i + 1)].copy_from_slice(&value);
     }
 }

@@ -274,7 +274,14 @@ impl PacketQuery<'_> {
                     continue;
                 }
                 t_max[l] = hit.0;
-                self.best[l] = Some((k, hit.0, hit.1, hit.2));
+                self.best[l] = Some(Candidate {
+                    t: hit.0,
+                    u: hit.1,
+                    v: hit.2,
+                    first,
+                    count: count as u16,
+                    i: i as u16,
+                });
             }
         }
     }
