@@ -629,21 +629,36 @@ fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut
 /// Completes the closest hit (if any) of a pixel's `ray` and writes every AOV of `context`.
 #[inline(always)]
 fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray, hit: Option<(u32, RawHit)>) {
-    let hit = hit.map(|(object, raw)| {
-        let primitive = &*scene.objects[object as usize].primitive;
-        let hit = SurfaceHit::complete(primitive, ray, &raw, context.request);
-        let shading_normal = if context.shading {
-            primitive.shading_normal_at(ray, &raw).or(hit.normal)
-        } else {
-            None
-        };
-        (object, hit, shading_normal)
-    });
+    let hit = match hit {
+        Some((object, raw)) => Some(completed(scene, context, ray, object, &raw)),
+        None => None,
+    };
     let mut rest = &mut pixel[..];
     for aov in context.aovs {
         let n = write_aov(rest, scene, *aov, ray, hit.as_ref(), context);
         rest = &mut rest[n..];
     }
+}
+
+/// The hit record of `object`'s `raw` hit along a pixel's `ray`, completed as `context` asks,
+/// and its shading normal where the beauty is shaded. Always inlined, never a closure: left to
+/// the compiler, the record came back through memory (a copy of it for every pixel hit).
+#[inline(always)]
+fn completed(
+    scene: &Scene,
+    context: &RowContext,
+    ray: &Ray,
+    object: u32,
+    raw: &RawHit,
+) -> (u32, SurfaceHit, Option<DVec3>) {
+    let primitive = &*scene.objects[object as usize].primitive;
+    let hit = SurfaceHit::complete(primitive, ray, raw, context.request);
+    let shading_normal = if context.shading {
+        primitive.shading_normal_at(ray, raw).or(hit.normal)
+    } else {
+        None
+    };
+    (object, hit, shading_normal)
 }
 
 /// Writes the miss values of every AOV of `context` into `pixel`.
