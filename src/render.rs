@@ -629,6 +629,7 @@ fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut
 /// Completes the closest hit (if any) of a pixel's `ray` and writes every AOV of `context`.
 #[inline(always)]
 fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray, hit: Option<(u32, RawHit)>) {
+    #[allow(clippy::manual_map, reason = "no closure: see `completed`")]
     let hit = match hit {
         Some((object, raw)) => Some(completed(scene, context, ray, object, &raw)),
         None => None,
