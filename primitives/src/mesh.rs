@@ -940,6 +940,19 @@ struct Candidate {
 }
 
 impl Candidate {
+    /// The hit `(t, u, v)` on the `i`-th triangle of the leaf of `count` from `first`.
+    #[inline(always)]
+    fn new((t, u, v): (f32, f32, f32), first: u32, count: u32, i: usize) -> Self {
+        Self {
+            t,
+            u,
+            v,
+            first,
+            count: count as u16,
+            i: i as u16,
+        }
+    }
+
     /// The triangle's leaf position.
     #[inline(always)]
     fn k(&self) -> usize {
@@ -1232,14 +1245,7 @@ impl Mesh {
             }
             t_far = hit.0;
             found = Some(t_far);
-            *best = Some(Candidate {
-                t: hit.0,
-                u: hit.1,
-                v: hit.2,
-                first,
-                count: count as u16,
-                i: i as u16,
-            });
+            *best = Some(Candidate::new(hit, first, count, i));
         }
         found
     }

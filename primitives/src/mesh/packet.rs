@@ -274,14 +274,7 @@ impl PacketQuery<'_> {
                     continue;
                 }
                 t_max[l] = hit.0;
-                self.best[l] = Some(Candidate {
-                    t: hit.0,
-                    u: hit.1,
-                    v: hit.2,
-                    first,
-                    count: count as u16,
-                    i: i as u16,
-                });
+                self.best[l] = Some(Candidate::new(hit, first, count, i));
             }
         }
     }
