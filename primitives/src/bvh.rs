@@ -295,6 +295,20 @@ pub(crate) fn worth_prefetching<N>(nodes: &[N]) -> bool {
     std::mem::size_of_val(nodes) >= PREFETCH_MIN_BYTES
 }
 
+/// Asks memory for the cache line holding `*p` (a hint: it never faults, whatever the address;
+/// nothing on other architectures than x86-64).
+#[inline(always)]
+pub(crate) fn prefetch<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        // SAFETY: a prefetch never faults, whatever the address
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast::<i8>()) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
 /// Asks the cache for the nodes (`N`: [`Quad`] or [`oct::Oct`], every cache line of each) of
 /// the entered inner children (bits of `entered`) of a node whose slots refer to `child` and
 /// `count`, as soon as they are known: the walk visits one next and pushes the others, and in a
@@ -303,26 +317,19 @@ pub(crate) fn worth_prefetching<N>(nodes: &[N]) -> bool {
 /// ([`LeafTest::prefetch`]; nothing, and no branch, for a leaf test without a prefetch).
 #[inline(always)]
 pub(crate) fn prefetch_children<N>(nodes: &[N], child: &[u32], count: &[u16], entered: u32, leaf: &impl LeafTest) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let mut slots = entered;
-        while slots != 0 {
-            let slot = slots.trailing_zeros() as usize;
-            slots &= slots - 1;
-            let index = if count[slot] == 0 { child[slot] as usize } else { 0 };
-            let bytes = nodes.as_ptr().wrapping_add(index).cast::<i8>();
-            for line in 0..std::mem::size_of::<N>().div_ceil(64) {
-                // SAFETY: a prefetch never faults, whatever the address
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(bytes.wrapping_add(64 * line)) };
-            }
-            if count[slot] != 0 {
-                leaf.prefetch(child[slot], u32::from(count[slot]));
-            }
+    let mut slots = entered;
+    while slots != 0 {
+        let slot = slots.trailing_zeros() as usize;
+        slots &= slots - 1;
+        let index = if count[slot] == 0 { child[slot] as usize } else { 0 };
+        let bytes = nodes.as_ptr().wrapping_add(index).cast::<u8>();
+        for line in 0..std::mem::size_of::<N>().div_ceil(64) {
+            prefetch(bytes.wrapping_add(64 * line));
+        }
+        if count[slot] != 0 {
+            leaf.prefetch(child[slot], u32::from(count[slot]));
         }
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (nodes, child, count, entered, leaf);
 }
 
 /// The slots of a node, the entered ones (bits of `entered`) first, sorted farthest first by

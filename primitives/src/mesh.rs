@@ -49,7 +49,7 @@
 use crate::bounds::Aabb;
 use crate::bvh::build::{Bb, BuildItem, Leaves, Node, QuadBvh, SlabRay};
 use crate::bvh::oct::Octs;
-use crate::bvh::{lane_mask, lanes_of, round_down, round_up, LeafTest};
+use crate::bvh::{lane_mask, lanes_of, prefetch, round_down, round_up, LeafTest};
 use crate::error::PrimitiveError;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
@@ -250,20 +250,6 @@ impl LeafRows<'_> {
         }
         corners
     }
-}
-
-/// Asks memory for the cache line holding `*p` (a hint: it never faults, whatever the address;
-/// nothing on other architectures than x86-64).
-#[inline(always)]
-fn prefetch<T>(p: *const T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        // SAFETY: a prefetch never faults, whatever the address
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast::<i8>()) };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = p;
 }
 
 /// `t` of `ray` on the plane through `a` with normal `n` (any length), if finite (f64).
@@ -749,14 +735,7 @@ impl Mesh {
         if i >= count {
             return None;
         }
-        let block = self.leaf_corners.get(9 * first..9 * (first + count))?;
-        let mut values = [0.0f64; 9];
-        for (value, row) in values.iter_mut().zip(block.chunks_exact(count)) {
-            *value = f64::from(row[i]);
-        }
-        let [ax, ay, az, bx, by, bz, cx, cy, cz] = values;
-        let (a, b, c) = (DVec3::new(ax, ay, az), DVec3::new(bx, by, bz), DVec3::new(cx, cy, cz));
-        Some(((b - a).cross(c - a), a))
+        Some(self.leaf(first as u32, count as u32).plane(i))
     }
 
     /// The f32 corners of the triangle at leaf position `k`.
@@ -1104,7 +1083,7 @@ impl Mesh {
             return None;
         }
         let feature = self.leaf_to_file[best.k()];
-        // what finishing the hit reads next ([`Mesh::placed_plane`]): asked for now, it arrives
+        // what finishing the hit reads next ([`Mesh::hit_plane`]): asked for now, it arrives
         // while other rays are traced (on a large mesh, a cache miss each)
         prefetch(self.file_to_leaf.as_ptr().wrapping_add(feature as usize));
         prefetch(self.leaf_places.as_ptr().wrapping_add(best.k()));
@@ -1187,20 +1166,13 @@ impl Mesh {
     /// bytes, at most five cache lines).
     #[inline(always)]
     fn prefetch_leaf(&self, first: u32, count: u32) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let start = self.leaf_corners.as_ptr().wrapping_add(9 * first as usize).cast::<i8>();
-            let end = start.wrapping_add(36 * count as usize - 1);
-            let mut line = start.wrapping_sub(start as usize & 63);
-            while line <= end {
-                // SAFETY: a prefetch never faults, whatever the address
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(line) };
-                line = line.wrapping_add(64);
-            }
+        let start = self.leaf_corners.as_ptr().wrapping_add(9 * first as usize).cast::<u8>();
+        let end = start.wrapping_add(36 * count as usize - 1);
+        let mut line = start.wrapping_sub(start as usize & 63);
+        while line <= end {
+            prefetch(line);
+            line = line.wrapping_add(64);
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = (first, count);
     }
 
     /// The leaf test of one ray (`query`, whose axes are `k`: a constant where the caller knows

@@ -3,8 +3,8 @@
 //! Each requested field is one numpy array, allocated (uninitialised) while the GIL is held and
 //! then split into one piece per chunk of [`COLUMN_CHUNK`] rays; [`trace_columns`] hands each
 //! ray's answer to its chunk's piece on a rayon thread, with the GIL released, which writes its
-//! row of every field (a miss writes the miss values) while the chunk is in cache. Nothing is copied after that: the arrays go
-//! back to Python as they are.
+//! row of every field (a miss writes the miss values) while the chunk is in cache. Nothing is
+//! copied after that: the arrays go back to Python as they are.
 //!
 //! Fields (one row per ray): `t` f64 (`+∞` on a miss), `hit` bool, `point` f64 ×3 and `normal`
 //! f64 ×3 (zero on a miss), `object_id` i32 (−1 on a miss), `uv` f64 ×2 (zero where the primitive

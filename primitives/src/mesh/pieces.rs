@@ -305,14 +305,7 @@ mod tests {
                         return None;
                     }
                     let distance = (origin.clamp(b.min, b.max) - origin).length();
-                    let near = (distance - margin).max(0.0);
-                    let near32 = near as f32;
-                    let near32 = if f64::from(near32) > near {
-                        near32.next_down()
-                    } else {
-                        near32
-                    };
-                    Some((*n, near32))
+                    Some((*n, crate::bvh::round_down((distance - margin).max(0.0))))
                 })
                 .collect();
             listed.sort_by(|a, b| a.1.total_cmp(&b.1));
