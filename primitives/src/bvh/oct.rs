@@ -53,7 +53,7 @@ impl Oct {
 
 /// Traversal stack capacity: at most 7 entries left per level over at most as many levels as the
 /// quads have (each oct level spans at least one quad level), plus 8.
-const OCT_STACK: usize = 7 * (QUAD_STACK / 3) + 8;
+pub(crate) const OCT_STACK: usize = 7 * (QUAD_STACK / 3) + 8;
 
 /// The octs of one hierarchy, root first (empty for an empty hierarchy).
 #[derive(Clone, Debug, Default)]
@@ -158,49 +158,63 @@ impl Octs {
             if prefetch {
                 prefetch_children(octs, &o.child, &o.count, hits, &leaf);
             }
-            let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
-            let mut next = None;
-            if hits != 0 {
-                let first = hits.trailing_zeros() as usize;
-                let rest = hits & (hits - 1);
-                if rest == 0 {
-                    next = Some(slot(first));
-                } else if rest & (rest - 1) == 0 {
-                    // two: the farther pushed, the nearer next
-                    let (nearer, farther) = nearer_of_two(first, rest.trailing_zeros() as usize, &near);
-                    stack[top].write(slot(farther));
-                    top += 1;
-                    next = Some(slot(nearer));
-                } else {
-                    // three to eight: sorted farthest first by insertion (among equal entries the
-                    // later slot after the earlier, so visited first), all but the nearest pushed
-                    let mut order = [0usize; 8];
-                    let mut entered = 0;
-                    let mut slots = hits;
-                    while slots != 0 {
-                        let s = slots.trailing_zeros() as usize;
-                        slots &= slots - 1;
-                        let mut i = entered;
-                        while i > 0 && near[order[i - 1]] < near[s] {
-                            order[i] = order[i - 1];
-                            i -= 1;
-                        }
-                        order[i] = s;
-                        entered += 1;
-                    }
-                    for &s in &order[..entered - 1] {
-                        stack[top].write(slot(s));
-                        top += 1;
-                    }
-                    next = Some(slot(order[entered - 1]));
-                }
-            }
+            let next = push_entered(o, hits, &near, &mut stack, &mut top);
             match next_inner_node(&stack, &mut top, next, &mut t_max, &mut leaf) {
                 Some(inner) => node = inner,
                 None => return,
             }
         }
     }
+}
+
+/// The step of the ordered walks at an opened node `o` whose entered slots are `hits` (entries
+/// `near`): the nearest entered child is returned (`None` if none), to be visited next, and the
+/// others pushed onto `stack[..top]` farthest first, so that they pop nearest first. One or two
+/// entered children, the common case, take no loop; three to eight are sorted by insertion (among
+/// equal entries the later slot after the earlier, so visited first).
+#[inline(always)]
+pub(crate) fn push_entered(
+    o: &Oct,
+    hits: u32,
+    near: &[f32; 8],
+    stack: &mut [MaybeUninit<Pending>],
+    top: &mut usize,
+) -> Option<Pending> {
+    let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
+    if hits == 0 {
+        return None;
+    }
+    let first = hits.trailing_zeros() as usize;
+    let rest = hits & (hits - 1);
+    if rest == 0 {
+        return Some(slot(first));
+    }
+    if rest & (rest - 1) == 0 {
+        // two: the farther pushed, the nearer next
+        let (nearer, farther) = nearer_of_two(first, rest.trailing_zeros() as usize, near);
+        stack[*top].write(slot(farther));
+        *top += 1;
+        return Some(slot(nearer));
+    }
+    let mut order = [0usize; 8];
+    let mut entered = 0;
+    let mut slots = hits;
+    while slots != 0 {
+        let s = slots.trailing_zeros() as usize;
+        slots &= slots - 1;
+        let mut i = entered;
+        while i > 0 && near[order[i - 1]] < near[s] {
+            order[i] = order[i - 1];
+            i -= 1;
+        }
+        order[i] = s;
+        entered += 1;
+    }
+    for &s in &order[..entered - 1] {
+        stack[*top].write(slot(s));
+        *top += 1;
+    }
+    Some(slot(order[entered - 1]))
 }
 
 /// Writes the oct for `quads[q]` and, depth first after it, those of its inner children; returns
