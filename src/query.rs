@@ -296,7 +296,8 @@ fn completed(scene: &Scene, ray: &Ray, (object, raw): (u32, RawHit), request: Hi
 pub struct TraceWork {
     rays: Vec<Ray>,
     ranges: Vec<Interval>,
-    hits: Vec<Option<(u32, RawHit)>>,
+    hits: Vec<Option<RawHit>>,
+    objects: Vec<u32>,
     uncertain: Vec<bool>,
 }
 
@@ -339,14 +340,23 @@ impl TraceWork {
         let n = self.rays.len();
         self.hits.clear();
         self.hits.resize(n, None);
+        self.objects.clear();
+        self.objects.resize(n, 0);
         self.uncertain.clear();
         self.uncertain.resize(n, false);
-        scene.intersect_each(&self.rays, &self.ranges, &mut self.hits, &mut self.uncertain);
-        for (i, ((ray, &hit), &traced_uncertain)) in self.rays.iter().zip(&self.hits).zip(&self.uncertain).enumerate() {
+        scene.intersect_each(
+            &self.rays,
+            &self.ranges,
+            &mut self.hits,
+            &mut self.objects,
+            &mut self.uncertain,
+        );
+        let traced = self.hits.iter().zip(&self.objects).zip(&self.uncertain);
+        for (i, (ray, ((&hit, &object), &traced_uncertain))) in self.rays.iter().zip(traced).enumerate() {
             match hit {
                 None => answer(i, None, traced_uncertain),
-                Some(hit) => {
-                    let (hit, completed_uncertain) = uncertain_while(|| completed(scene, ray, hit, request));
+                Some(raw) => {
+                    let (hit, completed_uncertain) = uncertain_while(|| completed(scene, ray, (object, raw), request));
                     answer(i, Some(&hit), traced_uncertain || completed_uncertain);
                 }
             }

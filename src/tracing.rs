@@ -107,8 +107,9 @@ impl Scene {
         )
     }
 
-    /// [`Scene::intersect`] of every ray of `rays` over its range in `ranges`, into `out`, and
-    /// into `uncertain` whether a root finder ran out of budget on that ray (this thread's
+    /// [`Scene::intersect`] of every ray of `rays` over its range in `ranges`, into `hits` (the
+    /// raw hit) and `objects` (the object hit, where `hits` holds a hit), and into `uncertain`
+    /// whether a root finder ran out of budget on that ray (this thread's
     /// [`zeroset_primitives::root::thread_uncertain_events`] moved meanwhile); the four slices
     /// have the same length. The same answers: a scene of one object (a lone mesh, the common
     /// query) hands the rays to it 256 at a time
@@ -121,27 +122,30 @@ impl Scene {
         &self,
         rays: &[Ray],
         ranges: &[Interval],
-        out: &mut [Option<(u32, RawHit)>],
+        hits: &mut [Option<RawHit>],
+        objects: &mut [u32],
         uncertain: &mut [bool],
     ) {
         const BATCH: usize = 256;
         let lone = self.lone_object();
         let batches = rays.chunks(BATCH).zip(ranges.chunks(BATCH));
-        for ((rays, ranges), (out, uncertain)) in batches.zip(out.chunks_mut(BATCH).zip(uncertain.chunks_mut(BATCH))) {
+        let outputs = hits
+            .chunks_mut(BATCH)
+            .zip(objects.chunks_mut(BATCH))
+            .zip(uncertain.chunks_mut(BATCH));
+        for ((rays, ranges), ((hits, objects), uncertain)) in batches.zip(outputs) {
             match lone {
                 Some(object) if rays.iter().all(|ray| scaled_direction_size(ray).is_none()) => {
-                    let mut hits = [None; BATCH];
-                    let hits = &mut hits[..rays.len()];
                     self.objects[object as usize]
                         .primitive
                         .intersect_each(rays, ranges, hits, uncertain);
-                    for (out, hit) in out.iter_mut().zip(hits) {
-                        *out = hit.map(|raw| (object, raw));
-                    }
+                    objects.fill(object);
                 }
                 _ => {
-                    for (((ray, range), out), uncertain) in rays.iter().zip(ranges).zip(out).zip(uncertain) {
-                        (*out, *uncertain) = uncertain_while(|| self.intersect(ray, *range));
+                    let outputs = hits.iter_mut().zip(objects.iter_mut()).zip(uncertain.iter_mut());
+                    for ((ray, range), ((hit, object), uncertain)) in rays.iter().zip(ranges).zip(outputs) {
+                        let (found, flagged) = uncertain_while(|| self.intersect(ray, *range));
+                        (*hit, *object, *uncertain) = (found.map(|(_, raw)| raw), found.map_or(0, |(o, _)| o), flagged);
                     }
                 }
             }

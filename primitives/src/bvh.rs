@@ -298,7 +298,7 @@ pub(crate) fn worth_prefetching<N>(nodes: &[N]) -> bool {
 /// Asks memory for the cache line holding `*p` (a hint: it never faults, whatever the address;
 /// nothing on other architectures than x86-64).
 #[inline(always)]
-pub(crate) fn prefetch<T>(p: *const T) {
+pub fn prefetch<T>(p: *const T) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
