@@ -246,7 +246,8 @@ impl<'a> RayColumns<'a> {
     /// Asks memory for the origins and directions of the rays of `chunk` (clamped to the
     /// columns): [`trace_columns`] requests the next chunk's while it traces one, so that
     /// building the next does not wait on memory (`cast_rays`, 10⁶ random rays: 2–3 % faster on
-    /// the level-4 and level-6 meshes).
+    /// the level-4 and level-6 meshes; the same requests spread over the chunk's answers, a line
+    /// a ray, measured alike).
     fn request(&self, chunk: std::ops::Range<usize>) {
         let values = 3 * chunk.start.min(self.len())..3 * chunk.end.min(self.len());
         for column in [&self.origins[values.clone()], &self.directions[values]] {
@@ -331,15 +332,28 @@ impl<'a> RayColumns<'a> {
     }
 }
 
+/// Where [`trace_columns`] writes the answers of one chunk of rays (rows `0..len`, `len` at
+/// most [`COLUMN_CHUNK`]).
+pub trait ChunkAnswers: Send {
+    /// Writes every row as a miss that is not uncertain: called once, before the chunk's rays are
+    /// traced. Filling whole columns at once costs a fraction of writing the rows one by one, and
+    /// most random rays miss.
+    fn misses(&mut self, len: usize);
+
+    /// Writes row `i`: a hit, or a miss flagged uncertain (`hit` is `None`). Called in ray order,
+    /// once for each row that is not a certain miss ([`ChunkAnswers::misses`] wrote those).
+    fn put(&mut self, i: usize, hit: Option<&(u32, SurfaceHit)>, uncertain: bool);
+}
+
 /// First hits of every ray of `columns` (built as [`RayColumns::ray`] does, traced as
-/// [`crate::query::trace_one_for`] traces each, completed as far as `request` asks), handed over
-/// ray by ray as `put(out, i, hit, uncertain)`: `outputs[k]` receives those of rays
-/// `k·COLUMN_CHUNK + i` (`i` below [`COLUMN_CHUNK`]), in ray order, so that the caller writes
-/// each answer straight into its own buffers. Chunks run in parallel on rayon's pool, each
-/// built, traced (handed to the scene together, [`crate::scene::Scene::intersect_each`]) and
-/// handed over while in cache: no ray or hit record outlives its chunk. With the full request
-/// ([`crate::query::ANSWER`]) the answers equal [`crate::query::trace_batch`] on all the rays at
-/// once (every ray is traced on its own).
+/// [`crate::query::trace_one_for`] traces each, completed as far as `request` asks), written
+/// into `outputs[k]` for the rays `k·COLUMN_CHUNK + i` (`i` below [`COLUMN_CHUNK`]): first every
+/// row as a miss ([`ChunkAnswers::misses`]), then the rows of the hits and uncertain misses in
+/// ray order ([`ChunkAnswers::put`]), so that the caller writes each answer straight into its
+/// own buffers. Chunks run in parallel on rayon's pool, each built, traced (handed to the scene
+/// together, [`crate::scene::Scene::intersect_each`]) and written while in cache: no ray or hit
+/// record outlives its chunk. With the full request ([`crate::query::ANSWER`]) the answers equal
+/// [`crate::query::trace_batch`] on all the rays at once (every ray is traced on its own).
 ///
 /// # Errors
 /// The first bad ray by index, `(index, what is wrong)`; every ray is still checked (so the
@@ -348,13 +362,12 @@ impl<'a> RayColumns<'a> {
 ///
 /// # Panics
 /// If `outputs` does not hold one entry per chunk (`len.div_ceil(COLUMN_CHUNK)`).
-pub fn trace_columns<O: Send>(
+pub fn trace_columns<O: ChunkAnswers>(
     scene: &Scene,
     columns: &RayColumns<'_>,
     setup: &RaySetup,
     request: HitRequest,
     outputs: Vec<O>,
-    put: impl Fn(&mut O, usize, Option<&(u32, SurfaceHit)>, bool) + Sync,
 ) -> Result<(), (usize, String)> {
     let n = columns.len();
     assert_eq!(outputs.len(), n.div_ceil(COLUMN_CHUNK), "one output per chunk of rays");
@@ -368,7 +381,7 @@ pub fn trace_columns<O: Send>(
             work.clear();
             // the chunk's rays at once where all are plain, else one by one (which finds the bad one)
             if !columns.plain_rays(chunk.clone(), setup, work) {
-                for i in chunk {
+                for i in chunk.clone() {
                     match columns.ray(i, setup) {
                         Ok(q) => work.push(q.ray, q.range),
                         Err(message) => {
@@ -383,9 +396,14 @@ pub fn trace_columns<O: Send>(
                 }
             }
             if !failed.load(Ordering::Relaxed) {
+                out.misses(chunk.len());
                 // the next chunk's rays (most often this thread's next) arrive while this one is traced
                 columns.request((k + 1) * COLUMN_CHUNK..(k + 2) * COLUMN_CHUNK);
-                work.trace(scene, request, |i, hit, uncertain| put(&mut out, i, hit, uncertain));
+                work.trace(scene, request, |i, hit, uncertain| {
+                    if hit.is_some() || uncertain {
+                        out.put(i, hit, uncertain);
+                    }
+                });
             }
         });
     match first_error
@@ -608,6 +626,55 @@ mod tests {
         assert!(ray_from_fields(&[0.0; 7], &RaySetup::default()).is_err());
     }
 
+    /// A chunk's rows as [`trace_columns`] writes them, and the last row handed over.
+    #[derive(Default)]
+    struct Answers {
+        rows: Vec<QueryHit>,
+        last: Option<usize>,
+    }
+
+    impl ChunkAnswers for &Mutex<Answers> {
+        fn misses(&mut self, len: usize) {
+            let mut answers = self.lock().unwrap();
+            assert!(
+                answers.rows.is_empty() && answers.last.is_none(),
+                "misses written first, once"
+            );
+            answers.rows = vec![
+                QueryHit {
+                    hit: None,
+                    uncertain: false
+                };
+                len
+            ];
+        }
+
+        fn put(&mut self, i: usize, hit: Option<&(u32, SurfaceHit)>, uncertain: bool) {
+            let mut answers = self.lock().unwrap();
+            assert!(
+                answers.last.is_none_or(|last| last < i),
+                "rows handed over once, in order"
+            );
+            assert!(hit.is_some() || uncertain, "certain misses are not handed over");
+            answers.last = Some(i);
+            answers.rows[i] = QueryHit {
+                hit: hit.copied(),
+                uncertain,
+            };
+        }
+    }
+
+    /// Counts the rows written.
+    struct Counted<'a>(&'a std::sync::atomic::AtomicUsize);
+
+    impl ChunkAnswers for Counted<'_> {
+        fn misses(&mut self, len: usize) {
+            self.0.fetch_add(len, Ordering::Relaxed);
+        }
+
+        fn put(&mut self, _: usize, _: Option<&(u32, SurfaceHit)>, _: bool) {}
+    }
+
     /// Two spheres and a box; rays from a grid of origins in many directions, about a third
     /// missing, over more than two chunks (the last one partial).
     fn scene_and_columns() -> (Scene, Vec<f64>, Vec<f64>, Vec<f64>) {
@@ -653,24 +720,9 @@ mod tests {
         });
         let expected = trace_batch(&scene, &rays);
         let chunks = columns.len().div_ceil(COLUMN_CHUNK);
-        let slots: Vec<Mutex<Vec<QueryHit>>> = (0..chunks).map(|_| Mutex::new(Vec::new())).collect();
-        trace_columns(
-            &scene,
-            &columns,
-            &setup,
-            ANSWER,
-            slots.iter().collect(),
-            |slot, i, hit, uncertain| {
-                let mut slot = slot.lock().unwrap();
-                assert_eq!(slot.len(), i, "each chunk's answers handed over once, in order");
-                slot.push(QueryHit {
-                    hit: hit.copied(),
-                    uncertain,
-                });
-            },
-        )
-        .unwrap();
-        let got: Vec<QueryHit> = slots.into_iter().flat_map(|s| s.into_inner().unwrap()).collect();
+        let slots: Vec<Mutex<Answers>> = (0..chunks).map(|_| Mutex::new(Answers::default())).collect();
+        trace_columns(&scene, &columns, &setup, ANSWER, slots.iter().collect()).unwrap();
+        let got: Vec<QueryHit> = slots.into_iter().flat_map(|s| s.into_inner().unwrap().rows).collect();
         let hits = got.iter().filter(|h| h.hit.is_some()).count();
         assert!(hits > columns.len() / 3 && hits < columns.len(), "{hits} hits");
         assert_eq!(got, expected);
@@ -685,10 +737,8 @@ mod tests {
         let columns = RayColumns::new(&origins, &directions, &[0.0], &tmax, None).unwrap();
         let setup = RaySetup::default();
         let traced = std::sync::atomic::AtomicUsize::new(0);
-        let error = trace_columns(&scene, &columns, &setup, ANSWER, vec![(); 3], |(), _, _, _| {
-            traced.fetch_add(1, Ordering::Relaxed);
-        })
-        .unwrap_err();
+        let counters = (0..3).map(|_| Counted(&traced)).collect();
+        let error = trace_columns(&scene, &columns, &setup, ANSWER, counters).unwrap_err();
         assert_eq!(
             error,
             (COLUMN_CHUNK + 9, "origin and direction must be finite".to_string())

@@ -1,10 +1,11 @@
 //! The arrays `cast_rays` returns, filled in place.
 //!
 //! Each requested field is one numpy array, allocated (uninitialised) while the GIL is held and
-//! then split into one piece per chunk of [`COLUMN_CHUNK`] rays; [`trace_columns`] hands each
-//! ray's answer to its chunk's piece on a rayon thread, with the GIL released, which writes its
-//! row of every field (a miss writes the miss values) while the chunk is in cache. Nothing is
-//! copied after that: the arrays go back to Python as they are.
+//! then split into one piece per chunk of [`COLUMN_CHUNK`] rays; on a rayon thread, with the GIL
+//! released, [`trace_columns`] has each piece fill its rows with the miss values, a column at a
+//! time, then hands it the answers of the chunk's hits (and uncertain misses), which write their
+//! row of every field while the chunk is in cache. Nothing is copied after that: the arrays go
+//! back to Python as they are.
 //!
 //! Fields (one row per ray): `t` f64 (`+∞` on a miss), `hit` bool, `point` f64 ×3 and `normal`
 //! f64 ×3 (zero on a miss), `object_id` i32 (−1 on a miss), `uv` f64 ×2 (zero where the primitive
@@ -16,7 +17,7 @@ use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use zeroset::primitives::{HitRequest, SurfaceHit};
-use zeroset::query_rays::COLUMN_CHUNK;
+use zeroset::query_rays::{ChunkAnswers, COLUMN_CHUNK};
 
 use crate::pages::uninit_array;
 
@@ -58,8 +59,9 @@ pub struct HitChunk<'a> {
 
 /// Uninitialised `(n,)` array, when `wanted` (in memory of its own when large: [`crate::pages`]).
 fn vector<'py, T: numpy::Element>(py: Python<'py>, n: usize, wanted: bool) -> Option<Bound<'py, PyArray1<T>>> {
-    // SAFETY: every element is written by `HitChunk::put` before the array reaches Python (the
-    // chunks cover all rows); on an error the array is dropped unread
+    // SAFETY: every element is written (by `HitChunk::misses`, all of its chunk's rows) before
+    // the array reaches Python (the chunks cover all rows); on an error the array is dropped
+    // unread
     wanted.then(|| unsafe { uninit_array(py, [n]) })
 }
 
@@ -189,11 +191,22 @@ impl<'py> HitArrays<'py> {
     }
 }
 
-impl HitChunk<'_> {
-    /// Writes row `i` of this chunk (of every requested field) from its ray's answer: the hit
-    /// `(object, record)`, or the miss values where there is none.
-    #[inline(always)]
-    pub fn put(&mut self, i: usize, found: Option<&(u32, SurfaceHit)>, uncertain: bool) {
+impl ChunkAnswers for HitChunk<'_> {
+    /// Every requested field's rows `0..len` set to the miss values, a whole column at a time.
+    fn misses(&mut self, len: usize) {
+        fill(self.t.as_deref_mut(), len, f64::INFINITY);
+        fill(self.hit.as_deref_mut(), len, false);
+        fill(self.point.as_deref_mut(), 3 * len, 0.0);
+        fill(self.normal.as_deref_mut(), 3 * len, 0.0);
+        fill(self.object_id.as_deref_mut(), len, -1);
+        fill(self.uv.as_deref_mut(), 2 * len, 0.0);
+        fill(self.primitive_id.as_deref_mut(), len, -1);
+        fill(self.uncertain.as_deref_mut(), len, false);
+    }
+
+    /// Row `i` of every requested field: the hit's values, or (for an uncertain miss) the miss
+    /// values, and the `uncertain` flag.
+    fn put(&mut self, i: usize, found: Option<&(u32, SurfaceHit)>, uncertain: bool) {
         match found {
             Some((object, hit)) => {
                 put(self.t.as_deref_mut(), i, [hit.t]);
@@ -215,6 +228,14 @@ impl HitChunk<'_> {
             }
         }
         put(self.uncertain.as_deref_mut(), i, [uncertain]);
+    }
+}
+
+/// The first `len` elements of a requested field set to `value`.
+#[inline(always)]
+fn fill<T: Copy>(out: Option<&mut [T]>, len: usize, value: T) {
+    if let Some(out) = out {
+        out[..len].fill(value);
     }
 }
 

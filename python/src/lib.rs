@@ -36,7 +36,7 @@ mod hits;
 mod pages;
 use pages::Plane;
 
-use hits::{HitArrays, HitChunk};
+use hits::HitArrays;
 
 create_exception!(
     _zeroset,
@@ -525,7 +525,7 @@ impl PyScene {
                 0.0
             };
             let setup = ray_setup(closed, precision, magnitude);
-            trace_columns(scene, &view, &setup, request, chunks, HitChunk::put)
+            trace_columns(scene, &view, &setup, request, chunks)
         })
         .map_err(bad_ray)?;
         arrays.into_dict(py)
