@@ -376,6 +376,32 @@ def test_cast_rays_over_many_chunks_equals_rays_cast_one_by_one():
             np.testing.assert_array_equal(got[k][i], alone[k], err_msg=f"{k} of ray {i}")
 
 
+def test_uncertain_misses_among_certain_ones():
+    # a root finder with a budget of 4 evaluations runs out on the rays through its sphere: they
+    # are misses flagged uncertain, written row by row among the certain misses (which cast_rays
+    # writes a column at a time); each row is what the ray gets alone
+    scene = zeroset.Scene.from_ron(
+        'Scene(camera: (), objects: [(shape: Function(phi: "sqrt(x^2 + y^2 + z^2) - 1", '
+        "min: (-2, -2, -2), max: (2, 2, 2), budget: 4))])"
+    )
+    rng = np.random.default_rng(5)
+    n = 3000
+    origins = np.column_stack([rng.uniform(-3, 3, n), rng.uniform(-3, 3, n), np.full(n, -4.0)])
+    directions = np.tile([0.0, 0.0, 1.0], (n, 1))
+    got = scene.cast_rays(origins, directions)
+    through = np.hypot(origins[:, 0], origins[:, 1]) < 0.99
+    assert 100 < got["uncertain"].sum() < n // 2
+    assert got["uncertain"][through].all() and not got["uncertain"][np.hypot(origins[:, 0], origins[:, 1]) > 1.01].any()
+    miss = ~got["hit"]
+    assert (got["t"][miss] == math.inf).all() and (got["point"][miss] == 0).all()
+    assert (got["normal"][miss] == 0).all() and (got["uv"][miss] == 0).all()
+    assert (got["object_id"][miss] == -1).all() and (got["primitive_id"][miss] == -1).all()
+    for i in range(0, n, 23):
+        alone = scene.cast_rays(origins[i], directions[i])
+        for k in alone:
+            np.testing.assert_array_equal(got[k][i], alone[k], err_msg=f"{k} of ray {i}")
+
+
 def test_cast_rays_outputs_asked_for_only():
     scene = zeroset.Scene.from_ron(SPHERE_SCENE)
     origins, directions = random_rays(3000, seed=12)
