@@ -609,11 +609,12 @@ fn query_command(args: &QueryArgs) -> Result<()> {
         magnitude: scene_magnitude(&scene),
     };
     let function_before = zeroset_primitives::uncertain_counts();
-    let mut source: Box<dyn RaySource> = match (&args.rays, &args.pixels) {
+    let mut source: Box<dyn RaySource + Send> = match (&args.rays, &args.pixels) {
         (Some(rays), _) => {
             let rays_name = rays.display().to_string();
-            let input: Box<dyn std::io::Read> = if rays.as_os_str() == "-" {
-                Box::new(std::io::stdin().lock())
+            // `Stdin`, not its lock: the rays are read on whichever thread of the pool is free
+            let input: Box<dyn std::io::Read + Send> = if rays.as_os_str() == "-" {
+                Box::new(std::io::stdin())
             } else {
                 Box::new(std::fs::File::open(rays).with_context(|| format!("reading {rays_name}"))?)
             };
@@ -633,8 +634,9 @@ fn query_command(args: &QueryArgs) -> Result<()> {
     let to_stdout = args.output.as_os_str() == "-";
     let format = args.format.unwrap_or_else(|| BatchFormat::of(&args.output));
     let counts = if to_stdout {
-        let stdout = BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
-        let mut sink: Box<dyn HitSink> = match format {
+        // `Stdout`, not its lock: the rows are written on whichever thread of the pool is free
+        let stdout = BufWriter::with_capacity(1 << 20, std::io::stdout());
+        let mut sink: Box<dyn HitSink + Send> = match format {
             BatchFormat::Csv => Box::new(CsvHits::new(stdout, args.uncertain)),
             BatchFormat::Npy => {
                 let Some(rows) = source.len_hint() else {
@@ -649,7 +651,7 @@ fn query_command(args: &QueryArgs) -> Result<()> {
         let mut file = AtomicFile::create(&args.output)?;
         let counts = {
             let writer = BufWriter::with_capacity(1 << 20, WritebackFile::new(file.file()));
-            let mut sink: Box<dyn HitSink> = match format {
+            let mut sink: Box<dyn HitSink + Send> = match format {
                 BatchFormat::Csv => Box::new(CsvHits::new(writer, args.uncertain)),
                 BatchFormat::Npy => Box::new(NpyHits::seekable(writer, args.uncertain)),
             };

@@ -1067,31 +1067,66 @@ pub struct BatchCounts {
 ///
 /// # Errors
 /// A malformed ray (located) or an I/O error; the rows of earlier chunks may have been written.
-pub fn run_batch(scene: &Scene, source: &mut dyn RaySource, sink: &mut dyn HitSink) -> anyhow::Result<BatchCounts> {
+pub fn run_batch(
+    scene: &Scene,
+    source: &mut (dyn RaySource + Send),
+    sink: &mut (dyn HitSink + Send),
+) -> anyhow::Result<BatchCounts> {
     run_batch_in(scene, source, sink, RayOrder::Input)
 }
 
 /// [`run_batch`] with each chunk traced in `order`.
 ///
+/// While a chunk is traced, the next one is read and the one before written
+/// ([`rayon::join`]: on the thread pool, whose other threads take part in the tracing as they
+/// come free; on one thread, one after the other as before), so that reading and writing, which
+/// run on one thread, no longer leave the others idle: on 10⁶ random rays of the level-4 bench
+/// mesh, 2 threads, the three took 40, 65 and 46 ms one after the other. What is written and
+/// what is reported are as if the chunks were taken one after the other: a chunk's rows are
+/// written before the error of reading the next is returned, and the error of writing a chunk
+/// comes before that of reading a later one.
+///
 /// # Errors
 /// As [`run_batch`].
 pub fn run_batch_in(
     scene: &Scene,
-    source: &mut dyn RaySource,
-    sink: &mut dyn HitSink,
+    source: &mut (dyn RaySource + Send),
+    sink: &mut (dyn HitSink + Send),
     order: RayOrder,
 ) -> anyhow::Result<BatchCounts> {
     let mut counts = BatchCounts::default();
     let mut rays = Vec::with_capacity(CHUNK_RAYS);
+    let mut next_rays = Vec::with_capacity(CHUNK_RAYS);
+    let mut more = source.read_chunk(CHUNK_RAYS, &mut rays)?;
+    // traced, not written yet
+    let mut unwritten: Option<Vec<QueryHit>> = None;
     loop {
-        let more = source.read_chunk(CHUNK_RAYS, &mut rays)?;
-        let hits = trace_batch_in(scene, &rays, order);
+        let (hits, (read, written)) = rayon::join(
+            || trace_batch_in(scene, &rays, order),
+            || {
+                let written = unwritten.as_ref().map_or(Ok(()), |hits| sink.write_chunk(scene, hits));
+                let read = more.then(|| source.read_chunk(CHUNK_RAYS, &mut next_rays));
+                (read, written)
+            },
+        );
+        written?;
         counts.rays += rays.len() as u64;
         counts.hits += hits.iter().filter(|h| h.hit.is_some()).count() as u64;
         counts.uncertain += hits.iter().filter(|h| h.uncertain).count() as u64;
-        sink.write_chunk(scene, &hits)?;
-        if !more {
-            break;
+        match read {
+            None => {
+                sink.write_chunk(scene, &hits)?;
+                break;
+            }
+            Some(Err(error)) => {
+                sink.write_chunk(scene, &hits)?;
+                return Err(error.into());
+            }
+            Some(Ok(still_more)) => {
+                more = still_more;
+                std::mem::swap(&mut rays, &mut next_rays);
+                unwritten = Some(hits);
+            }
         }
     }
     sink.finish()?;
@@ -1123,6 +1158,115 @@ pub fn parse_rays_with(text: &str, path: &str, setup: &RaySetup) -> Result<Vec<Q
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A source of in-memory rays that fails when asked for chunk `fail_at`.
+    struct FailingRays {
+        rays: Vec<QueryRay>,
+        taken: usize,
+        chunk: usize,
+        fail_at: Option<usize>,
+    }
+
+    impl RaySource for FailingRays {
+        fn read_chunk(&mut self, max: usize, out: &mut Vec<QueryRay>) -> Result<bool, QueryError> {
+            out.clear();
+            if self.fail_at == Some(self.chunk) {
+                return Err(QueryError {
+                    path: "rays".into(),
+                    location: format!("chunk {}", self.chunk),
+                    message: "unreadable".into(),
+                });
+            }
+            self.chunk += 1;
+            let end = (self.taken + max).min(self.rays.len());
+            out.extend_from_slice(&self.rays[self.taken..end]);
+            self.taken = end;
+            Ok(end < self.rays.len())
+        }
+    }
+
+    /// A sink keeping the rows it is given, that fails when given chunk `fail_at`.
+    #[derive(Default)]
+    struct KeptRows {
+        rows: Vec<QueryHit>,
+        chunks: usize,
+        fail_at: Option<usize>,
+        finished: bool,
+    }
+
+    impl HitSink for KeptRows {
+        fn write_chunk(&mut self, _scene: &Scene, hits: &[QueryHit]) -> std::io::Result<()> {
+            if self.fail_at == Some(self.chunks) {
+                return Err(std::io::Error::other("disk full"));
+            }
+            self.chunks += 1;
+            self.rows.extend_from_slice(hits);
+            Ok(())
+        }
+
+        fn finish(&mut self) -> std::io::Result<()> {
+            self.finished = true;
+            Ok(())
+        }
+    }
+
+    /// The batch loop, which reads the next chunk and writes the last one while it traces one,
+    /// writes and reports as if it took the chunks one after the other: every row in order (on
+    /// one thread and on three), the rows of the chunks before an unreadable one written and its
+    /// error returned, and a write error returned before the read error of a later chunk.
+    #[test]
+    fn the_batch_loop_writes_and_fails_in_chunk_order() {
+        let scene = Scene::from_ron(
+            "Scene(camera: (), objects: [(shape: Sphere(center: (0, 0, 0), radius: 1))])",
+            "t.ron",
+        )
+        .unwrap();
+        let n = 2 * CHUNK_RAYS + 1000;
+        let rays: Vec<QueryRay> = (0..n)
+            .map(|i| {
+                let a = i as f64 * 0.618_033_988_749_895;
+                QueryRay {
+                    ray: Ray::new(DVec3::new(a.sin() * 1.5, a.cos() * 1.5, -3.0), DVec3::Z),
+                    range: Interval::POSITIVE,
+                }
+            })
+            .collect();
+        let expected = trace_batch(&scene, &rays);
+        let source = |fail_at| FailingRays {
+            rays: rays.clone(),
+            taken: 0,
+            chunk: 0,
+            fail_at,
+        };
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let mut sink = KeptRows::default();
+            let counts = pool
+                .install(|| run_batch(&scene, &mut source(None), &mut sink))
+                .unwrap();
+            assert_eq!(counts.rays, n as u64);
+            assert_eq!(counts.hits, expected.iter().filter(|h| h.hit.is_some()).count() as u64);
+            assert!(sink.finished && sink.chunks == 3);
+            assert!(sink.rows == expected, "{threads} threads: rows in order");
+            // the third chunk unreadable: the first two written, not finished
+            let mut sink = KeptRows::default();
+            let error = pool
+                .install(|| run_batch(&scene, &mut source(Some(2)), &mut sink))
+                .unwrap_err();
+            assert_eq!(error.to_string(), "rays:chunk 2: unreadable");
+            assert!(!sink.finished && sink.rows[..] == expected[..2 * CHUNK_RAYS]);
+            // the second chunk's write fails before the third is found unreadable
+            let mut sink = KeptRows {
+                fail_at: Some(1),
+                ..KeptRows::default()
+            };
+            let error = pool
+                .install(|| run_batch(&scene, &mut source(Some(2)), &mut sink))
+                .unwrap_err();
+            assert_eq!(error.to_string(), "disk full");
+            assert!(!sink.finished && sink.rows[..] == expected[..CHUNK_RAYS]);
+        }
+    }
 
     /// Rays handed to the scene together ([`trace_many_for`]) get exactly the answers they get
     /// one by one, `uncertain` flags included: a lone object (the batch handed to it in one
