@@ -240,7 +240,8 @@ pub(crate) type Pending = (u32, u32, f32);
 /// The end of one step of the ordered single-ray walks ([`traverse_quads_from`],
 /// [`oct::Octs::traverse`]): visits `next`, else pops `stack[..top]`, until an inner node to open,
 /// whose index it returns (`None` once the stack is empty). An entry farther than
-/// [`cull_bound`]`(t_max)` is skipped; a leaf is tested (`leaf`), lowering `t_max` if it hits.
+/// [`cull_bound`]`(t_max)` is skipped ([`next_within`]); a leaf is tested (`leaf`), lowering
+/// `t_max` if it hits.
 #[inline(always)]
 pub(crate) fn next_inner_node(
     stack: &[MaybeUninit<Pending>],
@@ -250,23 +251,38 @@ pub(crate) fn next_inner_node(
     leaf: &mut impl LeafTest,
 ) -> Option<usize> {
     loop {
-        let (child, count, entry) = match next.take() {
-            Some(entry) => entry,
-            None => {
-                *top = top.checked_sub(1)?;
-                // SAFETY: `stack[*top]` was written by the push that raised `top` above it
-                unsafe { stack[*top].assume_init() }
-            }
-        };
-        if entry > cull_bound(*t_max) {
-            continue;
-        }
+        let (child, count, _) = next_within(stack, top, next.take(), *t_max)?;
         if count == 0 {
             return Some(child as usize);
         }
         if let Some(t) = leaf.test(child, count, *t_max) {
             *t_max = t;
         }
+    }
+}
+
+/// `next`, else the top of `stack[..top]` (popped), skipping entries farther than
+/// [`cull_bound`]`(t_max)`: the item a walk visits next (`None` once the stack is empty).
+#[inline(always)]
+pub(crate) fn next_within(
+    stack: &[MaybeUninit<Pending>],
+    top: &mut usize,
+    mut next: Option<Pending>,
+    t_max: f32,
+) -> Option<Pending> {
+    loop {
+        let item = match next.take() {
+            Some(item) => item,
+            None => {
+                *top = top.checked_sub(1)?;
+                // SAFETY: `stack[*top]` was written by the push that raised `top` above it
+                unsafe { stack[*top].assume_init() }
+            }
+        };
+        if item.2 > cull_bound(t_max) {
+            continue;
+        }
+        return Some(item);
     }
 }
 
@@ -309,6 +325,15 @@ pub fn prefetch<T>(p: *const T) {
     let _ = p;
 }
 
+/// Asks memory for every cache line of `nodes[index]` (a hint: any index will do).
+#[inline(always)]
+pub(crate) fn prefetch_node<N>(nodes: &[N], index: usize) {
+    let bytes = nodes.as_ptr().wrapping_add(index).cast::<u8>();
+    for line in 0..std::mem::size_of::<N>().div_ceil(64) {
+        prefetch(bytes.wrapping_add(64 * line));
+    }
+}
+
 /// Asks the cache for the nodes (`N`: [`Quad`] or [`oct::Oct`], every cache line of each) of
 /// the entered inner children (bits of `entered`) of a node whose slots refer to `child` and
 /// `count`, as soon as they are known: the walk visits one next and pushes the others, and in a
@@ -321,11 +346,7 @@ pub(crate) fn prefetch_children<N>(nodes: &[N], child: &[u32], count: &[u16], en
     while slots != 0 {
         let slot = slots.trailing_zeros() as usize;
         slots &= slots - 1;
-        let index = if count[slot] == 0 { child[slot] as usize } else { 0 };
-        let bytes = nodes.as_ptr().wrapping_add(index).cast::<u8>();
-        for line in 0..std::mem::size_of::<N>().div_ceil(64) {
-            prefetch(bytes.wrapping_add(64 * line));
-        }
+        prefetch_node(nodes, if count[slot] == 0 { child[slot] as usize } else { 0 });
         if count[slot] != 0 {
             leaf.prefetch(child[slot], u32::from(count[slot]));
         }

@@ -1454,23 +1454,13 @@ mod tests {
                     );
                     let target = if r % 5 == 0 {
                         // a vertex: the hit is shared by up to six triangles
-                        DVec3::new(
-                            f64::from(rng.random_range(0..48)),
-                            0.0,
-                            f64::from(rng.random_range(0..48)),
-                        )
+                        v64(m.vertices[rng.random_range(0..m.vertices.len())])
                     } else {
                         DVec3::new(
                             rng.random_range(-2.0..50.0),
                             rng.random_range(-1.0..3.0),
                             rng.random_range(-2.0..50.0),
                         )
-                    };
-                    let target = if r % 5 == 0 {
-                        let v = m.vertices[(target.z as usize) * 48 + target.x as usize];
-                        v64(v)
-                    } else {
-                        target
                     };
                     rays.push(Ray::new(origin, (target - origin) * rng.random_range(0.01..100.0)));
                     ranges.push(match r % 7 {

@@ -204,28 +204,17 @@ impl ChunkAnswers for HitChunk<'_> {
         fill(self.uncertain.as_deref_mut(), len, false);
     }
 
-    /// Row `i` of every requested field: the hit's values, or (for an uncertain miss) the miss
-    /// values, and the `uncertain` flag.
+    /// Row `i` of every requested field: the hit's values (an uncertain miss keeps the miss
+    /// values [`ChunkAnswers::misses`] wrote), and the `uncertain` flag.
     fn put(&mut self, i: usize, found: Option<&(u32, SurfaceHit)>, uncertain: bool) {
-        match found {
-            Some((object, hit)) => {
-                put(self.t.as_deref_mut(), i, [hit.t]);
-                put(self.hit.as_deref_mut(), i, [true]);
-                put(self.point.as_deref_mut(), i, hit.point.to_array());
-                put(self.normal.as_deref_mut(), i, hit.normal.unwrap_or_default().to_array());
-                put(self.object_id.as_deref_mut(), i, [*object as i32]);
-                put(self.uv.as_deref_mut(), i, hit.uv.unwrap_or_default().to_array());
-                put(self.primitive_id.as_deref_mut(), i, [i64::from(hit.feature)]);
-            }
-            None => {
-                put(self.t.as_deref_mut(), i, [f64::INFINITY]);
-                put(self.hit.as_deref_mut(), i, [false]);
-                put(self.point.as_deref_mut(), i, [0.0; 3]);
-                put(self.normal.as_deref_mut(), i, [0.0; 3]);
-                put(self.object_id.as_deref_mut(), i, [-1]);
-                put(self.uv.as_deref_mut(), i, [0.0; 2]);
-                put(self.primitive_id.as_deref_mut(), i, [-1]);
-            }
+        if let Some((object, hit)) = found {
+            put(self.t.as_deref_mut(), i, [hit.t]);
+            put(self.hit.as_deref_mut(), i, [true]);
+            put(self.point.as_deref_mut(), i, hit.point.to_array());
+            put(self.normal.as_deref_mut(), i, hit.normal.unwrap_or_default().to_array());
+            put(self.object_id.as_deref_mut(), i, [*object as i32]);
+            put(self.uv.as_deref_mut(), i, hit.uv.unwrap_or_default().to_array());
+            put(self.primitive_id.as_deref_mut(), i, [i64::from(hit.feature)]);
         }
         put(self.uncertain.as_deref_mut(), i, [uncertain]);
     }

@@ -28,7 +28,7 @@
 
 use super::{single_ray, Candidate, Mesh, MeshQuery};
 use crate::bvh::oct::{push_entered, Oct, OCT_STACK};
-use crate::bvh::{cull_bound, prefetch, worth_prefetching, Pending};
+use crate::bvh::{cull_bound, next_within, prefetch, prefetch_node, worth_prefetching, Pending};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use std::mem::MaybeUninit;
@@ -67,28 +67,16 @@ impl Flight<'_> {
     }
 
     /// Takes `next`, else the top of the stack, skipping entries farther than
-    /// [`cull_bound`]`(t_max)`, as the item of the ray's next step. `false` once the stack is
-    /// empty.
+    /// [`cull_bound`]`(t_max)` ([`next_within`], as the single walk), as the item of the ray's
+    /// next step, and asks memory for it. `false` once the stack is empty.
     #[inline(always)]
-    fn advance(&mut self, mut next: Option<Pending>, stack: &[MaybeUninit<Pending>]) -> bool {
-        loop {
-            let item = match next.take() {
-                Some(item) => item,
-                None => {
-                    let Some(top) = self.top.checked_sub(1) else {
-                        return false;
-                    };
-                    self.top = top;
-                    // SAFETY: `stack[top]` was written by the push that raised `top` above it
-                    unsafe { stack[top].assume_init() }
-                }
-            };
-            if item.2 <= cull_bound(self.t_max) {
-                self.next = item;
-                self.request(item);
-                return true;
-            }
-        }
+    fn advance(&mut self, next: Option<Pending>, stack: &[MaybeUninit<Pending>]) -> bool {
+        let Some(item) = next_within(stack, &mut self.top, next, self.t_max) else {
+            return false;
+        };
+        self.next = item;
+        self.request(item);
+        true
     }
 
     /// Asks memory for what visiting `item` reads: the node's four cache lines, or the leaf's
@@ -98,10 +86,7 @@ impl Flight<'_> {
     #[inline(always)]
     fn request(&self, (child, count, _): Pending) {
         if count == 0 {
-            let bytes = self.octs.as_ptr().wrapping_add(child as usize).cast::<u8>();
-            for line in 0..std::mem::size_of::<Oct>() / 64 {
-                prefetch(bytes.wrapping_add(64 * line));
-            }
+            prefetch_node(self.octs, child as usize);
         } else {
             self.mesh.prefetch_leaf(child, count);
         }
