@@ -28,9 +28,9 @@
 //! per-row lists of a million-triangle mesh's pieces would take longer to write than to use.
 
 use rayon::prelude::*;
-use zeroset_primitives::{Interval, Pieces, RawHit, Ray};
+use zeroset_primitives::{Aabb, Interval, Pieces, RawHit, Ray};
 
-use crate::camera::footprint::{BoxProjector, TIGHT_WIDENING};
+use crate::camera::footprint::{BoxProjector, ImageRect, TIGHT_WIDENING};
 use crate::camera::{Camera, Model};
 use crate::render::Window;
 use crate::scene::Scene;
@@ -124,10 +124,18 @@ impl<'a> PieceBins<'a> {
             .par_chunks(FOOTPRINT_RUN)
             .map(|run| {
                 let mut found = (Vec::with_capacity(run.len()), Vec::new());
-                footprints(run, scene, &source, &projector, window, &mut found);
+                zeroset_primitives::with_fma!(footprints(
+                    run: &[u32] = run,
+                    scene: &Scene = scene,
+                    source: &Source<'_> = &source,
+                    projector: &BoxProjector<'_> = &projector,
+                    window: &Window = window,
+                    found: &mut (Vec<Seen>, Vec<u32>) = &mut found,
+                ) -> ());
                 found
             })
             .collect();
+
         let mut seen = Vec::with_capacity(runs.iter().map(|r| r.0.len()).sum());
         let mut no_footprint = Vec::new();
         for (run_seen, run_without) in runs {
@@ -232,7 +240,9 @@ const FOOTPRINT_RUN: usize = 1024;
 
 /// The footprints of the pieces `numbers` of `source` through `projector` (module docs): into
 /// `found.0` each piece whose footprint holds a pixel centre of `window`, with its rows, columns
-/// and distance, in the order of `numbers`; into `found.1` each piece without a footprint.
+/// and distance, in the order of `numbers`; into `found.1` each piece without a footprint. A
+/// lone object's pieces are projected four at a time
+/// ([`BoxProjector::pinhole_footprints`]).
 #[inline(always)]
 fn footprints(
     numbers: &[u32],
@@ -242,37 +252,59 @@ fn footprints(
     window: &Window,
     found: &mut (Vec<Seen>, Vec<u32>),
 ) {
-    let eye = projector.eye();
-    for &number in numbers {
-        let bounds = match source {
-            Source::Lone { pieces, .. } => pieces.piece_box(number),
-            Source::Objects { .. } => Some(scene.objects[number as usize].primitive.bounds()),
-        };
-        let Some(bounds) = bounds else { continue };
-        let rect = match source {
-            Source::Lone { .. } => projector.footprint(&bounds, TIGHT_WIDENING),
-            Source::Objects { .. } => projector.footprint_clipped(&bounds, TIGHT_WIDENING),
-        };
-        let Some(rect) = rect else {
-            found.1.push(number);
-            continue;
-        };
-        // the pixels whose centres `k + 0.5` lie in the rectangle, within the window
-        let first = |lo: f64, start: u32| (lo - 0.5).ceil().max(f64::from(start));
-        let last = |hi: f64, end: u32| (hi - 0.5).floor().min(f64::from(end) - 1.0);
-        let (c0, c1) = (first(rect.x0, window.x0), last(rect.x1, window.x1));
-        let (r0, r1) = (first(rect.y0, window.y0), last(rect.y1, window.y1));
-        let distance = (eye.clamp(bounds.min, bounds.max) - eye).length();
-        let near = f32_below((distance - projector.enlargement(&bounds)).max(0.0));
-        if c0 <= c1 && r0 <= r1 {
-            found.0.push(Seen {
-                number,
-                near,
-                columns: [c0 as u32, c1 as u32],
-                rows: [r0 as u32, r1 as u32],
-            });
+    match source {
+        Source::Lone { pieces, .. } => {
+            let mut boxes = vec![Aabb::EMPTY; numbers.len()];
+            pieces.piece_boxes(numbers, &mut boxes);
+            for (group, boxes) in numbers.chunks(4).zip(boxes.chunks(4)) {
+                let mut four = [Aabb::EMPTY; 4];
+                four[..boxes.len()].copy_from_slice(boxes);
+                let rects = projector.pinhole_footprints(&four, TIGHT_WIDENING);
+                for (l, &number) in group.iter().enumerate() {
+                    match rects[l] {
+                        _ if four[l].is_empty() => {}
+                        Some((rect, near)) => found.0.extend(seen(number, &rect, near, window)),
+                        None => found.1.push(number),
+                    }
+                }
+            }
+        }
+        Source::Objects { .. } => {
+            let eye = projector.eye();
+            for &number in numbers {
+                let bounds = scene.objects[number as usize].primitive.bounds();
+                match projector.footprint_clipped(&bounds, TIGHT_WIDENING) {
+                    Some(rect) => {
+                        let distance = (eye.clamp(bounds.min, bounds.max) - eye).length();
+                        let near = distance - projector.enlargement(&bounds);
+                        found.0.extend(seen(number, &rect, near, window));
+                    }
+                    None => found.1.push(number),
+                }
+            }
         }
     }
+}
+
+/// Piece `number` as the bins list it, if its footprint `rect` holds a pixel centre of
+/// `window`: the pixels it holds, and `near`, the distance from the eye to its box less the
+/// box's enlargement, rounded down to f32 (0 if negative).
+#[inline(always)]
+fn seen(number: u32, rect: &ImageRect, near: f64, window: &Window) -> Option<Seen> {
+    // the pixels whose centres `k + 0.5` lie in the rectangle, within the window
+    let first = |lo: f64, start: u32| (lo - 0.5).ceil().max(f64::from(start));
+    let last = |hi: f64, end: u32| (hi - 0.5).floor().min(f64::from(end) - 1.0);
+    let (c0, c1) = (first(rect.x0, window.x0), last(rect.x1, window.x1));
+    let (r0, r1) = (first(rect.y0, window.y0), last(rect.y1, window.y1));
+    if !(c0 <= c1 && r0 <= r1) {
+        return None;
+    }
+    Some(Seen {
+        number,
+        near: f32_below(near.max(0.0)),
+        columns: [c0 as u32, c1 as u32],
+        rows: [r0 as u32, r1 as u32],
+    })
 }
 
 /// The objects of `scene` as the pieces of [`PieceBins`] (their indices; the unbounded ones are

@@ -251,6 +251,15 @@ pub trait Pieces: Sync {
     /// Every point of the surface lies in at least one piece's box.
     fn piece_box(&self, number: u32) -> Option<Aabb>;
 
+    /// [`Pieces::piece_box`] of each of `numbers` into `boxes` (as long), [`Aabb::EMPTY`] where no
+    /// piece has the number: one call for the many pieces a renderer projects (the default,
+    /// compiled for each implementing type, calls its `piece_box` directly).
+    fn piece_boxes(&self, numbers: &[u32], boxes: &mut [Aabb]) {
+        for (&number, bounds) in numbers.iter().zip(boxes) {
+            *bounds = self.piece_box(number).unwrap_or(Aabb::EMPTY);
+        }
+    }
+
     /// Exactly [`Intersect::intersect`]`(ray, range)`, given that `candidates` (piece numbers,
     /// in any order, repeats allowed, numbers of no piece ignored) holds every piece whose box
     /// the ray passes within `10⁻⁶·(|box diagonal| + |box centre − ray origin|)` plus four times

@@ -227,6 +227,84 @@ impl BoxProjector<'_> {
         }
     }
 
+    /// [`BoxProjector::footprint`] of a pinhole for four boxes at once (`None` where that has
+    /// none, and for every box if the camera is no pinhole), each with the distance from the eye
+    /// to the box less its [`BoxProjector::enlargement`] (negative where the eye is that close):
+    /// the same rectangles, for the many small boxes of the pixel bins, with each step worked
+    /// out for the four boxes together (vector lanes).
+    ///
+    /// The corners are those of [`BoxProjector::footprint`], written as the centre's
+    /// camera-local coordinates `mₐ = a·(c − eye)` plus `±` each of the three half edges
+    /// `(hₖ + δ)·aₖ` (`a` a camera axis): the same points up to rounding, which the
+    /// enlargement covers.
+    #[inline(always)]
+    #[must_use]
+    pub fn pinhole_footprints(&self, boxes: &[Aabb; 4], widening: f64) -> [Option<(ImageRect, f64)>; 4] {
+        let (Model::Perspective(_), Some(p)) = (&self.camera.model, self.pinhole) else {
+            return [None; 4];
+        };
+        let camera = self.camera;
+        let eye = camera.eye.to_array();
+        let axes = [camera.right.to_array(), camera.up.to_array(), camera.forward.to_array()];
+        // lane `l` is box `l`; every step runs over the four lanes, for the compiler to
+        // vectorise
+        let lanes = |f: &dyn Fn(usize) -> f64| -> [f64; 4] { std::array::from_fn(f) };
+        let half: [[f64; 4]; 3] = std::array::from_fn(|k| lanes(&|l| 0.5 * (boxes[l].max[k] - boxes[l].min[k])));
+        let to_centre: [[f64; 4]; 3] =
+            std::array::from_fn(|k| lanes(&|l| 0.5 * (boxes[l].min[k] + boxes[l].max[k]) - eye[k]));
+        let length = |v: &[[f64; 4]; 3], l: usize| (v[0][l] * v[0][l] + v[1][l] * v[1][l] + v[2][l] * v[2][l]).sqrt();
+        let delta =
+            lanes(&|l| MARGIN * (2.0 * length(&half, l) + length(&to_centre, l)) + 100.0 * self.origin_rounding);
+        // per camera axis `a`: the centre's coordinate, and the enlarged box's half edge along
+        // world axis `k` in camera coordinates
+        let middle: [[f64; 4]; 3] = std::array::from_fn(|a| {
+            lanes(&|l| to_centre[0][l] * axes[a][0] + to_centre[1][l] * axes[a][1] + to_centre[2][l] * axes[a][2])
+        });
+        let edge: [[[f64; 4]; 3]; 3] =
+            std::array::from_fn(|a| std::array::from_fn(|k| lanes(&|l| (half[k][l] + delta[l]) * axes[a][k])));
+        let (mut x_low, mut x_high, mut y_low, mut y_high) = (
+            [f64::INFINITY; 4],
+            [f64::NEG_INFINITY; 4],
+            [f64::INFINITY; 4],
+            [f64::NEG_INFINITY; 4],
+        );
+        let mut nearest_z = [f64::INFINITY; 4];
+        for corner in 0..8 {
+            let sign = |k: usize| if corner & (1 << k) == 0 { -1.0 } else { 1.0 };
+            let local = |a: usize| {
+                lanes(&|l| middle[a][l] + sign(0) * edge[a][0][l] + sign(1) * edge[a][1][l] + sign(2) * edge[a][2][l])
+            };
+            let (x, y, z) = (local(0), local(1), local(2));
+            for l in 0..4 {
+                let inverse = 1.0 / z[l];
+                let (u, v) = (p.cx + p.ax * (x[l] * inverse), p.cy - p.ay * (y[l] * inverse));
+                // plain comparisons, as in `bounding_rect`: NaN is caught below
+                x_low[l] = if u < x_low[l] { u } else { x_low[l] };
+                x_high[l] = if u > x_high[l] { u } else { x_high[l] };
+                y_low[l] = if v < y_low[l] { v } else { y_low[l] };
+                y_high[l] = if v > y_high[l] { v } else { y_high[l] };
+                nearest_z[l] = if z[l] < nearest_z[l] { z[l] } else { nearest_z[l] };
+            }
+        }
+        // the distance from the eye to the box: its offset from the box along each axis
+        let outside: [[f64; 4]; 3] =
+            std::array::from_fn(|k| lanes(&|l| (boxes[l].min[k] - eye[k]).max(eye[k] - boxes[l].max[k]).max(0.0)));
+        let near = lanes(&|l| length(&outside, l) - delta[l]);
+        let eye_finite = camera.eye.is_finite();
+        std::array::from_fn(|l| {
+            let rect = ImageRect {
+                x0: x_low[l] - widening,
+                x1: x_high[l] + widening,
+                y0: y_low[l] - widening,
+                y1: y_high[l] + widening,
+            };
+            // strictly in front, by more than rounding could move a corner across the plane
+            let in_front = nearest_z[l] > delta[l];
+            let finite = [rect.x0, rect.x1, rect.y0, rect.y1].iter().all(|v| v.is_finite());
+            (in_front && finite && eye_finite && !boxes[l].is_empty()).then_some((rect, near[l]))
+        })
+    }
+
     /// [`BoxProjector::footprint`] of a pinhole, also for a box reaching behind the eye plane
     /// (a ground polygon under the eye), whose corners have no images: the enlarged box is first
     /// cut by the plane `z = z_c` (camera-local depth), keeping the part in front, and the
@@ -431,6 +509,69 @@ mod tests {
         assert!(rects > 200, "{rects} footprints");
         assert!(culled > 100 * rects, "{culled} pixels left out over {rects} footprints");
         assert!(hits > 20 * rects, "{hits} pixels meeting their boxes");
+    }
+
+    /// Four boxes at a time give each box's own footprint (to within rounding, `10⁻⁹` pixels)
+    /// and its distance less the enlargement, `None` exactly where the single-box footprint has
+    /// none (boxes beside, behind and around the eye, a pinhole with principal offsets and
+    /// with a mesh's origin rounding), and `None` for every box through an orthographic camera.
+    #[test]
+    fn four_boxes_at_a_time_give_each_box_s_footprint() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(72);
+        let (mut compared, mut without) = (0, 0);
+        for trial in 0..500 {
+            let eye = DVec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), -10.0);
+            let direction = DVec3::new(rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5), 1.0);
+            let mut camera = Camera::new(eye, direction, DVec3::Y, rng.random_range(10.0..90.0), 640, 480).unwrap();
+            camera.model = Model::Perspective(Perspective {
+                principal_offset: DVec2::new(rng.random_range(-30.0..30.0), rng.random_range(-30.0..30.0)),
+            });
+            let projector = camera.box_projector(if trial % 2 == 0 { 0.0 } else { 1e-6 });
+            let boxes: [Aabb; 4] =
+                std::array::from_fn(|_| random_box(&mut rng, [-8.0..8.0, -8.0..8.0, -14.0..20.0], 0.001..2.0));
+            let four = projector.pinhole_footprints(&boxes, TIGHT_WIDENING);
+            for (bounds, found) in boxes.iter().zip(four) {
+                match (projector.footprint(bounds, TIGHT_WIDENING), found) {
+                    (Some(one), Some((rect, near))) => {
+                        compared += 1;
+                        let scale = 1e-9 * (1.0 + one.x0.abs().max(one.x1.abs()).max(one.y0.abs()).max(one.y1.abs()));
+                        for (a, b) in [
+                            (one.x0, rect.x0),
+                            (one.x1, rect.x1),
+                            (one.y0, rect.y0),
+                            (one.y1, rect.y1),
+                        ] {
+                            assert!((a - b).abs() <= scale, "trial {trial}: {one:?} against {rect:?}");
+                        }
+                        let distance = (eye.clamp(bounds.min, bounds.max) - eye).length();
+                        let expected = distance - projector.enlargement(bounds);
+                        assert!(
+                            (near - expected).abs() <= 1e-12 * (1.0 + distance),
+                            "trial {trial}: {near} against {expected}"
+                        );
+                    }
+                    (None, None) => without += 1,
+                    (one, four) => panic!("trial {trial}: {one:?} against {four:?} for {bounds:?}"),
+                }
+            }
+        }
+        assert!(
+            compared > 1000 && without > 100,
+            "{compared} compared, {without} without a footprint"
+        );
+        let mut orthographic = Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 40.0, 64, 48).unwrap();
+        orthographic.model = Model::Orthographic(Orthographic { width: 10.0 });
+        let bounds = Aabb::new(DVec3::new(-1.0, -1.0, 4.0), DVec3::new(1.0, 1.0, 5.0));
+        assert!(orthographic
+            .box_projector(0.0)
+            .footprint(&bounds, TIGHT_WIDENING)
+            .is_some());
+        assert_eq!(
+            orthographic
+                .box_projector(0.0)
+                .pinhole_footprints(&[bounds; 4], TIGHT_WIDENING),
+            [None; 4]
+        );
     }
 
     /// The cut footprint of boxes reaching behind a pinhole's eye plane (long slabs under and

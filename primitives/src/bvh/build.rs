@@ -359,29 +359,68 @@ impl QuadBvh {
         boxes
     }
 
-    /// The numbers `4·q + s` of the slots holding leaves (slot `s` of node `q`), in the order
-    /// of a depth-first walk. Only the nodes reached are read: the room reserved between the
-    /// parallel subtrees is never touched.
+    /// The numbers `4·q + s` of the slots holding leaves (slot `s` of node `q`), each once: the
+    /// first levels' slots in order, each inner one replaced by the numbers of its subtree, the
+    /// subtrees walked in parallel (depth first). Only the nodes reached are read: the room
+    /// reserved between the parallel subtrees is never touched.
     pub(crate) fn leaf_slot_numbers(&self) -> Vec<u32> {
-        let mut numbers = Vec::new();
-        self.walk_slots(|q, quad, s, _| match quad.count[s] {
-            0 => true,
-            _ => {
-                numbers.push((4 * q + s) as u32);
-                false
+        /// Slots to split the walk into before handing out the subtrees.
+        const SUBTREES: usize = 64;
+        if self.quads.is_empty() {
+            return Vec::new();
+        }
+        // `(node, slot)` pairs of the first levels, inner slots split into their children's
+        // in place until there are enough (or only leaves)
+        let slots_of = |q: usize| (0..self.quads[q].len as usize).map(move |s| (q, s));
+        let mut top: Vec<(usize, usize)> = slots_of(0).collect();
+        while top.len() < SUBTREES {
+            let inner = |&(q, s): &(usize, usize)| self.quads[q].count[s] == 0;
+            if !top.iter().any(inner) {
+                break;
             }
-        });
-        numbers
+            top = top
+                .iter()
+                .flat_map(|&(q, s)| {
+                    let quad = &self.quads[q];
+                    let split = (quad.count[s] == 0).then(|| slots_of(quad.child[s] as usize));
+                    let kept = (quad.count[s] != 0).then_some((q, s));
+                    kept.into_iter().chain(split.into_iter().flatten())
+                })
+                .collect();
+        }
+        let parts: Vec<Vec<u32>> = top
+            .par_iter()
+            .map(|&(q, s)| {
+                let quad = &self.quads[q];
+                if quad.count[s] != 0 {
+                    return vec![(4 * q + s) as u32];
+                }
+                let mut numbers = Vec::new();
+                self.walk_slots_from(quad.child[s] as usize, |q, quad, s, _| match quad.count[s] {
+                    0 => true,
+                    _ => {
+                        numbers.push((4 * q + s) as u32);
+                        false
+                    }
+                });
+                numbers
+            })
+            .collect();
+        parts.concat()
     }
 
     /// Visits the slots reached from the root, each with its node's index and level (the root's
     /// slots are level 1); `visit(q, quad, slot, level)` says whether to descend into an inner
     /// slot's node.
-    fn walk_slots(&self, mut visit: impl FnMut(usize, &Quad, usize, u32) -> bool) {
-        if self.quads.is_empty() {
-            return;
+    fn walk_slots(&self, visit: impl FnMut(usize, &Quad, usize, u32) -> bool) {
+        if !self.quads.is_empty() {
+            self.walk_slots_from(0, visit);
         }
-        let mut pending = vec![(0usize, 1u32)];
+    }
+
+    /// [`QuadBvh::walk_slots`] below node `root` (its slots being level 1).
+    fn walk_slots_from(&self, root: usize, mut visit: impl FnMut(usize, &Quad, usize, u32) -> bool) {
+        let mut pending = vec![(root, 1u32)];
         while let Some((q, level)) = pending.pop() {
             let quad = &self.quads[q];
             for s in 0..quad.len as usize {

@@ -350,6 +350,14 @@ mod tests {
         assert!(seen.iter().all(|&n| n == 1));
         let others = (0..4 * mesh.node_count() as u32).filter(|n| !numbers.contains(n));
         assert!(others.clone().count() > 0);
-        assert!(others.into_iter().all(|n| mesh.piece_box(n).is_none()));
+        assert!(others.clone().all(|n| mesh.piece_box(n).is_none()));
+        // in bulk: the same boxes, the numbers of no piece empty
+        let asked: Vec<u32> = numbers.iter().copied().chain(others).chain([u32::MAX]).collect();
+        let mut boxes = vec![Aabb::new(glam::DVec3::ZERO, glam::DVec3::ONE); asked.len()];
+        mesh.piece_boxes(&asked, &mut boxes);
+        for (&number, bounds) in asked.iter().zip(&boxes) {
+            assert_eq!(*bounds, mesh.piece_box(number).unwrap_or(Aabb::EMPTY), "piece {number}");
+        }
+        assert!(boxes[numbers.len()..].iter().all(Aabb::is_empty));
     }
 }
