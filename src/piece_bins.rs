@@ -340,9 +340,13 @@ pub(crate) struct BandBins {
 pub(crate) type Listed = (u32, f32);
 
 impl BandBins {
-    /// The pieces of each pixel of the band's row `r` (of `columns` pixels), into `bins`.
-    pub(crate) fn row(&self, r: usize, columns: usize, bins: &mut RowBins) {
+    /// The pieces of each pixel of the band's row `r` (of `columns` pixels), into `bins`; the
+    /// columns from the first to the last that has any (empty if none).
+    pub(crate) fn row(&self, r: usize, columns: usize, bins: &mut RowBins) -> std::ops::Range<usize> {
         bins.fill(columns, || self.rows[r].iter().copied());
+        let first = self.rows[r].iter().map(|&(_, first, _)| first).min();
+        let last = self.rows[r].iter().map(|&(_, _, last)| last).max();
+        first.zip(last).map_or(0..0, |(first, last)| first..last + 1)
     }
 }
 

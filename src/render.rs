@@ -586,9 +586,12 @@ fn render_rows_binned(
     let every_pixel = bins.tests_every_pixel();
     let pixel_rays = camera.pixel_rays(x0, width);
     let mut ray = Ray::new(DVec3::ZERO, DVec3::ZERO);
+    let mut directions = Vec::new();
     for (k, row) in out.chunks_exact_mut(row_len.max(1)).enumerate() {
-        let row_rays = pixel_rays.row(y + k as u32);
-        band.row(k, width, &mut row_bins);
+        let listed = band.row(k, width, &mut row_bins);
+        // the directions of the pixels that may be traced, worked out together
+        let traced = if every_pixel { 0..width } else { listed };
+        let row_rays = pixel_rays.row_with(y + k as u32, traced, &mut directions);
         for (column, pixel) in row.chunks_exact_mut(channels).enumerate() {
             let candidates = row_bins.get(column);
             // a pixel that can see no piece gets the miss values untraced

@@ -56,6 +56,7 @@ pub use orthographic::Orthographic;
 pub use perspective::Perspective;
 
 use glam::{DMat3, DMat4, DVec2, DVec3};
+use std::ops::Range;
 use zeroset_primitives::Ray;
 
 /// A projection model (module table); each variant's file states its maths.
@@ -501,7 +502,43 @@ impl PixelRays<'_> {
             rays: self,
             j,
             screen_y,
+            directions: &[],
+            first_direction: 0,
         }
+    }
+
+    /// [`PixelRays::row`] with the directions of the columns `columns` worked out at once into
+    /// `directions` (perspective model; the others', and other columns', per pixel): the same
+    /// normalisation, bit for bit, run over the columns in vector lanes rather than one pixel's
+    /// square root and division at a time on each ray's path to its intersection tests.
+    #[must_use]
+    pub fn row_with<'b>(&'b self, j: u32, columns: Range<usize>, directions: &'b mut Vec<DVec3>) -> RowRays<'b> {
+        let row = self.row(j);
+        directions.clear();
+        let first = columns.start;
+        if let Some(screen_x) = self.screen_x.get(columns) {
+            directions.resize(screen_x.len(), DVec3::ZERO);
+            zeroset_primitives::with_fma!(normalised_directions(
+                camera: &Camera = self.camera,
+                screen_x: &[f64] = screen_x,
+                screen_y: f64 = row.screen_y,
+                directions: &mut [DVec3] = &mut directions[..],
+            ) -> ());
+        }
+        RowRays {
+            directions: &directions[..],
+            first_direction: first,
+            ..row
+        }
+    }
+}
+
+/// [`Perspective::ray_at`]'s direction through `(screen_x[c], screen_y)` into `directions[c]`,
+/// for every column `c`.
+#[inline(always)]
+fn normalised_directions(camera: &Camera, screen_x: &[f64], screen_y: f64, directions: &mut [DVec3]) {
+    for (direction, &sx) in directions.iter_mut().zip(screen_x) {
+        *direction = Perspective::ray_at(camera, sx, screen_y).dir;
     }
 }
 
@@ -511,6 +548,10 @@ pub struct RowRays<'a> {
     j: u32,
     /// [`Perspective::screen_y`] of the row (perspective model only).
     screen_y: f64,
+    /// The directions of the columns from `first_direction` on, where worked out beforehand
+    /// ([`PixelRays::row_with`]).
+    directions: &'a [DVec3],
+    first_direction: usize,
 }
 
 impl RowRays<'_> {
@@ -522,6 +563,16 @@ impl RowRays<'_> {
     /// about a sixth of the quadrics scene's Depth render.)
     #[inline(always)]
     pub fn ray_into(&self, column: usize, out: &mut Ray) -> Result<(), NoRay> {
+        if let Some(direction) = self.directions.get(column.wrapping_sub(self.first_direction)) {
+            let eye = self.rays.camera.eye;
+            out.origin.x = eye.x;
+            out.origin.y = eye.y;
+            out.origin.z = eye.z;
+            out.dir.x = direction.x;
+            out.dir.y = direction.y;
+            out.dir.z = direction.z;
+            return Ok(());
+        }
         match self.rays.screen_x.get(column) {
             Some(&sx) => {
                 let ray = Perspective::ray_at(self.rays.camera, sx, self.screen_y);
@@ -572,9 +623,11 @@ mod tests {
     /// A run of columns' rays, row by row, are `pixel_ray`'s bit for bit: the perspective
     /// model (with a principal offset, whose screen coordinates are worked out once per column
     /// and row) and another model (traced by `pixel_ray` itself), from column 0 and from a crop's
-    /// first column.
+    /// first column; with the directions of some columns worked out beforehand (`row_with`:
+    /// all, a span, none, a span past the row's end) too.
     #[test]
     fn pixel_rays_equal_pixel_ray() {
+        let mut directions = Vec::new();
         let mut offset = camera();
         offset.model = Model::Perspective(Perspective {
             principal_offset: DVec2::new(13.25, -7.5),
@@ -584,8 +637,21 @@ mod tests {
         for (name, c) in [("pinhole", camera()), ("offset", offset), ("orthographic", ortho)] {
             for (x0, width) in [(0u32, 1280usize), (517, 61)] {
                 let rays = c.pixel_rays(x0, width);
-                for j in [0u32, 1, 359, 719] {
-                    let row = rays.row(j);
+                let spans = [
+                    None,
+                    Some(0..width),
+                    Some(3..width / 2),
+                    Some(5..5),
+                    Some(width - 2..width + 9),
+                ];
+                for (j, span) in [0u32, 1, 359, 719]
+                    .into_iter()
+                    .flat_map(|j| spans.clone().map(|s| (j, s)))
+                {
+                    let row = match span {
+                        None => rays.row(j),
+                        Some(span) => rays.row_with(j, span, &mut directions),
+                    };
                     for column in 0..width {
                         let expected = c.pixel_ray(x0 + column as u32, j).unwrap();
                         let mut got = Ray::new(DVec3::NAN, DVec3::NAN);
