@@ -272,7 +272,16 @@ fn footprints(
         Source::Objects { .. } => {
             let eye = projector.eye();
             for &number in numbers {
-                let bounds = scene.objects[number as usize].primitive.bounds();
+                let primitive = &*scene.objects[number as usize].primitive;
+                let bounds = primitive.bounds();
+                // a ball tighter than the box, where the object has one and it is in front
+                let ball = primitive
+                    .bounding_ball()
+                    .and_then(|(centre, radius)| projector.ball_footprint(centre, radius, &bounds, TIGHT_WIDENING));
+                if let Some((rect, near)) = ball {
+                    found.0.extend(seen(number, &rect, near, window));
+                    continue;
+                }
                 match projector.footprint_clipped(&bounds, TIGHT_WIDENING) {
                     Some(rect) => {
                         let distance = (eye.clamp(bounds.min, bounds.max) - eye).length();

@@ -251,6 +251,11 @@ impl Intersect for Sphere {
     fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> {
         Some(self.uv(ray.at(raw.t)))
     }
+
+    /// The sphere itself.
+    fn bounding_ball(&self) -> Option<(DVec3, f64)> {
+        Some((self.center, self.radius))
+    }
 }
 
 impl Parametric for Sphere {

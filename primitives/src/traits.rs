@@ -232,6 +232,14 @@ pub trait Intersect: Implicit {
         0.0
     }
 
+    /// A ball `(centre, radius)` holding every point of the surface, where the type knows one
+    /// that is tighter than its box: what decides which pixels can see the object projects it
+    /// instead of the box (a sphere's box seen at an angle covers about twice its disc). The
+    /// default has none.
+    fn bounding_ball(&self) -> Option<(DVec3, f64)> {
+        None
+    }
+
     /// The surface cut into boxed pieces that can be tested on their own ([`Pieces`]), where
     /// the type has such a cut (a mesh: its hierarchy's leaves). The default has none.
     fn pieces(&self) -> Option<&dyn Pieces> {
@@ -308,6 +316,7 @@ macro_rules! forward_through_pointer {
             fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 { (**self).hit_error(ray, raw) }
             fn shading_normal_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec3> { (**self).shading_normal_at(ray, raw) }
             fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> { (**self).crossings(ray, range) }
+            fn bounding_ball(&self) -> Option<(DVec3, f64)> { (**self).bounding_ball() }
             fn pieces(&self) -> Option<&dyn Pieces> { (**self).pieces() }
             fn origin_rounding(&self, origin: DVec3) -> f64 { (**self).origin_rounding(origin) }
         }

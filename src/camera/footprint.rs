@@ -305,6 +305,60 @@ impl BoxProjector<'_> {
         })
     }
 
+    /// The footprint of a pinhole for a ball (centre `centre`, radius `radius`) holding a
+    /// surface whose box is `bounds`, with the distance from the eye to the ball less the
+    /// enlargement (negative where the eye is that close); `None` where the camera is no pinhole
+    /// or the enlarged ball is not wholly in front of the eye by more than the enlargement.
+    ///
+    /// Maths. The ball is enlarged by the box's enlargement `δ` ([`BoxProjector::enlargement`]),
+    /// `R = radius + δ`. In camera-local coordinates, with centre `m`, the ratio `x/z` over the
+    /// ball depends on `(x, z)` alone, which fill the disc of radius `R` around `(mₓ, m_z)`: its
+    /// extremes are the slopes `s` of the two lines through the eye tangent to that disc, the
+    /// roots of `s²(m_z² − R²) − 2s·mₓm_z + mₓ² − R² = 0`,
+    /// `s = (mₓm_z ± R·√(mₓ² + m_z² − R²)) / (m_z² − R²)`; likewise `y/z`. The rectangle of
+    /// those image positions bounds the ball's image exactly, so a pixel outside it has a ray
+    /// missing the enlarged ball; it is widened by `widening` and by `10⁻⁹` of each position
+    /// for the rounding of the roots (relative to their size, a few `10⁻¹⁶`).
+    #[must_use]
+    pub fn ball_footprint(&self, centre: DVec3, radius: f64, bounds: &Aabb, widening: f64) -> Option<(ImageRect, f64)> {
+        let (Model::Perspective(_), Some(p)) = (&self.camera.model, self.pinhole) else {
+            return None;
+        };
+        if !(centre.is_finite()
+            && radius.is_finite()
+            && radius >= 0.0
+            && bounds.is_finite()
+            && self.camera.eye.is_finite())
+        {
+            return None;
+        }
+        let delta = self.enlargement(bounds);
+        let reach = radius + delta;
+        let m = self.camera.world_to_local(centre);
+        // (finite: every input was checked above)
+        if m.z - reach <= delta {
+            return None;
+        }
+        let depth = m.z * m.z - reach * reach;
+        let slopes = |lateral: f64| {
+            let spread = reach * (lateral * lateral + depth).sqrt();
+            ((lateral * m.z - spread) / depth, (lateral * m.z + spread) / depth)
+        };
+        let ((x_low, x_high), (y_low, y_high)) = (slopes(m.x), slopes(m.y));
+        let widen = |v: f64| widening + 1e-9 * v.abs();
+        let (x0, x1) = (p.cx + p.ax * x_low, p.cx + p.ax * x_high);
+        let (y0, y1) = (p.cy - p.ay * y_high, p.cy - p.ay * y_low);
+        let rect = ImageRect {
+            x0: x0 - widen(x0),
+            x1: x1 + widen(x1),
+            y0: y0 - widen(y0),
+            y1: y1 + widen(y1),
+        };
+        let finite = [rect.x0, rect.x1, rect.y0, rect.y1].iter().all(|v| v.is_finite());
+        let near = (centre - self.camera.eye).length() - radius - delta;
+        finite.then_some((rect, near))
+    }
+
     /// [`BoxProjector::footprint`] of a pinhole, also for a box reaching behind the eye plane
     /// (a ground polygon under the eye), whose corners have no images: the enlarged box is first
     /// cut by the plane `z = z_c` (camera-local depth), keeping the part in front, and the
@@ -571,6 +625,108 @@ mod tests {
                 .box_projector(0.0)
                 .pinhole_footprints(&[bounds; 4], TIGHT_WIDENING),
             [None; 4]
+        );
+    }
+
+    /// A ball's footprint: every pixel whose centre it leaves out has a ray that misses the ball
+    /// grown by half the enlargement (the distance from the centre to the ray, in f64), the
+    /// rectangle lies within the footprint of the ball's box and is smaller than it, and `near`
+    /// is the distance to the ball less the enlargement; `None` for a ball reaching behind the
+    /// eye plane and for an orthographic camera.
+    #[test]
+    fn pixels_outside_a_ball_s_footprint_miss_the_ball() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(73);
+        let (width, height) = (64u32, 48u32);
+        let (mut rects, mut culled, mut meeting, mut smaller) = (0usize, 0usize, 0usize, 0usize);
+        for trial in 0..300 {
+            let eye = DVec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), -10.0);
+            let direction = DVec3::new(rng.random_range(-0.3..0.3), rng.random_range(-0.3..0.3), 1.0);
+            let mut camera =
+                Camera::new(eye, direction, DVec3::Y, rng.random_range(20.0..90.0), width, height).unwrap();
+            camera.model = Model::Perspective(Perspective {
+                principal_offset: DVec2::new(rng.random_range(-6.0..6.0), rng.random_range(-6.0..6.0)),
+            });
+            let centre = DVec3::new(
+                rng.random_range(-8.0..8.0),
+                rng.random_range(-8.0..8.0),
+                rng.random_range(-12.0..20.0),
+            );
+            let radius = rng.random_range(0.05..3.0);
+            let bounds = Aabb::new(centre - DVec3::splat(radius), centre + DVec3::splat(radius));
+            let projector = camera.box_projector(0.0);
+            let Some((rect, near)) = projector.ball_footprint(centre, radius, &bounds, TIGHT_WIDENING) else {
+                let local = camera.world_to_local(centre);
+                assert!(
+                    local.z - radius <= 2.0 * projector.enlargement(&bounds) + 1e-9,
+                    "trial {trial}: in front, no footprint"
+                );
+                continue;
+            };
+            rects += 1;
+            let delta = projector.enlargement(&bounds);
+            let distance = (centre - eye).length() - radius - delta;
+            assert!(
+                (near - distance).abs() <= 1e-12 * (1.0 + distance.abs()),
+                "trial {trial}"
+            );
+            let grown = radius + 0.5 * delta;
+            let misses = |x: f64, y: f64| {
+                let ray = camera.ray_through(x, y).unwrap();
+                // the closest approach of the ray (t ≥ 0) to the centre
+                let t = (centre - ray.origin).dot(ray.dir).max(0.0) / ray.dir.length_squared();
+                (ray.at(t) - centre).length() > grown
+            };
+            // just outside each side of the rectangle (a millionth of a pixel), along it
+            for k in 0..=64 {
+                let (u, v) = (f64::from(k) / 64.0, 1e-6);
+                let (x, y) = (rect.x0 + u * (rect.x1 - rect.x0), rect.y0 + u * (rect.y1 - rect.y0));
+                for (px, py) in [(rect.x0 - v, y), (rect.x1 + v, y), (x, rect.y0 - v), (x, rect.y1 + v)] {
+                    assert!(
+                        misses(px, py),
+                        "trial {trial}: ({px}, {py}) just outside {rect:?} meets the ball"
+                    );
+                }
+            }
+            for j in 0..height {
+                for i in 0..width {
+                    let ray = camera.pixel_ray(i, j).unwrap();
+                    // the closest approach of the ray (t ≥ 0) to the centre
+                    let t = (centre - ray.origin).dot(ray.dir).max(0.0) / ray.dir.length_squared();
+                    let meets = (ray.at(t) - centre).length() <= grown;
+                    if rect.holds_pixel(i, j) {
+                        meeting += usize::from(meets);
+                    } else {
+                        culled += 1;
+                        assert!(
+                            !meets,
+                            "trial {trial}: pixel ({i}, {j}) outside {rect:?} meets the ball"
+                        );
+                    }
+                }
+            }
+            if let Some(boxed) = projector.footprint(&bounds, TIGHT_WIDENING) {
+                let within = rect.x0 >= boxed.x0 - 1e-6
+                    && rect.x1 <= boxed.x1 + 1e-6
+                    && rect.y0 >= boxed.y0 - 1e-6
+                    && rect.y1 <= boxed.y1 + 1e-6;
+                assert!(within, "trial {trial}: {rect:?} outside the box's {boxed:?}");
+                let area = |r: &ImageRect| (r.x1 - r.x0) * (r.y1 - r.y0);
+                smaller += usize::from(area(&rect) < 0.95 * area(&boxed));
+            }
+        }
+        assert!(
+            rects > 100 && culled > 50 * rects && meeting > 5 * rects,
+            "{rects} rects, {culled} culled, {meeting} meeting"
+        );
+        assert!(smaller > rects / 2, "{smaller} of {rects} smaller than the box's");
+        let mut orthographic = Camera::new(DVec3::ZERO, DVec3::Z, DVec3::Y, 40.0, 64, 48).unwrap();
+        orthographic.model = Model::Orthographic(Orthographic { width: 10.0 });
+        let bounds = Aabb::new(DVec3::new(-1.0, -1.0, 4.0), DVec3::new(1.0, 1.0, 6.0));
+        assert_eq!(
+            orthographic
+                .box_projector(0.0)
+                .ball_footprint(DVec3::new(0.0, 0.0, 5.0), 1.0, &bounds, TIGHT_WIDENING),
+            None
         );
     }
 
