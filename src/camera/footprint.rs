@@ -490,7 +490,7 @@ mod tests {
     use glam::{DVec2, DVec3};
     use rand::{Rng, SeedableRng};
     use std::ops::Range;
-    use zeroset_primitives::Interval;
+    use zeroset_primitives::{Interval, Ray};
 
     /// A random box: its centre's coordinates drawn from `centre`, its half-extents from `half`.
     fn random_box(rng: &mut impl Rng, centre: [Range<f64>; 3], half: Range<f64>) -> Aabb {
@@ -509,18 +509,24 @@ mod tests {
     /// returns how many pixels inside `rect` meet it and how many are left out.
     fn check_pixels_outside(camera: &Camera, bounds: &Aabb, rect: &ImageRect, trial: usize) -> (usize, usize) {
         let grown = bounds.expanded(0.5 * enlargement(bounds, camera.eye, 0.0));
+        count_pixels(camera, rect, trial, |ray| grown.clip(ray, Interval::POSITIVE).is_some())
+    }
+
+    /// Checks that no pixel of `camera` whose centre lies outside `rect` has a ray that
+    /// `meets` the shape; returns how many pixels inside `rect` meet it and how many are left
+    /// out.
+    fn count_pixels(camera: &Camera, rect: &ImageRect, trial: usize, meets: impl Fn(&Ray) -> bool) -> (usize, usize) {
         let (mut meeting, mut left_out) = (0, 0);
         for j in 0..camera.height {
             for i in 0..camera.width {
-                let ray = camera.pixel_ray(i, j).unwrap();
-                let meets = grown.clip(&ray, Interval::POSITIVE).is_some();
+                let meets = meets(&camera.pixel_ray(i, j).unwrap());
                 if rect.holds_pixel(i, j) {
                     meeting += usize::from(meets);
                 } else {
                     left_out += 1;
                     assert!(
                         !meets,
-                        "trial {trial}: pixel ({i}, {j}) outside {rect:?} meets {grown:?}"
+                        "trial {trial}: pixel ({i}, {j}) outside {rect:?} meets the shape"
                     );
                 }
             }
@@ -670,40 +676,26 @@ mod tests {
                 "trial {trial}"
             );
             let grown = radius + 0.5 * delta;
-            let misses = |x: f64, y: f64| {
-                let ray = camera.ray_through(x, y).unwrap();
-                // the closest approach of the ray (t ≥ 0) to the centre
+            // whether a ray comes within `grown` of the centre (its closest approach, t ≥ 0)
+            let meets = |ray: &Ray| {
                 let t = (centre - ray.origin).dot(ray.dir).max(0.0) / ray.dir.length_squared();
-                (ray.at(t) - centre).length() > grown
+                (ray.at(t) - centre).length() <= grown
             };
             // just outside each side of the rectangle (a millionth of a pixel), along it
             for k in 0..=64 {
                 let (u, v) = (f64::from(k) / 64.0, 1e-6);
                 let (x, y) = (rect.x0 + u * (rect.x1 - rect.x0), rect.y0 + u * (rect.y1 - rect.y0));
                 for (px, py) in [(rect.x0 - v, y), (rect.x1 + v, y), (x, rect.y0 - v), (x, rect.y1 + v)] {
+                    let ray = camera.ray_through(px, py).unwrap();
                     assert!(
-                        misses(px, py),
+                        !meets(&ray),
                         "trial {trial}: ({px}, {py}) just outside {rect:?} meets the ball"
                     );
                 }
             }
-            for j in 0..height {
-                for i in 0..width {
-                    let ray = camera.pixel_ray(i, j).unwrap();
-                    // the closest approach of the ray (t ≥ 0) to the centre
-                    let t = (centre - ray.origin).dot(ray.dir).max(0.0) / ray.dir.length_squared();
-                    let meets = (ray.at(t) - centre).length() <= grown;
-                    if rect.holds_pixel(i, j) {
-                        meeting += usize::from(meets);
-                    } else {
-                        culled += 1;
-                        assert!(
-                            !meets,
-                            "trial {trial}: pixel ({i}, {j}) outside {rect:?} meets the ball"
-                        );
-                    }
-                }
-            }
+            let (inside, outside) = count_pixels(&camera, &rect, trial, meets);
+            meeting += inside;
+            culled += outside;
             if let Some(boxed) = projector.footprint(&bounds, TIGHT_WIDENING) {
                 let within = rect.x0 >= boxed.x0 - 1e-6
                     && rect.x1 <= boxed.x1 + 1e-6
