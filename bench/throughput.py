@@ -275,21 +275,33 @@ def _last(k, r):
 
 
 def zeroset_query(runner, zs, scene, rays, threads, runs, outdir, extra=()):
+    return zeroset_queries(runner, zs, scene, rays, threads, runs, outdir, [extra])[0]
+
+
+def zeroset_queries(runner, zs, scene, rays, threads, runs, outdir, variants):
+    """`zeroset query` on `rays` with each of `variants` (extra flags), `runs` times each,
+    interleaved run by run (as the renders are) so that a change in machine load hits every
+    variant alike: per variant, the parsed runs or an NA."""
     path = os.path.join(ROOT, SCENE_FILES[scene])
     out = os.path.join(outdir, f"hits_{scene}.npy")
-    cmd = [zs, "query", path, "--rays", rays, "-o", out, "-t", str(threads), *extra]
-    got = []
+    got = [[] for _ in variants]
     for _ in range(runs):
-        p = runner.run(cmd, timeout=600)
-        bad = p.failure(f"zeroset query {' '.join(extra)}".strip())
-        if bad is not None:
-            return bad
-        try:
-            d = R.parse_query(p.err + "\n" + p.out)
-        except ValueError as e:
-            return NA(f"zeroset query: {e}")
-        d["process_wall_s"] = p.wall
-        got.append(d)
+        for k, extra in enumerate(variants):
+            if isinstance(got[k], NA):
+                continue
+            cmd = [zs, "query", path, "--rays", rays, "-o", out, "-t", str(threads), *extra]
+            p = runner.run(cmd, timeout=600)
+            bad = p.failure(f"zeroset query {' '.join(extra)}".strip())
+            if bad is not None:
+                got[k] = bad
+                continue
+            try:
+                d = R.parse_query(p.err + "\n" + p.out)
+            except ValueError as e:
+                got[k] = NA(f"zeroset query: {e}")
+                continue
+            d["process_wall_s"] = p.wall
+            got[k].append(d)
     if os.path.exists(out):
         os.remove(out)
     return got
@@ -564,11 +576,12 @@ def main():
             load_s = med_of(raw["zeroset"][scene]["load"], "load_s")
             if scene in rays:
                 log(f"zeroset {scene}: query on {a.query_rays} random rays …")
-                q = {"random": summarize_query(zeroset_query(runner, zs, scene, rays[scene], a.threads, a.runs, outdir,
-                                                             a.query_batch_flag), load_s)}
+                # the batch path and the single-ray path interleaved run by run
+                variants = [a.query_batch_flag] + ([a.query_single_flag] if a.query_single_flag else [])
+                timed = zeroset_queries(runner, zs, scene, rays[scene], a.threads, a.runs, outdir, variants)
+                q = {"random": summarize_query(timed[0], load_s)}
                 if a.query_single_flag:
-                    q["single"] = summarize_query(zeroset_query(runner, zs, scene, rays[scene], a.threads, a.runs, outdir,
-                                                                a.query_single_flag), load_s)
+                    q["single"] = summarize_query(timed[1], load_s)
                 if scene in MESH_LEVEL and not isinstance(cam_rays, NA):
                     q["camera"] = summarize_query(zeroset_query(runner, zs, scene, cam_rays, a.threads, 1, outdir), load_s)
                 raw["query"][scene] = q
