@@ -14,7 +14,12 @@
 //!
 //! A scene of several objects has its objects as pieces, each object's world box projected the
 //! same way ([`crate::camera::footprint::BoxProjector::footprint_clipped`]: a box reaching behind
-//! the eye plane, a ground polygon, is cut there first). A pixel tests the unbounded objects,
+//! the eye plane, a ground polygon, is cut there first), or, for an object that knows a ball
+//! around it in front of the eye (a sphere, [`zeroset_primitives::Intersect::bounding_ball`]),
+//! that ball's exact image rectangle
+//! ([`crate::camera::footprint::BoxProjector::ball_footprint`], about half a sphere's box's).
+//! A lone mesh's leaves are projected four at a time
+//! ([`crate::camera::footprint::BoxProjector::pinhole_footprints`]). A pixel tests the unbounded objects,
 //! those without a footprint and its candidates, nearest box first, until the next box lies
 //! beyond the closest hit ([`Scene::intersect_candidates`]): again [`Scene::intersect`]'s
 //! answer, the scene's hierarchy not walked.
