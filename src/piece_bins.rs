@@ -19,10 +19,10 @@
 //! that ball's exact image rectangle
 //! ([`crate::camera::footprint::BoxProjector::ball_footprint`], about half a sphere's box's).
 //! A lone mesh's leaves are projected four at a time
-//! ([`crate::camera::footprint::BoxProjector::pinhole_footprints`]). A pixel tests the unbounded objects,
-//! those without a footprint and its candidates, nearest box first, until the next box lies
-//! beyond the closest hit ([`Scene::intersect_candidates`]): again [`Scene::intersect`]'s
-//! answer, the scene's hierarchy not walked.
+//! ([`crate::camera::footprint::BoxProjector::pinhole_footprints`]). A pixel tests the
+//! unbounded objects, those without a footprint and its candidates, nearest box first, until
+//! the next box lies beyond the closest hit ([`Scene::intersect_candidates`]): again
+//! [`Scene::intersect`]'s answer, the scene's hierarchy not walked.
 //!
 //! Layout. Per bucket of 16 image rows, the pieces seen on any of its rows, nearest box first
 //! ([`PieceBins::new`], made once per view, in parallel over the pieces and the buckets; a
@@ -54,10 +54,10 @@ const PIXELS_PER_PIECE: u64 = 2;
 #[derive(Clone, Copy, Debug)]
 struct Seen {
     number: u32,
-    /// The distance from the eye to the piece's box less the box's enlargement
-    /// ([`BoxProjector::enlargement`], at least the margin [`Pieces`] asks for), rounded down to
-    /// f32: the pieces are listed by it, nearest first, and a pixel's test ends at the first
-    /// piece beyond its closest hit so far.
+    /// The distance from the eye to the piece's box (or ball, see the module docs) less the
+    /// box's enlargement ([`BoxProjector::enlargement`], at least the margin [`Pieces`] asks
+    /// for), rounded down to f32: the pieces are listed by it, nearest first, and a pixel's test
+    /// ends at the first piece beyond its closest hit so far.
     near: f32,
     columns: [u32; 2],
     rows: [u32; 2],
@@ -140,7 +140,6 @@ impl<'a> PieceBins<'a> {
                 found
             })
             .collect();
-
         let mut seen = Vec::with_capacity(runs.iter().map(|r| r.0.len()).sum());
         let mut no_footprint = Vec::new();
         for (run_seen, run_without) in runs {
@@ -301,8 +300,8 @@ fn footprints(
 }
 
 /// Piece `number` as the bins list it, if its footprint `rect` holds a pixel centre of
-/// `window`: the pixels it holds, and `near`, the distance from the eye to its box less the
-/// box's enlargement, rounded down to f32 (0 if negative).
+/// `window`: the pixels it holds, and `near`, the distance from the eye to its box or ball less
+/// the enlargement, rounded down to f32 (0 if negative).
 #[inline(always)]
 fn seen(number: u32, rect: &ImageRect, near: f64, window: &Window) -> Option<Seen> {
     // the pixels whose centres `k + 0.5` lie in the rectangle, within the window

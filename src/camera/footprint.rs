@@ -246,8 +246,8 @@ impl BoxProjector<'_> {
         let camera = self.camera;
         let eye = camera.eye.to_array();
         let axes = [camera.right.to_array(), camera.up.to_array(), camera.forward.to_array()];
-        // lane `l` is box `l`; every step runs over the four lanes, for the compiler to
-        // vectorise
+        // lane `l` is box `l`; each step runs over the four lanes before the next (independent
+        // work the processor overlaps)
         let lanes = |f: &dyn Fn(usize) -> f64| -> [f64; 4] { std::array::from_fn(f) };
         let half: [[f64; 4]; 3] = std::array::from_fn(|k| lanes(&|l| 0.5 * (boxes[l].max[k] - boxes[l].min[k])));
         let to_centre: [[f64; 4]; 3] =
