@@ -504,6 +504,21 @@ mod tests {
         Aabb::new(c - h, c + h)
     }
 
+    /// A `width × height` camera at `z = −10` (eye `x` and `y` within ±5) looking along `+z`
+    /// tilted by up to `tilt` on each axis, its vertical field of view drawn from `fov` (degrees).
+    fn random_camera(rng: &mut impl Rng, width: u32, height: u32, tilt: f64, fov: Range<f64>) -> Camera {
+        let eye = DVec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), -10.0);
+        let direction = DVec3::new(rng.random_range(-tilt..tilt), rng.random_range(-tilt..tilt), 1.0);
+        Camera::new(eye, direction, DVec3::Y, rng.random_range(fov), width, height).unwrap()
+    }
+
+    /// A pinhole whose principal point is offset by up to `offset` pixels on each axis.
+    fn random_pinhole(rng: &mut impl Rng, offset: f64) -> Model {
+        Model::Perspective(Perspective {
+            principal_offset: DVec2::new(rng.random_range(-offset..offset), rng.random_range(-offset..offset)),
+        })
+    }
+
     /// Checks that every pixel of `camera` whose centre lies outside `rect` has a ray missing
     /// `bounds` grown by half the footprint's margin (the f64 slab test of `Aabb::clip`);
     /// returns how many pixels inside `rect` meet it and how many are left out.
@@ -544,18 +559,13 @@ mod tests {
         let (width, height) = (48u32, 32u32);
         let (mut culled, mut rects, mut hits) = (0usize, 0usize, 0usize);
         for trial in 0..400 {
-            let eye = DVec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), -10.0);
-            let direction = DVec3::new(rng.random_range(-0.3..0.3), rng.random_range(-0.3..0.3), 1.0);
-            let mut camera =
-                Camera::new(eye, direction, DVec3::Y, rng.random_range(10.0..90.0), width, height).unwrap();
+            let mut camera = random_camera(&mut rng, width, height, 0.3, 10.0..90.0);
             camera.model = if trial % 3 == 0 {
                 Model::Orthographic(Orthographic {
                     width: rng.random_range(2.0..30.0),
                 })
             } else {
-                Model::Perspective(Perspective {
-                    principal_offset: DVec2::new(rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0)),
-                })
+                random_pinhole(&mut rng, 8.0)
             };
             let bounds = random_box(&mut rng, [-8.0..8.0, -8.0..8.0, -12.0..20.0], 0.01..3.0);
             let Some(rect) = camera.footprint(&bounds) else {
@@ -580,12 +590,9 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(72);
         let (mut compared, mut without) = (0, 0);
         for trial in 0..500 {
-            let eye = DVec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), -10.0);
-            let direction = DVec3::new(rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5), 1.0);
-            let mut camera = Camera::new(eye, direction, DVec3::Y, rng.random_range(10.0..90.0), 640, 480).unwrap();
-            camera.model = Model::Perspective(Perspective {
-                principal_offset: DVec2::new(rng.random_range(-30.0..30.0), rng.random_range(-30.0..30.0)),
-            });
+            let mut camera = random_camera(&mut rng, 640, 480, 0.5, 10.0..90.0);
+            camera.model = random_pinhole(&mut rng, 30.0);
+            let eye = camera.eye;
             let projector = camera.box_projector(if trial % 2 == 0 { 0.0 } else { 1e-6 });
             let boxes: [Aabb; 4] =
                 std::array::from_fn(|_| random_box(&mut rng, [-8.0..8.0, -8.0..8.0, -14.0..20.0], 0.001..2.0));
@@ -645,13 +652,9 @@ mod tests {
         let (width, height) = (64u32, 48u32);
         let (mut rects, mut culled, mut meeting, mut smaller) = (0usize, 0usize, 0usize, 0usize);
         for trial in 0..300 {
-            let eye = DVec3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), -10.0);
-            let direction = DVec3::new(rng.random_range(-0.3..0.3), rng.random_range(-0.3..0.3), 1.0);
-            let mut camera =
-                Camera::new(eye, direction, DVec3::Y, rng.random_range(20.0..90.0), width, height).unwrap();
-            camera.model = Model::Perspective(Perspective {
-                principal_offset: DVec2::new(rng.random_range(-6.0..6.0), rng.random_range(-6.0..6.0)),
-            });
+            let mut camera = random_camera(&mut rng, width, height, 0.3, 20.0..90.0);
+            camera.model = random_pinhole(&mut rng, 6.0);
+            let eye = camera.eye;
             let centre = DVec3::new(
                 rng.random_range(-8.0..8.0),
                 rng.random_range(-8.0..8.0),
