@@ -750,9 +750,7 @@ mod tests {
             else {
                 continue;
             };
-            camera.model = Model::Perspective(Perspective {
-                principal_offset: DVec2::new(rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0)),
-            });
+            camera.model = random_pinhole(&mut rng, 8.0);
             let bounds = if trial % 2 == 0 {
                 // a thick ground slab under the eye, reaching far behind it
                 let half = rng.random_range(5.0..200.0);
