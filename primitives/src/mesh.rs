@@ -1032,6 +1032,19 @@ impl Mesh {
         (root.0 != 0).then_some(root)
     }
 
+    /// What every walk starts from: the ray's set-up ([`Mesh::entry`]) and the root's children it
+    /// enters ([`Mesh::enters_root`]), or `None` where it cannot hit the mesh (it passes the
+    /// bounding ball by, [`Mesh::misses_ball`], or enters none of those children).
+    #[inline(always)]
+    fn walk_start(&self, ray: &Ray, range: Interval) -> Option<(MeshEntry, (u32, [f32; 8]))> {
+        if self.misses_ball(ray, range) {
+            return None;
+        }
+        let entry = self.entry(ray, range)?;
+        let root = self.enters_root(&entry)?;
+        Some((entry, root))
+    }
+
     /// Whether a hit at f32 `t` on the triangle at leaf position `k` counts: outside the band
     /// near `t_min` always, inside it only if the f64 `t` on the triangle's plane is in `range`.
     #[inline(always)]
@@ -1248,15 +1261,12 @@ fn walk_either(mesh: &Mesh, ray: &Ray, range: Interval, entry: MeshEntry, root: 
     ) -> Option<RawHit>)
 }
 
-/// A single ray's test: the test of the ball around the mesh, the set-up and the root's test,
-/// then, for a ray entering one of the root's children, the walk ([`walk_either`]).
+/// A single ray's test: the start every walk shares ([`Mesh::walk_start`]: the ball around the
+/// mesh, the set-up and the root's test), then, for a ray entering one of the root's children,
+/// the walk ([`walk_either`]).
 #[inline(always)]
 fn single_ray(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
-    if mesh.misses_ball(ray, range) {
-        return None;
-    }
-    let entry = mesh.entry(ray, range)?;
-    let root = mesh.enters_root(&entry)?;
+    let (entry, root) = mesh.walk_start(ray, range)?;
     walk_either(mesh, ray, range, entry, root)
 }
 

@@ -141,11 +141,7 @@ impl Mesh {
             *cursor += 1;
             let (ray, range) = (&rays[index], ranges[index]);
             hits[index] = None;
-            if self.misses_ball(ray, range) {
-                continue;
-            }
-            let Some(entry) = self.entry(ray, range) else { continue };
-            let Some((entered, near)) = self.enters_root(&entry) else {
+            let Some((entry, (entered, near))) = self.walk_start(ray, range) else {
                 continue;
             };
             let query = entry.query();
