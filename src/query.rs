@@ -1114,18 +1114,18 @@ pub fn run_batch_in(
         counts.hits += hits.iter().filter(|h| h.hit.is_some()).count() as u64;
         counts.uncertain += hits.iter().filter(|h| h.uncertain).count() as u64;
         match read {
-            None => {
-                sink.write_chunk(scene, &hits)?;
-                break;
-            }
-            Some(Err(error)) => {
-                sink.write_chunk(scene, &hits)?;
-                return Err(error.into());
-            }
             Some(Ok(still_more)) => {
                 more = still_more;
                 std::mem::swap(&mut rays, &mut next_rays);
                 unwritten = Some(hits);
+            }
+            // the last chunk, or the one before an unreadable one: written, then the read's error
+            last => {
+                sink.write_chunk(scene, &hits)?;
+                if let Some(Err(error)) = last {
+                    return Err(error.into());
+                }
+                break;
             }
         }
     }
