@@ -373,20 +373,18 @@ impl QuadBvh {
         // in place until there are enough (or only leaves)
         let slots_of = |q: usize| (0..self.quads[q].len as usize).map(move |s| (q, s));
         let mut top: Vec<(usize, usize)> = slots_of(0).collect();
-        while top.len() < SUBTREES {
-            let inner = |&(q, s): &(usize, usize)| self.quads[q].count[s] == 0;
-            if !top.iter().any(inner) {
-                break;
+        let inner = |&(q, s): &(usize, usize)| self.quads[q].count[s] == 0;
+        while top.len() < SUBTREES && top.iter().any(inner) {
+            let mut split = Vec::with_capacity(4 * top.len());
+            for (q, s) in top {
+                let quad = &self.quads[q];
+                if quad.count[s] == 0 {
+                    split.extend(slots_of(quad.child[s] as usize));
+                } else {
+                    split.push((q, s));
+                }
             }
-            top = top
-                .iter()
-                .flat_map(|&(q, s)| {
-                    let quad = &self.quads[q];
-                    let split = (quad.count[s] == 0).then(|| slots_of(quad.child[s] as usize));
-                    let kept = (quad.count[s] != 0).then_some((q, s));
-                    kept.into_iter().chain(split.into_iter().flatten())
-                })
-                .collect();
+            top = split;
         }
         let parts: Vec<Vec<u32>> = top
             .par_iter()
