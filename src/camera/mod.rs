@@ -563,32 +563,25 @@ impl RowRays<'_> {
     /// about a sixth of the quadrics scene's Depth render.)
     #[inline(always)]
     pub fn ray_into(&self, column: usize, out: &mut Ray) -> Result<(), NoRay> {
-        if let Some(direction) = self.directions.get(column.wrapping_sub(self.first_direction)) {
-            let eye = self.rays.camera.eye;
-            out.origin.x = eye.x;
-            out.origin.y = eye.y;
-            out.origin.z = eye.z;
-            out.dir.x = direction.x;
-            out.dir.y = direction.y;
-            out.dir.z = direction.z;
-            return Ok(());
-        }
-        match self.rays.screen_x.get(column) {
-            Some(&sx) => {
-                let ray = Perspective::ray_at(self.rays.camera, sx, self.screen_y);
-                out.origin.x = ray.origin.x;
-                out.origin.y = ray.origin.y;
-                out.origin.z = ray.origin.z;
-                out.dir.x = ray.dir.x;
-                out.dir.y = ray.dir.y;
-                out.dir.z = ray.dir.z;
-                Ok(())
-            }
-            None => {
-                *out = self.rays.camera.pixel_ray(self.rays.x0 + column as u32, self.j)?;
-                Ok(())
-            }
-        }
+        // a pinhole's ray: from the eye, along the direction worked out beforehand or now
+        let dir = match self.directions.get(column.wrapping_sub(self.first_direction)) {
+            Some(&direction) => direction,
+            None => match self.rays.screen_x.get(column) {
+                Some(&sx) => Perspective::ray_at(self.rays.camera, sx, self.screen_y).dir,
+                None => {
+                    *out = self.rays.camera.pixel_ray(self.rays.x0 + column as u32, self.j)?;
+                    return Ok(());
+                }
+            },
+        };
+        let eye = self.rays.camera.eye;
+        out.origin.x = eye.x;
+        out.origin.y = eye.y;
+        out.origin.z = eye.z;
+        out.dir.x = dir.x;
+        out.dir.y = dir.y;
+        out.dir.z = dir.z;
+        Ok(())
     }
 }
 
