@@ -316,6 +316,14 @@ impl TraceWork {
         self.ranges.push(range);
     }
 
+    /// Adds rays that share one accepted range to the batch.
+    #[inline(always)]
+    pub(crate) fn push_sharing(&mut self, rays: impl ExactSizeIterator<Item = Ray>, range: Interval) {
+        let n = rays.len();
+        self.rays.extend(rays);
+        self.ranges.extend(std::iter::repeat_n(range, n));
+    }
+
     /// The rays pushed since the last [`TraceWork::clear`].
     #[cfg(test)]
     pub(crate) fn pushed(&self) -> Vec<QueryRay> {
@@ -338,11 +346,10 @@ impl TraceWork {
         mut answer: impl FnMut(usize, Option<&(u32, SurfaceHit)>, bool),
     ) {
         let n = self.rays.len();
-        self.hits.clear();
+        // sized, not cleared: `intersect_each` writes every entry (what the last batch left in
+        // them is never read)
         self.hits.resize(n, None);
-        self.objects.clear();
         self.objects.resize(n, 0);
-        self.uncertain.clear();
         self.uncertain.resize(n, false);
         scene.intersect_each(
             &self.rays,

@@ -300,10 +300,7 @@ impl<'a> RayColumns<'a> {
             .map(|(o, d)| Ray::new(DVec3::new(o[0], o[1], o[2]), DVec3::new(d[0], d[1], d[2])));
         if let ([tmin], [tmax]) = (tmin, tmax) {
             // one range for every ray (the common call): made once
-            let range = setup.range.range(*tmin, *tmax);
-            for ray in rays {
-                out.push(ray, range);
-            }
+            out.push_sharing(rays, setup.range.range(*tmin, *tmax));
         } else {
             for (k, ray) in rays.enumerate() {
                 out.push(ray, setup.range.range(per_ray(tmin, k), per_ray(tmax, k)));
