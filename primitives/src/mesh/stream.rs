@@ -50,8 +50,8 @@ pub(super) const IN_FLIGHT: usize = 8;
 const BLOCK: usize = 256;
 
 /// Which rays of a block (at most [`BLOCK`]) may meet the mesh, a bit each: those that do not
-/// surely pass it by ([`Mesh::misses_ball`]). Most of a random batch does, and is answered
-/// without a walk being set up.
+/// surely pass it by ([`Mesh::misses_ball`]). Most rays of a random batch surely do, and are
+/// answered without a walk being set up.
 struct Passing {
     bits: [u64; BLOCK / 64],
 }
