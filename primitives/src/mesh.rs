@@ -372,6 +372,12 @@ struct MeshRay {
     slab: SlabRay,
     origin: [f32; 3],
     k: [usize; 3],
+    /// `origin` in the order `k` ([`permuted`]), made once for the ray by selects: the leaf
+    /// tests of the interleaved walks (whose axes are not constants) took `permuted`'s branch
+    /// on the order, mispredicted about 1.7 times a ray (cachegrind, 30,000 random rays
+    /// entering the level-6 mesh's ball: 1.64 → 1.59 million mispredictions, the same
+    /// instructions).
+    origin_k: [f32; 3],
     shear: [f32; 3],
 }
 
@@ -394,10 +400,22 @@ impl MeshRay {
         let negative = d[kz] < 0.0;
         let kx = if negative { after } else { next };
         let ky = if negative { next } else { after };
+        let o = origin.to_array();
+        // selects, not `permuted`'s branch on the order
+        let component = |axis: usize| {
+            if axis == 0 {
+                o[0]
+            } else if axis == 1 {
+                o[1]
+            } else {
+                o[2]
+            }
+        };
         Self {
             slab,
-            origin: origin.to_array(),
+            origin: o,
             k: [kx, ky, kz],
+            origin_k: [component(kx), component(ky), component(kz)],
             shear: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
         }
     }
@@ -1224,7 +1242,7 @@ impl Mesh {
     ) -> Option<f32> {
         let leaf = self.leaf(first, count);
         let mesh_ray = &query.ray;
-        let origin = permuted(mesh_ray.origin, k);
+        let origin = mesh_ray.origin_k;
         let lanes = watertight_lanes(&leaf.all_corner_rows(k), &origin, &mesh_ray.shear, query.t_min, t_far);
         let mut found = None;
         for i in lanes_of((lanes.pass | lanes.zero) & ((1 << count) - 1)) {
@@ -1370,6 +1388,29 @@ mod tests {
                 assert_eq!(got.to_bits(), reference.to_bits(), "min {min:e}, unscale 2^{exponent}");
             }
         }
+    }
+
+    /// A ray's origin in its axis order, made once by selects, is `permuted`'s, for directions
+    /// along every axis, either way, with equal and zero components.
+    #[test]
+    fn origin_in_axis_order_is_permuted_origin() {
+        let origin = Vec3A::new(1.5, -2.25, 3.125);
+        let values = [-2.0f32, -1.0, -0.0, 0.0, 1.0, 2.0];
+        let mut orders = std::collections::HashSet::new();
+        for &x in &values {
+            for &y in &values {
+                for &z in &values {
+                    let dir = Vec3A::new(x, y, z);
+                    if dir.abs().max_element() == 0.0 {
+                        continue;
+                    }
+                    let ray = MeshRay::with_slab(SlabRay::new(origin, dir), origin, dir);
+                    assert_eq!(ray.origin_k, permuted(origin.to_array(), ray.k), "direction {dir}");
+                    orders.insert(ray.k);
+                }
+            }
+        }
+        assert_eq!(orders.len(), 6, "every axis order met");
     }
 
     /// The height field of `n × n` vertices `(i, height(i, j), j)` on the unit grid, two

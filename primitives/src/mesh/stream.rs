@@ -36,7 +36,7 @@
 //! turns away alone: 6.2 → 4.9 ms on level 4).
 
 use super::{single_ray, Candidate, Mesh, MeshQuery};
-use crate::bvh::oct::{push_entered, Oct, OCT_STACK};
+use crate::bvh::oct::{push_entered_unbranched, Oct, OCT_STACK};
 use crate::bvh::{cull_bound, next_within, prefetch, prefetch_node, worth_prefetching, Pending};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
@@ -125,7 +125,7 @@ impl Flight<'_> {
     /// then the next item to visit taken ([`Flight::advance`]). `false` once the walk is over.
     #[inline(always)]
     fn open(&mut self, o: &Oct, hits: u32, near: &[f32; 8], stack: &mut [MaybeUninit<Pending>]) -> bool {
-        let next = push_entered(o, hits, near, stack, &mut self.top);
+        let next = push_entered_unbranched(o, hits, near, stack, &mut self.top);
         self.advance(next, stack)
     }
 
