@@ -7,8 +7,10 @@
     python3 python/bench/cast_rays.py [--rays 1000000] [--runs 5] [--threads 2]
 
 Prints one row per scene: Mrays/s medians of --runs (min–max in brackets) for zeroset's
-cast_rays, the Rust API alone on the same rays, and Open3D cast_rays; the Python overhead; the
-ratio to Open3D; and the hit counts (which must agree but for a few grazing rays).
+cast_rays (float64 outputs, the default), the Rust API alone on the same rays, zeroset's
+cast_rays with `dtype=np.float32` (the output dtype Open3D returns: half the bytes to write), and
+Open3D cast_rays; the Python overhead; the ratios to Open3D (float64, float32); and the hit counts
+(which must agree but for a few grazing rays).
 
 What the overhead compares (the same N rays, same process, same thread pool, runs interleaved):
 - Python: the wall time of `scene.cast_rays(origins, directions)` seen from Python
@@ -63,18 +65,22 @@ def main():
     directions = rng.normal(size=(a.rays, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     print(f"{a.rays} random rays, {a.threads} threads, medians of {a.runs} (Mrays/s)")
-    print("| scene | zeroset cast_rays | Rust trace_batch | Open3D cast_rays | Python overhead | ratio to Open3D | hits zeroset / Open3D |")
-    print("|---|---|---|---|---|---|---|")
+    print("| scene | zeroset cast_rays | Rust trace_batch | zeroset cast_rays float32 | Open3D cast_rays | Python overhead "
+          "| ratio to Open3D | float32 ratio to Open3D | hits zeroset / Open3D |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for level in a.levels:
         path = REPO / "scenes" / "bench" / f"mesh{level}.ron"
         scene = zeroset.Scene.load(path)
         scene.cast_rays(origins, directions)  # warm: the hierarchy, the thread pool, the pages
-        z, rust = [], []
-        for _ in range(a.runs):  # interleaved, so a load that comes and goes hits both alike
+        scene.cast_rays(origins, directions, dtype=np.float32)
+        z, rust, z32 = [], [], []
+        for _ in range(a.runs):  # interleaved, so a load that comes and goes hits all alike
             z += timed(lambda: scene.cast_rays(origins, directions), 1)
             rust.append(scene._core.time_first_hits(origins, directions))
+            z32 += timed(lambda: scene.cast_rays(origins, directions, dtype=np.float32), 1)
         hits = int(scene.cast_rays(origins, directions)["hit"].sum())
-        row = [f"mesh{level}", "%.2f [%.2f–%.2f]" % mrays(a.rays, z), "%.2f [%.2f–%.2f]" % mrays(a.rays, rust)]
+        row = [f"mesh{level}", "%.2f [%.2f–%.2f]" % mrays(a.rays, z), "%.2f [%.2f–%.2f]" % mrays(a.rays, rust),
+               "%.2f [%.2f–%.2f]" % mrays(a.rays, z32)]
         if o3d is not None:
             mesh = o3d.io.read_triangle_mesh(str(REPO / "scenes" / "bench" / "meshes" / f"mesh{level}.ply"))
             o_scene = o3d.t.geometry.RaycastingScene()
@@ -91,6 +97,7 @@ def main():
         overhead = statistics.median(z) / statistics.median(rust) - 1
         row.append(f"{overhead * 100:+.1f} %")
         row.append("–" if o is None else f"{statistics.median(o) / statistics.median(z):.2f}")
+        row.append("–" if o is None else f"{statistics.median(o) / statistics.median(z32):.2f}")
         row.append(f"{hits} / {o_hits}")
         print("| " + " | ".join(row) + " |")
 

@@ -7,9 +7,11 @@
 //! row of every field while the chunk is in cache. Nothing is copied after that: the arrays go
 //! back to Python as they are.
 //!
-//! Fields (one row per ray): `t` f64 (`+∞` on a miss), `hit` bool, `point` f64 ×3 and `normal`
-//! f64 ×3 (zero on a miss), `object_id` i32 (−1 on a miss), `uv` f64 ×2 (zero where the primitive
-//! has none), `primitive_id` i64 (the primitive's part, −1 on a miss), `uncertain` bool.
+//! Fields (one row per ray): `t` (`+∞` on a miss), `hit` bool, `point` ×3 and `normal` ×3 (zero
+//! on a miss), `object_id` i32 (−1 on a miss), `uv` ×2 (zero where the primitive has none),
+//! `primitive_id` i64 (the primitive's part, −1 on a miss), `uncertain` bool. The real fields
+//! (`t`, `point`, `normal`, `uv`) are f64, or f32 ([`Real`]): the f64 values rounded to nearest,
+//! half the bytes to write and keep (the dtype Open3D's `cast_rays` returns).
 //!
 //! [`trace_columns`]: zeroset::query_rays::trace_columns
 
@@ -33,26 +35,46 @@ pub const FIELDS: [&str; 8] = [
     "uncertain",
 ];
 
-/// The output arrays of one batch (`None`: not requested).
-pub struct HitArrays<'py> {
-    t: Option<Bound<'py, PyArray1<f64>>>,
+/// The element type of the real fields: f64, or f32 (each value the f64 one rounded to nearest).
+pub trait Real: numpy::Element + Copy + Send {
+    /// `x` in this type.
+    fn of(x: f64) -> Self;
+}
+
+impl Real for f64 {
+    #[inline(always)]
+    fn of(x: f64) -> Self {
+        x
+    }
+}
+
+impl Real for f32 {
+    #[inline(always)]
+    fn of(x: f64) -> Self {
+        x as f32
+    }
+}
+
+/// The output arrays of one batch (`None`: not requested), real fields of type `F`.
+pub struct HitArrays<'py, F: Real> {
+    t: Option<Bound<'py, PyArray1<F>>>,
     hit: Option<Bound<'py, PyArray1<bool>>>,
-    point: Option<Bound<'py, PyArray2<f64>>>,
-    normal: Option<Bound<'py, PyArray2<f64>>>,
+    point: Option<Bound<'py, PyArray2<F>>>,
+    normal: Option<Bound<'py, PyArray2<F>>>,
     object_id: Option<Bound<'py, PyArray1<i32>>>,
-    uv: Option<Bound<'py, PyArray2<f64>>>,
+    uv: Option<Bound<'py, PyArray2<F>>>,
     primitive_id: Option<Bound<'py, PyArray1<i64>>>,
     uncertain: Option<Bound<'py, PyArray1<bool>>>,
 }
 
 /// One chunk's rows of every requested array.
-pub struct HitChunk<'a> {
-    t: Option<&'a mut [f64]>,
+pub struct HitChunk<'a, F> {
+    t: Option<&'a mut [F]>,
     hit: Option<&'a mut [bool]>,
-    point: Option<&'a mut [f64]>,
-    normal: Option<&'a mut [f64]>,
+    point: Option<&'a mut [F]>,
+    normal: Option<&'a mut [F]>,
     object_id: Option<&'a mut [i32]>,
-    uv: Option<&'a mut [f64]>,
+    uv: Option<&'a mut [F]>,
     primitive_id: Option<&'a mut [i64]>,
     uncertain: Option<&'a mut [bool]>,
 }
@@ -66,7 +88,7 @@ fn vector<'py, T: numpy::Element>(py: Python<'py>, n: usize, wanted: bool) -> Op
 }
 
 /// Uninitialised `(n, width)` array, when `wanted`.
-fn rows<'py>(py: Python<'py>, n: usize, width: usize, wanted: bool) -> Option<Bound<'py, PyArray2<f64>>> {
+fn rows<'py, F: Real>(py: Python<'py>, n: usize, width: usize, wanted: bool) -> Option<Bound<'py, PyArray2<F>>> {
     // SAFETY: as in `vector`
     wanted.then(|| unsafe { uninit_array(py, [n, width]) })
 }
@@ -95,7 +117,7 @@ fn pieces<T>(data: Option<&mut [T]>, per_ray: usize, count: usize) -> std::vec::
     pieces.into_iter()
 }
 
-impl<'py> HitArrays<'py> {
+impl<'py, F: Real> HitArrays<'py, F> {
     /// The arrays of `n` rays for the fields named in `wanted` (all of them when `None`).
     ///
     /// # Errors
@@ -136,7 +158,7 @@ impl<'py> HitArrays<'py> {
     ///
     /// # Errors
     /// Never for arrays made by [`HitArrays::new`] (they are contiguous).
-    pub fn chunks(&self, n: usize) -> PyResult<Vec<HitChunk<'_>>> {
+    pub fn chunks(&self, n: usize) -> PyResult<Vec<HitChunk<'_, F>>> {
         let count = n.div_ceil(COLUMN_CHUNK);
         // SAFETY: the arrays were made by `new` and nothing else refers to their data (see
         // `data_mut`); each is split once, into disjoint pieces
@@ -191,15 +213,15 @@ impl<'py> HitArrays<'py> {
     }
 }
 
-impl ChunkAnswers for HitChunk<'_> {
+impl<F: Real> ChunkAnswers for HitChunk<'_, F> {
     /// Every requested field's rows `0..len` set to the miss values, a whole column at a time.
     fn misses(&mut self, len: usize) {
-        fill(self.t.as_deref_mut(), len, f64::INFINITY);
+        fill(self.t.as_deref_mut(), len, F::of(f64::INFINITY));
         fill(self.hit.as_deref_mut(), len, false);
-        fill(self.point.as_deref_mut(), 3 * len, 0.0);
-        fill(self.normal.as_deref_mut(), 3 * len, 0.0);
+        fill(self.point.as_deref_mut(), 3 * len, F::of(0.0));
+        fill(self.normal.as_deref_mut(), 3 * len, F::of(0.0));
         fill(self.object_id.as_deref_mut(), len, -1);
-        fill(self.uv.as_deref_mut(), 2 * len, 0.0);
+        fill(self.uv.as_deref_mut(), 2 * len, F::of(0.0));
         fill(self.primitive_id.as_deref_mut(), len, -1);
         fill(self.uncertain.as_deref_mut(), len, false);
     }
@@ -208,12 +230,15 @@ impl ChunkAnswers for HitChunk<'_> {
     /// values [`ChunkAnswers::misses`] wrote), and the `uncertain` flag.
     fn put(&mut self, i: usize, found: Option<&(u32, SurfaceHit)>, uncertain: bool) {
         if let Some((object, hit)) = found {
-            put(self.t.as_deref_mut(), i, [hit.t]);
+            let [x, y, z] = hit.point.to_array();
+            let [nx, ny, nz] = hit.normal.unwrap_or_default().to_array();
+            let [u, v] = hit.uv.unwrap_or_default().to_array();
+            put(self.t.as_deref_mut(), i, [F::of(hit.t)]);
             put(self.hit.as_deref_mut(), i, [true]);
-            put(self.point.as_deref_mut(), i, hit.point.to_array());
-            put(self.normal.as_deref_mut(), i, hit.normal.unwrap_or_default().to_array());
+            put(self.point.as_deref_mut(), i, [F::of(x), F::of(y), F::of(z)]);
+            put(self.normal.as_deref_mut(), i, [F::of(nx), F::of(ny), F::of(nz)]);
             put(self.object_id.as_deref_mut(), i, [*object as i32]);
-            put(self.uv.as_deref_mut(), i, hit.uv.unwrap_or_default().to_array());
+            put(self.uv.as_deref_mut(), i, [F::of(u), F::of(v)]);
             put(self.primitive_id.as_deref_mut(), i, [i64::from(hit.feature)]);
         }
         put(self.uncertain.as_deref_mut(), i, [uncertain]);

@@ -77,6 +77,34 @@ impl PyScene {
     fn with<T: Send>(&self, py: Python<'_>, f: impl FnOnce(&mut State) -> T + Send) -> T {
         py.detach(|| f(&mut self.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner)))
     }
+
+    /// `cast_rays` of the rays `columns` into arrays whose real fields are of type `F`: the
+    /// fields `outputs` (all when `None`), the rays' range closed where `closed`, their origins
+    /// moved off surfaces where a `precision` is given.
+    fn cast_rays_as<'py, F: hits::Real>(
+        &self,
+        py: Python<'py>,
+        columns: &Columns<'_>,
+        closed: bool,
+        precision: Option<PointPrecision>,
+        outputs: Option<&[String]>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let view = columns.view()?;
+        let arrays = HitArrays::<F>::new(py, view.len(), outputs)?;
+        let request = arrays.request();
+        let chunks = arrays.chunks(view.len())?;
+        self.with(py, |state| {
+            let scene = state.built();
+            let magnitude = if precision.is_some() {
+                scene_magnitude(scene)
+            } else {
+                0.0
+            };
+            trace_columns(scene, &view, &ray_setup(closed, precision, magnitude), request, chunks)
+        })
+        .map_err(bad_ray)?;
+        arrays.into_dict(py)
+    }
 }
 
 /// `world_from_local` from a 4×4 row-major affine matrix (last row `0 0 0 1`).
@@ -493,11 +521,12 @@ impl PyScene {
     }
 
     /// First hits: the arrays of `zeroset query` (see `zeroset.Scene.cast_rays`), only the
-    /// fields named in `outputs` (all when `None`; see `hits::FIELDS`).
+    /// fields named in `outputs` (all when `None`; see `hits::FIELDS`), the real ones float32
+    /// where `float32` (else float64).
     ///
     /// One parallel pass without the GIL: each chunk of rays is built from the arrays, traced by
     /// `trace_batch` and written straight into the numpy arrays returned (see `hits`).
-    #[pyo3(signature = (origins, directions, tmin, tmax, closed = false, origin_precision = None, normals = None, outputs = None))]
+    #[pyo3(signature = (origins, directions, tmin, tmax, closed = false, origin_precision = None, normals = None, outputs = None, float32 = false))]
     #[allow(clippy::too_many_arguments)]
     fn cast_rays<'py>(
         &self,
@@ -510,25 +539,15 @@ impl PyScene {
         origin_precision: Option<String>,
         normals: Option<PyReadonlyArray2<'py, f64>>,
         outputs: Option<Vec<String>>,
+        float32: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let precision = parse_precision(origin_precision.as_deref(), normals.is_some())?;
         let columns = Columns::new(&origins, &directions, &tmin, &tmax, normals.as_ref())?;
-        let view = columns.view()?;
-        let arrays = HitArrays::new(py, view.len(), outputs.as_deref())?;
-        let request = arrays.request();
-        let chunks = arrays.chunks(view.len())?;
-        self.with(py, |state| {
-            let scene = state.built();
-            let magnitude = if precision.is_some() {
-                scene_magnitude(scene)
-            } else {
-                0.0
-            };
-            let setup = ray_setup(closed, precision, magnitude);
-            trace_columns(scene, &view, &setup, request, chunks)
-        })
-        .map_err(bad_ray)?;
-        arrays.into_dict(py)
+        if float32 {
+            self.cast_rays_as::<f32>(py, &columns, closed, precision, outputs.as_deref())
+        } else {
+            self.cast_rays_as::<f64>(py, &columns, closed, precision, outputs.as_deref())
+        }
     }
 
     /// Seconds the Rust API alone takes on these rays: `zeroset::query::trace_batch` on the whole

@@ -92,6 +92,14 @@ def test_cast_rays_over_ray_blocks(client, repo):
     assert ref["hit"].sum() > 100
     for k in ref:
         np.testing.assert_array_equal(got[k], ref[k], err_msg=k)
+    # float32: the dask arrays say so before they are computed, and hold the single call's values
+    lazy32 = zdask.cast_rays(scene, o, d, dtype=np.float32)
+    assert lazy32["t"].dtype == np.float32 and lazy32["object_id"].dtype == np.int32
+    got32 = dask.compute(lazy32)[0]
+    ref32 = scene.cast_rays(origins, directions, dtype=np.float32)
+    for k in ref32:
+        assert got32[k].dtype == ref32[k].dtype, k
+        np.testing.assert_array_equal(got32[k], ref32[k], err_msg=k)
 
 
 def test_render_views_stack(client, repo):

@@ -421,6 +421,30 @@ def test_cast_rays_outputs_asked_for_only():
         scene.cast_rays(origins, directions, outputs=["t", "depth"])
 
 
+def test_cast_rays_float32_is_float64_rounded():
+    # the real fields in float32 are the float64 answers rounded to nearest, misses included
+    # (+inf, zeros); the other fields are the same arrays; a batch large enough for memory of its
+    # own (4 MiB and more) and a small one
+    scene = zeroset.Scene.from_ron(SPHERE_SCENE)
+    for n, seed in ((3000, 31), (400_000, 32)):
+        origins, directions = random_rays(n, seed=seed)
+        wide = scene.cast_rays(origins, directions)
+        narrow = scene.cast_rays(origins, directions, dtype=np.float32)
+        assert list(narrow) == list(wide)
+        assert 0 < wide["hit"].sum() < n
+        for name in ("t", "point", "normal", "uv"):
+            assert narrow[name].dtype == np.float32, name
+            np.testing.assert_array_equal(narrow[name], wide[name].astype(np.float32), err_msg=name)
+        for name in ("hit", "object_id", "primitive_id", "uncertain"):
+            assert narrow[name].dtype == wide[name].dtype, name
+            np.testing.assert_array_equal(narrow[name], wide[name], err_msg=name)
+        assert np.isinf(narrow["t"][~wide["hit"]]).all()
+    some = scene.cast_rays(origins[:50], directions[:50], outputs=["uv"], dtype="float32")
+    assert list(some) == ["uv"] and some["uv"].dtype == np.float32
+    with pytest.raises(zeroset.ZerosetError, match="dtype: expected numpy.float64 or numpy.float32, got float16"):
+        scene.cast_rays(origins[:5], directions[:5], dtype=np.float16)
+
+
 def test_large_outputs_reused_memory_keeps_every_answer():
     # arrays of 4 MiB and more live in memory of their own, kept for the next batch once their
     # arrays are gone: a batch written into memory another batch left behind, a batch whose

@@ -168,27 +168,32 @@ def render_views(scene: SceneLike, cameras: Iterable[Dict[str, Any]], aovs: Opti
     return _aov_arrays(shared, tasks, channels, ((1,) * len(views), (h,), (w,)), _view_block, token)
 
 
-def _cast_block(scene: Scene, origins: np.ndarray, directions: np.ndarray, tmin: Any, tmax: Any) -> Dict[str, np.ndarray]:
-    return scene.cast_rays(origins, directions, tmin=tmin, tmax=tmax)
+def _cast_block(scene: Scene, origins: np.ndarray, directions: np.ndarray, tmin: Any, tmax: Any,
+                real: Any) -> Dict[str, np.ndarray]:
+    return scene.cast_rays(origins, directions, tmin=tmin, tmax=tmax, dtype=real)
 
 
+# each field's trailing shape and dtype (`None`: the real dtype asked for)
 _CAST_FIELDS = {
-    "t": ((), np.float64),
+    "t": ((), None),
     "hit": ((), np.bool_),
-    "point": ((3,), np.float64),
-    "normal": ((3,), np.float64),
+    "point": ((3,), None),
+    "normal": ((3,), None),
     "object_id": ((), np.int32),
-    "uv": ((2,), np.float64),
+    "uv": ((2,), None),
     "primitive_id": ((), np.int64),
     "uncertain": ((), np.bool_),
 }
 
 
 def cast_rays(scene: SceneLike, origins: Any, directions: Any, tmin: float = 0.0,
-              tmax: float = float("inf")) -> Dict[str, da.Array]:
+              tmax: float = float("inf"), dtype: Any = np.float64) -> Dict[str, da.Array]:
     """``Scene.cast_rays`` over the blocks of dask arrays of rays (``(..., 3)``; numpy arrays are
     wrapped). Returns the same dict, each value a dask array chunked like the rays' leading
-    dimensions."""
+    dimensions; ``dtype`` (float64 or float32) as in ``Scene.cast_rays``."""
+    real = np.dtype(dtype)
+    if real not in (np.dtype(np.float64), np.dtype(np.float32)):
+        raise ZerosetError(f"dtype: expected numpy.float64 or numpy.float32, got {real}")
     s = _as_scene(scene)
     o = origins if isinstance(origins, da.Array) else da.from_array(np.asarray(origins))
     d = directions if isinstance(directions, da.Array) else da.from_array(np.asarray(directions))
@@ -203,15 +208,17 @@ def cast_rays(scene: SceneLike, origins: Any, directions: Any, tmin: float = 0.0
     results = {}
     for index in np.ndindex(*o_blocks.shape[:-1]):
         block = dask.delayed(_cast_block, pure=True)(shared, o_blocks[index + (0,)], d_blocks[index + (0,)],
-                                                     float(tmin), float(tmax))
+                                                     float(tmin), float(tmax), real)
         results[index] = block
     out: Dict[str, da.Array] = {}
-    for field, (tail, dtype) in _CAST_FIELDS.items():
+    for field, (tail, kind) in _CAST_FIELDS.items():
+        field_dtype = real if kind is None else kind
+
         def nest(prefix: Tuple[int, ...]) -> Any:
             level = len(prefix)
             if level == len(lead_chunks):
                 shape = tuple(lead_chunks[k][prefix[k]] for k in range(level)) + tail
-                return da.from_delayed(results[prefix][field], shape=shape, dtype=dtype)
+                return da.from_delayed(results[prefix][field], shape=shape, dtype=field_dtype)
             return [nest(prefix + (i,)) for i in range(len(lead_chunks[level]))]
         out[field] = _assemble(nest(()))
     return out
