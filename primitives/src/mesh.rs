@@ -1072,6 +1072,13 @@ impl Mesh {
         if self.misses_ball(ray, range) {
             return None;
         }
+        self.walk_start_in_ball(ray, range)
+    }
+
+    /// [`Mesh::walk_start`] of a ray that the ball test kept already (a batch's rays are judged
+    /// by it four at a time first, `mesh/stream.rs`): the set-up and the root's test.
+    #[inline(always)]
+    fn walk_start_in_ball(&self, ray: &Ray, range: Interval) -> Option<(MeshEntry, (u32, [f32; 8]))> {
         let entry = self.entry(ray, range)?;
         let root = self.enters_root(&entry)?;
         Some((entry, root))
@@ -1299,6 +1306,13 @@ fn walk_either(mesh: &Mesh, ray: &Ray, range: Interval, entry: MeshEntry, root: 
 #[inline(always)]
 fn single_ray(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
     let (entry, root) = mesh.walk_start(ray, range)?;
+    walk_either(mesh, ray, range, entry, root)
+}
+
+/// [`single_ray`] of a ray that the ball test kept already ([`Mesh::walk_start_in_ball`]).
+#[inline(always)]
+fn single_ray_in_ball(mesh: &Mesh, ray: &Ray, range: Interval) -> Option<RawHit> {
+    let (entry, root) = mesh.walk_start_in_ball(ray, range)?;
     walk_either(mesh, ray, range, entry, root)
 }
 

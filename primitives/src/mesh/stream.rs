@@ -25,7 +25,7 @@
 //! Where. Only where the nodes outgrow a core's L2 cache ([`worth_prefetching`]): in a mesh that
 //! fits there, a ray's walk does not wait on memory, and keeping its state in memory between
 //! steps (rather than in registers) only costs (the level-4 mesh walked this way: 26.8 → 30.3 ms).
-//! There each ray walks alone ([`single_ray`]).
+//! There each ray walks alone ([`single_ray`], less the ball test already made).
 //!
 //! The ball first. Either way, a batch is judged [`BLOCK`] rays at a time by the ball test
 //! ([`Mesh::misses_ball`]) before any walk is set up, four rays at once
@@ -35,7 +35,7 @@
 //! level 4 27.2 → 26.0 ms, level 6 34.6 → 33.1 ms, level 8 42.0 → 41.2 ms (the rays the ball
 //! turns away alone: 6.2 → 4.9 ms on level 4).
 
-use super::{single_ray, Candidate, Mesh, MeshQuery};
+use super::{single_ray_in_ball, Candidate, Mesh, MeshQuery};
 use crate::bvh::oct::{push_entered_unbranched, Oct, OCT_STACK};
 use crate::bvh::{cull_bound, next_within, prefetch, prefetch_node, worth_prefetching, Pending};
 use crate::hit::RawHit;
@@ -200,7 +200,7 @@ impl Mesh {
     ) -> Option<Flight<'a>> {
         while let Some(index) = passing.take_next() {
             let (ray, range) = (&rays[index], ranges[index]);
-            let Some((entry, (entered, near))) = self.walk_start(ray, range) else {
+            let Some((entry, (entered, near))) = self.walk_start_in_ball(ray, range) else {
                 continue;
             };
             let query = entry.query();
@@ -236,7 +236,7 @@ impl Mesh {
                 let mut passing = self.passing(rays, ranges);
                 hits.fill(None);
                 while let Some(i) = passing.take_next() {
-                    hits[i] = single_ray(self, &rays[i], ranges[i]);
+                    hits[i] = single_ray_in_ball(self, &rays[i], ranges[i]);
                 }
             }
             return;
