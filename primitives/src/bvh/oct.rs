@@ -44,6 +44,12 @@ pub(crate) struct Oct {
 }
 
 impl Oct {
+    /// Slot `s` as a stack entry, with its entry distance `near[s]`.
+    #[inline(always)]
+    fn pending(&self, s: usize, near: &[f32; 8]) -> Pending {
+        (self.child[s], u32::from(self.count[s]), near[s])
+    }
+
     /// A bit for each slot in use (`0..len`).
     #[inline(always)]
     pub(crate) fn occupied(&self) -> u32 {
@@ -180,7 +186,7 @@ pub(crate) fn push_entered(
     stack: &mut [MaybeUninit<Pending>],
     top: &mut usize,
 ) -> Option<Pending> {
-    let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
+    let slot = |s: usize| o.pending(s, near);
     if hits == 0 {
         return None;
     }
@@ -223,7 +229,7 @@ pub(crate) fn push_entered_unbranched(
     if count > 2 {
         return push_sorted(o, hits, near, stack, top);
     }
-    let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
+    let slot = |s: usize| o.pending(s, near);
     // `& 7`: slot 0 where there is none (32 trailing zeros)
     let first = hits.trailing_zeros() as usize & 7;
     let rest = hits & hits.wrapping_sub(1);
@@ -248,7 +254,7 @@ fn push_sorted(
     stack: &mut [MaybeUninit<Pending>],
     top: &mut usize,
 ) -> Option<Pending> {
-    let slot = |s: usize| (o.child[s], u32::from(o.count[s]), near[s]);
+    let slot = |s: usize| o.pending(s, near);
     let mut order = [0usize; 8];
     let mut entered = 0;
     let mut slots = hits;
