@@ -369,6 +369,9 @@ impl<'a> Tracer<'a> {
                 DVec3::ZERO
             },
             miss_pixel: Vec::new(),
+            scalars_of_t: aovs
+                .iter()
+                .all(|a| matches!(a, Aov::Depth | Aov::Distance | Aov::Alpha | Aov::PrimitiveId)),
         };
         context.miss_pixel = miss_pixel(scene, &context);
         Self {
@@ -632,6 +635,10 @@ fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut
 /// Completes the closest hit (if any) of a pixel's `ray` and writes every AOV of `context`.
 #[inline(always)]
 fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray, hit: Option<(u32, RawHit)>) {
+    if context.scalars_of_t {
+        write_scalars_of_t(pixel, context, ray, hit);
+        return;
+    }
     #[allow(clippy::manual_map, reason = "no closure: see `completed`")]
     let hit = match hit {
         Some((object, raw)) => Some(completed(scene, context, ray, object, &raw)),
@@ -641,6 +648,30 @@ fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray
     for aov in context.aovs {
         let n = write_aov(rest, scene, *aov, ray, hit.as_ref(), context);
         rest = &mut rest[n..];
+    }
+}
+
+/// [`write_pixel`] where every AOV is one value of the hit's `t` and object
+/// ([`RowContext::scalars_of_t`]): the values [`write_aov`] writes (the depth from the point
+/// `ray.at(t)`, as [`SurfaceHit::complete`] makes it), without building the hit record. Depth
+/// renders, medians of 15 alternating runs: quadrics 0.0144 → 0.0120 s, spheres1k 0.0186 →
+/// 0.0165 s (cachegrind put the record, its copies and the match over its AOVs at about 45
+/// instructions of a hit pixel's 555 in quadrics). The same for every AOV a normal needs
+/// (Normal, Position, the headlight's beauty) was 3–8 % slower on every bench scene, Depth
+/// renders included: only these four AOVs take this path.
+#[inline(always)]
+fn write_scalars_of_t(pixel: &mut [f32], context: &RowContext, ray: &Ray, hit: Option<(u32, RawHit)>) {
+    let Some((object, raw)) = hit else {
+        write_miss(pixel, context);
+        return;
+    };
+    for (out, aov) in pixel.iter_mut().zip(context.aovs) {
+        *out = match aov {
+            Aov::Depth => context.camera.depth(ray.at(raw.t), raw.t) as f32,
+            Aov::Distance => raw.t as f32,
+            Aov::Alpha => 1.0,
+            _ => object as f32,
+        };
     }
 }
 
@@ -698,6 +729,10 @@ struct RowContext<'a> {
     miss_colour: DVec3,
     /// Every AOV's values where nothing is hit ([`miss_pixel`]).
     miss_pixel: Vec<f32>,
+    /// Whether every AOV is one value that the hit's `t` and object give (Depth, Distance,
+    /// Alpha, PrimitiveId): pixels are then written without a hit record
+    /// ([`write_scalars_of_t`]).
+    scalars_of_t: bool,
     /// Where the `Uncertain` channel is in a pixel, if it was asked for.
     uncertain_offset: Option<usize>,
     /// The pixel centres whose rays can meet an object ([`Scene::coverage`]), if the camera

@@ -44,6 +44,17 @@ fn assert_pixels_equal_rays(scene: &Scene, camera: &Camera, crop: Option<Window>
         ..RenderOptions::default()
     };
     let frame = render_view(scene, camera, &options);
+    // without the normal every AOV is a value of the hit's `t` and object, which the renderer
+    // writes without a hit record: the same values are expected
+    let scalars = render_view(
+        scene,
+        camera,
+        &RenderOptions {
+            aovs: vec![Aov::PrimitiveId, Aov::Alpha, Aov::Distance, Aov::Depth],
+            crop,
+            ..RenderOptions::default()
+        },
+    );
     let window = frame.window;
     let mut hits = 0;
     for y in window.y0..window.y1 {
@@ -76,6 +87,17 @@ fn assert_pixels_equal_rays(scene: &Scene, camera: &Camera, crop: Option<Window>
             assert_eq!(bits(&at(Aov::Normal)), bits(&normal), "{what}: normal at ({x}, {y})");
             assert_eq!(at(Aov::Alpha), vec![alpha], "{what}: alpha at ({x}, {y})");
             assert_eq!(at(Aov::PrimitiveId), vec![id], "{what}: object at ({x}, {y})");
+            let scalar = |aov| scalars.pixel(aov, x, y).unwrap().to_vec();
+            assert_eq!(
+                bits(&[depth, distance, alpha, id]),
+                bits(&[
+                    scalar(Aov::Depth)[0],
+                    scalar(Aov::Distance)[0],
+                    scalar(Aov::Alpha)[0],
+                    scalar(Aov::PrimitiveId)[0]
+                ]),
+                "{what}: scalar AOVs alone at ({x}, {y})"
+            );
         }
     }
     hits
