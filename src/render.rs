@@ -369,9 +369,7 @@ impl<'a> Tracer<'a> {
                 DVec3::ZERO
             },
             miss_pixel: Vec::new(),
-            scalars_of_t: aovs
-                .iter()
-                .all(|a| matches!(a, Aov::Depth | Aov::Distance | Aov::Alpha | Aov::PrimitiveId)),
+            record_free: RecordFree::of(aovs, scene),
         };
         context.miss_pixel = miss_pixel(scene, &context);
         Self {
@@ -635,9 +633,11 @@ fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut
 /// Completes the closest hit (if any) of a pixel's `ray` and writes every AOV of `context`.
 #[inline(always)]
 fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray, hit: Option<(u32, RawHit)>) {
-    if context.scalars_of_t {
-        write_scalars_of_t(pixel, context, ray, hit);
-        return;
+    match context.record_free {
+        RecordFree::Scalars => return write_without_record::<false, false>(pixel, scene, context, ray, hit),
+        RecordFree::WithNormal => return write_without_record::<true, false>(pixel, scene, context, ray, hit),
+        RecordFree::WithHeadlight => return write_without_record::<true, true>(pixel, scene, context, ray, hit),
+        RecordFree::No => {}
     }
     #[allow(clippy::manual_map, reason = "no closure: see `completed`")]
     let hit = match hit {
@@ -651,27 +651,51 @@ fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray
     }
 }
 
-/// [`write_pixel`] where every AOV is one value of the hit's `t` and object
-/// ([`RowContext::scalars_of_t`]): the values [`write_aov`] writes (the depth from the point
-/// `ray.at(t)`, as [`SurfaceHit::complete`] makes it), without building the hit record. Depth
-/// renders, medians of 15 alternating runs: quadrics 0.0144 → 0.0120 s, spheres1k 0.0186 →
-/// 0.0165 s (cachegrind put the record, its copies and the match over its AOVs at about 45
-/// instructions of a hit pixel's 555 in quadrics). The same for every AOV a normal needs
-/// (Normal, Position, the headlight's beauty) was 3–8 % slower on every bench scene, Depth
-/// renders included: only these four AOVs take this path.
+/// [`write_pixel`] where every AOV is one that [`RecordFree`] allows: the values
+/// [`write_aov`] writes (the depth from the point `ray.at(t)` and the normal `normal_at`, as
+/// [`SurfaceHit::complete`] makes them; the headlight's colour as [`shade`] makes it), without
+/// building the hit record. `NORMAL`: the AOVs include the normal or the beauty (`normal_at` is
+/// asked); `HEADLIGHT`: the beauty.
 #[inline(always)]
-fn write_scalars_of_t(pixel: &mut [f32], context: &RowContext, ray: &Ray, hit: Option<(u32, RawHit)>) {
+fn write_without_record<const NORMAL: bool, const HEADLIGHT: bool>(
+    pixel: &mut [f32],
+    scene: &Scene,
+    context: &RowContext,
+    ray: &Ray,
+    hit: Option<(u32, RawHit)>,
+) {
     let Some((object, raw)) = hit else {
         write_miss(pixel, context);
         return;
     };
-    for (out, aov) in pixel.iter_mut().zip(context.aovs) {
-        *out = match aov {
+    let normal = if NORMAL {
+        scene.objects[object as usize].primitive.normal_at(ray, &raw)
+    } else {
+        DVec3::ZERO
+    };
+    let mut rest = &mut pixel[..];
+    for aov in context.aovs {
+        let value = match aov {
+            Aov::Normal | Aov::Beauty => {
+                let v = if HEADLIGHT && *aov == Aov::Beauty {
+                    let colour = scene.objects[object as usize].material.color;
+                    headlight(colour, scene.ambient, facing(normal, ray.dir), ray.dir)
+                } else {
+                    normal
+                };
+                rest[0] = v.x as f32;
+                rest[1] = v.y as f32;
+                rest[2] = v.z as f32;
+                rest = &mut rest[3..];
+                continue;
+            }
             Aov::Depth => context.camera.depth(ray.at(raw.t), raw.t) as f32,
             Aov::Distance => raw.t as f32,
             Aov::Alpha => 1.0,
             _ => object as f32,
         };
+        rest[0] = value;
+        rest = &mut rest[1..];
     }
 }
 
@@ -714,6 +738,44 @@ fn miss_pixel(scene: &Scene, context: &RowContext) -> Vec<f32> {
     pixel
 }
 
+/// Whether a render's pixels are written without a hit record ([`write_without_record`]), and
+/// which of its values they need: only where every AOV is a value of the hit's `t` and object
+/// (Depth, Distance, Alpha, PrimitiveId), its normal (Normal) or the headlight's colour (the
+/// beauty of a scene without lights). The record, its copies and the match over its AOVs were
+/// about 45 instructions of a hit pixel's 555 in the quadrics scene's Depth render
+/// (cachegrind). Medians of 11–15 alternating runs: Depth renders quadrics 0.0144 → 0.0120 s,
+/// spheres1k 0.0186 → 0.0165 s; AOV renders (Depth, Normal, Alpha) quadrics 0.0219 → 0.0195 s,
+/// spheres1k 0.0302 → 0.0281 s, mesh4 0.0319 → 0.0306 s, mesh6 0.0336 → 0.0329 s; default
+/// renders quadrics 0.0265 → 0.0249 s, mesh4 and mesh6 unchanged. (One writer for Position
+/// too, with the point made up front, was 3–8 % slower everywhere, Depth renders included.)
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RecordFree {
+    /// Some AOV needs the record: [`write_pixel`]'s general path.
+    No,
+    /// Depth, Distance, Alpha, PrimitiveId.
+    Scalars,
+    /// Those and Normal.
+    WithNormal,
+    /// Those, Normal and the headlight's beauty.
+    WithHeadlight,
+}
+
+impl RecordFree {
+    /// The path of a render of `aovs` in `scene`.
+    fn of(aovs: &[Aov], scene: &Scene) -> Self {
+        let scalar = |a: &Aov| matches!(a, Aov::Depth | Aov::Distance | Aov::Alpha | Aov::PrimitiveId);
+        if aovs.iter().all(scalar) {
+            Self::Scalars
+        } else if aovs.iter().all(|a| scalar(a) || *a == Aov::Normal) {
+            Self::WithNormal
+        } else if scene.lights.is_empty() && aovs.iter().all(|a| scalar(a) || matches!(a, Aov::Normal | Aov::Beauty)) {
+            Self::WithHeadlight
+        } else {
+            Self::No
+        }
+    }
+}
+
 /// What every row of one render shares.
 struct RowContext<'a> {
     aovs: &'a [Aov],
@@ -729,10 +791,8 @@ struct RowContext<'a> {
     miss_colour: DVec3,
     /// Every AOV's values where nothing is hit ([`miss_pixel`]).
     miss_pixel: Vec<f32>,
-    /// Whether every AOV is one value that the hit's `t` and object give (Depth, Distance,
-    /// Alpha, PrimitiveId): pixels are then written without a hit record
-    /// ([`write_scalars_of_t`]).
-    scalars_of_t: bool,
+    /// Which AOVs' pixels are written without a hit record ([`write_without_record`]).
+    record_free: RecordFree,
     /// Where the `Uncertain` channel is in a pixel, if it was asked for.
     uncertain_offset: Option<usize>,
     /// The pixel centres whose rays can meet an object ([`Scene::coverage`]), if the camera
@@ -974,6 +1034,15 @@ pub fn shade_at(scene: &Scene, object: u32, ray: &Ray, hit: &SurfaceHit, time: f
     shade_with(scene, object, ray, hit, |r, range| scene.occluded_at(r, range, time))
 }
 
+/// The colour of a surface of colour `colour` lit by the headlight of a scene without lights:
+/// `colour·(ambient + max(n·v, 0))`, `n` the normal facing the viewer (zero for none) and
+/// `v = −dir/‖dir‖` the direction back along the ray.
+#[inline(always)]
+fn headlight(colour: DVec3, ambient: DVec3, facing_normal: DVec3, dir: DVec3) -> DVec3 {
+    let view = -dir.normalize();
+    colour * (ambient + DVec3::splat(facing_normal.dot(view).max(0.0)))
+}
+
 #[inline(always)]
 fn shade_with(
     scene: &Scene,
@@ -992,10 +1061,10 @@ fn shade_with(
         .normal
         .as_ref()
         .map_or(DVec3::ZERO, |n| facing(by_component(n), dir));
-    let view = -dir.normalize();
     if scene.lights.is_empty() {
-        return material.color * (scene.ambient + DVec3::splat(n.dot(view).max(0.0)));
+        return headlight(material.color, scene.ambient, n, dir);
     }
+    let view = -dir.normalize();
     let origin = secondary_offset(hit, ray.dir);
     let mut colour = material.color * scene.ambient;
     for light in &scene.lights {

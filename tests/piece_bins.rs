@@ -1,15 +1,16 @@
 //! Rendering a lone mesh by per-pixel candidate pieces (the leaves whose footprints hold the
 //! pixel, `piece_bins`) gives every pixel what its ray alone gets: `Scene::intersect` of the
-//! pixel's ray, completed independently here (depth, distance, geometric normal, object, alpha),
+//! pixel's ray, completed independently here (depth, distance, geometric normal, object, alpha, the
+//! headlight's beauty),
 //! bit for bit, over random pinhole cameras near and far, principal offsets and crops included.
 
 use glam::{DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 use zeroset::aov::Aov;
 use zeroset::camera::{Camera, Model, Perspective};
-use zeroset::render::{render_view, uses_piece_bins, RenderOptions, Window};
+use zeroset::render::{render_view, shade, uses_piece_bins, RenderOptions, Window};
 use zeroset::scene::Scene;
-use zeroset_primitives::Interval;
+use zeroset_primitives::{HitRequest, Interval, SurfaceHit};
 
 /// A closed, bumpy sphere of `4·n²` triangles (radius about 1, centre `c`) as OBJ text.
 fn bumpy_sphere_obj(n: usize, c: DVec3) -> String {
@@ -55,12 +56,31 @@ fn assert_pixels_equal_rays(scene: &Scene, camera: &Camera, crop: Option<Window>
             ..RenderOptions::default()
         },
     );
+    // the headlight's beauty beside the normal, written without a hit record too
+    let lit = render_view(
+        scene,
+        camera,
+        &RenderOptions {
+            aovs: vec![Aov::Beauty, Aov::Normal],
+            crop,
+            ..RenderOptions::default()
+        },
+    );
     let window = frame.window;
     let mut hits = 0;
     for y in window.y0..window.y1 {
         for x in window.x0..window.x1 {
             let ray = camera.pixel_ray(x, y).unwrap();
             let hit = scene.intersect(&ray, Interval::POSITIVE);
+            let beauty = match hit {
+                Some((object, raw)) => {
+                    let record =
+                        SurfaceHit::complete(&*scene.objects[object as usize].primitive, &ray, &raw, HitRequest::ALL);
+                    let c = shade(scene, object, &ray, &record);
+                    [c.x as f32, c.y as f32, c.z as f32]
+                }
+                None => [0.0; 3],
+            };
             let (depth, distance, normal, alpha, id) = match hit {
                 Some((object, raw)) => {
                     hits += 1;
@@ -87,6 +107,17 @@ fn assert_pixels_equal_rays(scene: &Scene, camera: &Camera, crop: Option<Window>
             assert_eq!(bits(&at(Aov::Normal)), bits(&normal), "{what}: normal at ({x}, {y})");
             assert_eq!(at(Aov::Alpha), vec![alpha], "{what}: alpha at ({x}, {y})");
             assert_eq!(at(Aov::PrimitiveId), vec![id], "{what}: object at ({x}, {y})");
+            let lit_at = |aov| lit.pixel(aov, x, y).unwrap().to_vec();
+            assert_eq!(
+                bits(&lit_at(Aov::Beauty)),
+                bits(&beauty),
+                "{what}: beauty at ({x}, {y})"
+            );
+            assert_eq!(
+                bits(&lit_at(Aov::Normal)),
+                bits(&normal),
+                "{what}: normal beside the beauty at ({x}, {y})"
+            );
             let scalar = |aov| scalars.pixel(aov, x, y).unwrap().to_vec();
             assert_eq!(
                 bits(&[depth, distance, alpha, id]),
