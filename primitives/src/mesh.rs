@@ -424,7 +424,7 @@ impl MeshRay {
     #[inline(always)]
     fn triangle(&self, a: [f32; 3], b: [f32; 3], c: [f32; 3], t_min: f32, t_max: f32) -> Option<(f32, f32, f32)> {
         let p = |v| permuted(v, self.k);
-        self.permuted_triangle(p(a), p(b), p(c), p(self.origin), t_min, t_max)
+        self.permuted_triangle(p(a), p(b), p(c), self.origin_k, t_min, t_max)
     }
 
     /// The watertight test on corners and origin whose components are in the order `k`.

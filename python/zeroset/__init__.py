@@ -85,6 +85,14 @@ def _rays(origins: Any, directions: Any) -> Tuple[np.ndarray, np.ndarray, Tuple[
     return o, d, lead
 
 
+def _real_dtype(dtype: Any) -> np.dtype:
+    """``dtype`` of ``cast_rays``' real outputs as a numpy dtype: float64 or float32, else an error."""
+    real = np.dtype(dtype)
+    if real not in (np.dtype(np.float64), np.dtype(np.float32)):
+        raise ZerosetError(f"dtype: expected numpy.float64 or numpy.float32, got {real}")
+    return real
+
+
 def _range(value: Any, lead: Tuple[int, ...], name: str) -> np.ndarray:
     v = np.asarray(value, dtype=np.float64)
     if v.ndim == 0:
@@ -275,9 +283,7 @@ class Scene:
             n = np.ascontiguousarray(np.broadcast_to(np.asarray(normals, dtype=np.float64), lead + (3,)).reshape(-1, 3))
         precision = None if origin_precision is None else str(origin_precision)
         wanted = None if outputs is None else [str(name) for name in outputs]
-        real = np.dtype(dtype)
-        if real not in (np.dtype(np.float64), np.dtype(np.float32)):
-            raise ZerosetError(f"dtype: expected numpy.float64 or numpy.float32, got {real}")
+        real = _real_dtype(dtype)
         out = self._core.cast_rays(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax"), bool(closed),
                                    precision, n, wanted, real == np.dtype(np.float32))
         return {k: v.reshape(lead + v.shape[1:]) for k, v in out.items()}

@@ -36,7 +36,7 @@ from dask.base import tokenize
 from dask.delayed import Delayed
 from dask.highlevelgraph import HighLevelGraph
 
-from . import Scene, ZerosetError, _zeroset
+from . import Scene, ZerosetError, _real_dtype, _zeroset
 
 SceneLike = Union[Scene, str, "os.PathLike[str]"]
 
@@ -191,9 +191,7 @@ def cast_rays(scene: SceneLike, origins: Any, directions: Any, tmin: float = 0.0
     """``Scene.cast_rays`` over the blocks of dask arrays of rays (``(..., 3)``; numpy arrays are
     wrapped). Returns the same dict, each value a dask array chunked like the rays' leading
     dimensions; ``dtype`` (float64 or float32) as in ``Scene.cast_rays``."""
-    real = np.dtype(dtype)
-    if real not in (np.dtype(np.float64), np.dtype(np.float32)):
-        raise ZerosetError(f"dtype: expected numpy.float64 or numpy.float32, got {real}")
+    real = _real_dtype(dtype)
     s = _as_scene(scene)
     o = origins if isinstance(origins, da.Array) else da.from_array(np.asarray(origins))
     d = directions if isinstance(directions, da.Array) else da.from_array(np.asarray(directions))
