@@ -50,7 +50,12 @@ def main():
 
     single, fetch_times, compute_times = [], [], []
     single_cpu, fetch_cpu, compute_cpu = [], [], []
-    for _ in range(a.runs):  # interleaved, so a load that comes and goes hits all three alike
+    # zd.fetch interleaved with the single-process render, so that a load that comes and goes
+    # hits both alike; client.compute in rounds of its own after them: interleaved, each compute
+    # left the scheduler (a thread of this process) releasing 81 tasks and 253 MB while the next
+    # single render held both cores, and that clean-up ran into the fetch after it (its first tile
+    # started 80–110 ms late rather than 20 ms)
+    for _ in range(a.runs):
         ref = None  # the previous frame is freed before the next render
         c0, t0 = time.process_time(), time.perf_counter()
         ref = scene.render(aovs=aovs, width=3840, height=2160)
@@ -61,6 +66,7 @@ def main():
         fetch_times.append(time.perf_counter() - t0)
         fetch_cpu.append(cpu_seconds() - c0)
         got = None
+    for _ in range(a.runs):
         c0, t0 = cpu_seconds(), time.perf_counter()
         computed = client.compute(tiled, sync=True)
         compute_times.append(time.perf_counter() - t0)

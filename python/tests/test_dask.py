@@ -3,6 +3,8 @@ calls (tiles are exact crops; ray blocks go through the same query path)."""
 
 import gc
 import os
+import pickle
+import weakref
 
 import numpy as np
 import pytest
@@ -252,6 +254,68 @@ def test_fetch_through_shared_memory_renders_into_place(client, repo, monkeypatc
     del got
     gc.collect()
     zdask._unlink_pool()
+
+
+def _loaded_scene(repo):
+    return zeroset.Scene.load(str(repo / "scenes" / "default.ron"))
+
+
+def _mesh_scene(repo):
+    scene = zeroset.Scene.empty(eye=(0.0, 0.5, 4.0), width=150, height=100)
+    vertices = [(-1.0, 0.0, -1.0), (1.0, 0.0, -1.0), (0.0, 0.0, 1.0), (0.0, 1.5, 0.0)]
+    scene.add_mesh(vertices, [(0, 2, 1), (0, 1, 3), (1, 2, 3), (2, 0, 3)])
+    return scene
+
+
+@pytest.mark.skipif(not os.path.isdir("/dev/shm"), reason="no /dev/shm")
+@pytest.mark.parametrize("make", [_loaded_scene, _mesh_scene], ids=["recipe by value", "arrays broadcast"])
+def test_fetch_builds_the_scene_once_per_worker(client, repo, make):
+    """A scene fetched again is not built again on the workers (each keeps the one it built for
+    the scene's token), whether it travels in every task (a path or RON text) or is broadcast
+    once (mesh arrays); once the scene changes (``add``), the next fetch sends the new one and
+    renders it; once the scene and its arrays are gone here, nothing holds it on their behalf."""
+    scene = make(repo)
+    aovs = ["Depth", "PrimitiveId"]
+    tiled = zdask.render(scene, chunks=(40, 64), aovs=aovs, width=150, height=100)
+
+    def built():
+        import zeroset.dask as zd
+
+        return {token: id(scene) for token, scene in zd._WORKER_SCENES.items()}
+
+    # a copy that lands where the token was built before is that scene, not a new build
+    handle = zdask._SceneOnWorkers("test-token", scene)
+    one, two = (pickle.loads(pickle.dumps(handle)) for _ in range(2))
+    assert one.scene is two.scene and one.scene is not scene
+    assert one.scene.object_count == scene.object_count
+    zdask._WORKER_SCENES.pop("test-token")
+    del handle, one, two
+    first = zdask.fetch(tiled, client)
+    after_first = client.run(built)
+    second = zdask.fetch(tiled, client)
+    after_second = client.run(built)
+    # every worker built the scene once, under one token, and still has that very object
+    tokens = {frozenset(b) for b in after_first.values()}
+    assert len(tokens) == 1 and len(next(iter(tokens))) >= 1
+    assert after_second == after_first
+    ref = scene.render(aovs=aovs, width=150, height=100)
+    for name in aovs:
+        np.testing.assert_array_equal(first[name], ref[name], err_msg=name)
+        np.testing.assert_array_equal(second[name], ref[name], err_msg=name)
+    assert np.isfinite(first["Depth"]).sum() > 500
+    # a sphere in front of the camera: the next fetch renders it, as the single process does
+    scene.add("Sphere", center=tuple(scene.camera.eye + 0.2 * scene.camera.forward), radius=0.05)
+    changed = zdask.render(scene, chunks=(40, 64), aovs=aovs, width=150, height=100)
+    third = zdask.fetch(changed, client)
+    ref = scene.render(aovs=aovs, width=150, height=100)
+    for name in aovs:
+        np.testing.assert_array_equal(third[name], ref[name], err_msg=name)
+    assert not np.array_equal(third["PrimitiveId"], first["PrimitiveId"])
+    assert all(set(b) - set(after_first[w]) for w, b in client.run(built).items())
+    scene_ref = weakref.ref(scene)
+    del scene, tiled, changed, first, second, third
+    gc.collect()
+    assert scene_ref() is None
 
 
 def test_fetch_without_room_in_shared_memory_takes_the_network(client, repo, monkeypatch):
