@@ -19,7 +19,12 @@
 //! that ball's exact image rectangle
 //! ([`crate::camera::footprint::BoxProjector::ball_footprint`], about half a sphere's box's).
 //! A lone mesh's leaves are projected four at a time
-//! ([`crate::camera::footprint::BoxProjector::pinhole_footprints`]). A pixel tests the
+//! ([`crate::camera::footprint::BoxProjector::pinhole_footprints`]); for a crop of the image (a
+//! Dask tile, a band of the Python render) only those under the hierarchy's nodes whose grown
+//! footprints reach the crop ([`Pieces::piece_numbers_kept`], [`wanted_in`]): the same bins,
+//! the others' footprints holding none of its pixels. The level-8 bench mesh at 3840×2160 in
+//! one process, one thread: 40 tiles of 512×512 0.944 → 0.608 s, 16 of 540×960 0.799 → 0.620
+//! s, the whole frame (bands of a million pixels) 0.731 → 0.636 s. A pixel tests the
 //! unbounded objects, those without a footprint and its candidates, nearest box first, until
 //! the next box lies beyond the closest hit ([`Scene::intersect_candidates`]): again
 //! [`Scene::intersect`]'s answer, the scene's hierarchy not walked.
@@ -32,8 +37,9 @@
 //! few tens of bytes per piece: on a machine where first touching a page costs microseconds,
 //! per-row lists of a million-triangle mesh's pieces would take longer to write than to use.
 
+use glam::DVec3;
 use rayon::prelude::*;
-use zeroset_primitives::{Aabb, Interval, Pieces, RawHit, Ray};
+use zeroset_primitives::{Aabb, Interval, Pieces, RawHit, Ray, Wanted};
 
 use crate::camera::footprint::{BoxProjector, ImageRect, TIGHT_WIDENING};
 use crate::camera::{Camera, Model};
@@ -105,11 +111,18 @@ impl<'a> PieceBins<'a> {
             Some(object) => {
                 let primitive = &*scene.objects[object as usize].primitive;
                 let pieces = primitive.pieces()?;
-                let numbers = pieces.piece_numbers();
+                let projector = camera.box_projector(primitive.origin_rounding(camera.eye));
+                let whole = window.x0 == 0 && window.y0 == 0 && window.x1 == camera.width && window.y1 == camera.height;
+                // a crop (a Dask tile) projects only the pieces under the hierarchy's nodes it
+                // may see; the whole image sees all of them
+                let numbers = if whole {
+                    pieces.piece_numbers()
+                } else {
+                    pieces.piece_numbers_kept(&|bounds: &Aabb| wanted_in(&projector, bounds, window))
+                };
                 if !worth(numbers.len()) {
                     return None;
                 }
-                let projector = camera.box_projector(primitive.origin_rounding(camera.eye));
                 (Source::Lone { object, pieces }, numbers, projector)
             }
             None => {
@@ -296,6 +309,36 @@ fn footprints(
                 }
             }
         }
+    }
+}
+
+/// Which of the pieces lying in `bounds` may hold in their footprints ([`footprints`]) a pixel
+/// centre of `window`: [`Wanted::Nothing`] only where none can, [`Wanted::Everything`] where the
+/// box's rectangle lies inside the window's (no use asking about its inner boxes).
+///
+/// The box is grown by a hundredth of its diagonal on every side and its rectangle widened by a
+/// pixel more than a piece's. That covers every box `b` inside it as [`footprints`] enlarges `b`:
+/// `b`'s half edges `h_b` and centre `c_b` stay within the box's (`|c_b − c| + h_b ≤ h` on each
+/// axis), so `b`'s enlargement `10⁻⁴·(2|h_b| + |c_b − eye|) + r` exceeds the box's
+/// `10⁻⁴·(2|h| + |c − eye|) + r` by at most `10⁻⁴·|h|`, two hundred times less than the growth;
+/// a pinhole images the enlarged `b`, being inside the grown box and that wholly in front of the
+/// eye, inside the grown box's rectangle. A box reaching behind the eye (no footprint) is
+/// [`Wanted::Partly`].
+fn wanted_in(projector: &BoxProjector<'_>, bounds: &Aabb, window: &Window) -> Wanted {
+    let grow = DVec3::splat(0.01 * bounds.diagonal_length());
+    let Some(rect) = projector.footprint(&Aabb::new(bounds.min - grow, bounds.max + grow), TIGHT_WIDENING + 1.0) else {
+        return Wanted::Partly;
+    };
+    let inside = rect.x0 >= f64::from(window.x0)
+        && rect.x1 <= f64::from(window.x1)
+        && rect.y0 >= f64::from(window.y0)
+        && rect.y1 <= f64::from(window.y1);
+    if inside {
+        Wanted::Everything
+    } else if seen(0, &rect, 0.0, window).is_some() {
+        Wanted::Partly
+    } else {
+        Wanted::Nothing
     }
 }
 

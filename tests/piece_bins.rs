@@ -134,18 +134,36 @@ fn assert_pixels_equal_rays(scene: &Scene, camera: &Camera, crop: Option<Window>
     hits
 }
 
-/// [`assert_pixels_equal_rays`] on the whole view and on the crop `[w/l, h/t, w − r, h − h/b]`
-/// of `[l, t, r, b]`; returns the whole view's hits.
+/// [`assert_pixels_equal_rays`] on the whole view, on the crop `[w/l, h/t, w − r, h − h/b]`
+/// of `[l, t, r, b]`, on its top left ninth and on a strip three pixels wide down its middle (a
+/// crop's bins leave out the pieces under the hierarchy's nodes it cannot see); returns the
+/// whole view's hits.
 fn assert_view_and_crop_equal_rays(scene: &Scene, camera: &Camera, [l, t, r, b]: [u32; 4], what: &str) -> usize {
     let hits = assert_pixels_equal_rays(scene, camera, None, what);
     let (width, height) = (camera.width, camera.height);
-    let crop = Window {
-        x0: width / l,
-        y0: height / t,
-        x1: width - r,
-        y1: height - height / b,
-    };
-    assert_pixels_equal_rays(scene, camera, Some(crop), &format!("{what} cropped"));
+    let crops = [
+        Window {
+            x0: width / l,
+            y0: height / t,
+            x1: width - r,
+            y1: height - height / b,
+        },
+        Window {
+            x0: 0,
+            y0: 0,
+            x1: width / 3,
+            y1: height / 3,
+        },
+        Window {
+            x0: width / 2,
+            y0: 0,
+            x1: width / 2 + 3,
+            y1: height,
+        },
+    ];
+    for (k, crop) in crops.into_iter().enumerate() {
+        assert_pixels_equal_rays(scene, camera, Some(crop), &format!("{what} crop {k}"));
+    }
     hits
 }
 

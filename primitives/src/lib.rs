@@ -80,7 +80,7 @@ pub use error::PrimitiveError;
 pub use hit::{facing, HitRequest, RawHit, SurfaceHit};
 pub use ray::{Interval, Ray};
 pub use root::{first_root, RootOptions, RootReport};
-pub use traits::{Implicit, Intersect, Parametric, Pieces, Primitive, UvDomain};
+pub use traits::{Implicit, Intersect, Parametric, Pieces, Primitive, UvDomain, Wanted};
 pub use transformed::Transformed;
 
 /// Most rays in one [`Intersect::intersect_packet`] call: one per lane of a 256-bit f32 vector.

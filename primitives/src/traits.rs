@@ -259,6 +259,17 @@ pub trait Pieces: Sync {
     /// Every point of the surface lies in at least one piece's box.
     fn piece_box(&self, number: u32) -> Option<Aabb>;
 
+    /// [`Pieces::piece_numbers`], in the same order, less pieces the caller has no need of: the
+    /// caller is asked about boxes holding several pieces (a hierarchy's inner nodes), and
+    /// [`Wanted::Nothing`] promises that no piece lying wholly inside the box is needed; those
+    /// are then left out together, unread. A crop of a render needs only the pieces it may see.
+    /// Pieces of boxes not asked about, or answered otherwise, are all returned. The default asks
+    /// nothing and returns every piece.
+    fn piece_numbers_kept(&self, wanted: &(dyn Fn(&Aabb) -> Wanted + Sync)) -> Vec<u32> {
+        let _ = wanted;
+        self.piece_numbers()
+    }
+
     /// [`Pieces::piece_box`] of each of `numbers` into `boxes` (as long), [`Aabb::EMPTY`] where no
     /// piece has the number: one call for the many pieces a renderer projects (the default,
     /// compiled for each implementing type, calls its `piece_box` directly).
@@ -286,6 +297,17 @@ pub trait Pieces: Sync {
         let numbers: Vec<u32> = candidates.iter().map(|&(number, _)| number).collect();
         self.intersect_pieces(ray, range, &numbers)
     }
+}
+
+/// What a caller of [`Pieces::piece_numbers_kept`] needs of the pieces lying inside a box.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wanted {
+    /// None of them.
+    Nothing,
+    /// Maybe all of them: they are returned without asking about the boxes inside.
+    Everything,
+    /// Maybe some of them: ask about the boxes inside.
+    Partly,
 }
 
 /// What a scene stores: anything that intersects, is printable and can be shared across threads.

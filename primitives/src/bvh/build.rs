@@ -34,6 +34,7 @@
 use super::oct::Oct;
 use super::quad_array::QuadArray;
 use super::{max_f32, min_f32, NodeTest, Quad, SlabsFrom};
+use crate::traits::Wanted;
 use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
@@ -405,6 +406,15 @@ impl QuadBvh {
     /// subtrees walked in parallel (depth first). Only the nodes reached are read: the room
     /// reserved between the parallel subtrees is never touched.
     pub(crate) fn leaf_slot_numbers(&self) -> Vec<u32> {
+        self.leaf_slot_numbers_kept(|_, _| Wanted::Everything)
+    }
+
+    /// [`QuadBvh::leaf_slot_numbers`], in the same order, asking `wanted(node, slot)` about
+    /// each inner slot reached: below one answered [`Wanted::Nothing`] nothing is read or
+    /// returned, below one answered [`Wanted::Everything`] every leaf is returned without
+    /// asking further. Leaf slots are not asked about. Pruning a depth-first walk keeps the
+    /// order of what it still visits.
+    pub(crate) fn leaf_slot_numbers_kept(&self, wanted: impl Fn(&Quad, usize) -> Wanted + Sync) -> Vec<u32> {
         /// Slots to split the walk into before handing out the subtrees.
         const SUBTREES: usize = 64;
         if self.quads.is_empty() {
@@ -434,14 +444,29 @@ impl QuadBvh {
                 if quad.count[s] != 0 {
                     return vec![(4 * q + s) as u32];
                 }
+                let asking = match wanted(quad, s) {
+                    Wanted::Nothing => return Vec::new(),
+                    Wanted::Everything => false,
+                    Wanted::Partly => true,
+                };
                 let mut numbers = Vec::new();
-                self.walk_slots_from(quad.child[s] as usize, |q, quad, s, _| match quad.count[s] {
-                    0 => true,
-                    _ => {
-                        numbers.push((4 * q + s) as u32);
-                        false
+                // depth first as `walk_slots_from`, each node with whether its slots are asked about
+                let mut pending = vec![(quad.child[s] as usize, asking)];
+                while let Some((q, asking)) = pending.pop() {
+                    let quad = &self.quads[q];
+                    for s in 0..quad.len as usize {
+                        if quad.count[s] != 0 {
+                            numbers.push((4 * q + s) as u32);
+                            continue;
+                        }
+                        let below = match asking.then(|| wanted(quad, s)) {
+                            Some(Wanted::Nothing) => continue,
+                            Some(Wanted::Partly) => true,
+                            Some(Wanted::Everything) | None => false,
+                        };
+                        pending.push((quad.child[s] as usize, below));
                     }
-                });
+                }
                 numbers
             })
             .collect();

@@ -19,7 +19,7 @@ use crate::bounds::Aabb;
 use crate::bvh::{cull_bound, Quad};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
-use crate::traits::Pieces;
+use crate::traits::{Pieces, Wanted};
 
 impl Mesh {
     /// The node and slot of the leaf numbered `number`, if one is.
@@ -113,6 +113,17 @@ fn among_nearest_first(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[(u
 impl Pieces for Mesh {
     fn piece_numbers(&self) -> Vec<u32> {
         self.bvh.leaf_slot_numbers()
+    }
+
+    /// The walk of [`Pieces::piece_numbers`] over the hierarchy, asking about each inner node's
+    /// box (its slot's box in its parent): not entering a node wanted for [`Wanted::Nothing`],
+    /// taking every leaf below one wanted for [`Wanted::Everything`] without asking further.
+    /// Leaves themselves are not asked about (their boxes are the pieces').
+    fn piece_numbers_kept(&self, wanted: &(dyn Fn(&Aabb) -> Wanted + Sync)) -> Vec<u32> {
+        self.bvh.leaf_slot_numbers_kept(|quad, slot| {
+            let (lo, hi) = quad.slot_bounds(slot);
+            wanted(&Aabb::new(v64(lo), v64(hi)))
+        })
     }
 
     fn piece_box(&self, number: u32) -> Option<Aabb> {
@@ -332,6 +343,54 @@ mod tests {
 
     /// The pieces' boxes hold their triangles, and the pieces partition the triangles; the
     /// numbers of the other slots name no piece.
+    /// Pieces kept by the boxes they lie in: asked about nothing (every box wanted
+    /// [`Wanted::Everything`]) the walk returns `piece_numbers` as it is; asked about a region,
+    /// it returns a subsequence of it (the same order) holding every piece whose box meets the
+    /// region, and fewer pieces in all; a region outside the mesh keeps none.
+    #[test]
+    fn kept_pieces_are_those_of_the_boxes_wanted() {
+        let mesh = bumpy_sphere(48);
+        let all = mesh.piece_numbers();
+        assert_eq!(mesh.piece_numbers_kept(&|_| Wanted::Everything), all);
+        let meets = |b: &Aabb, lo: DVec3, hi: DVec3| b.min.cmple(hi).all() && b.max.cmpge(lo).all();
+        let within = |b: &Aabb, lo: DVec3, hi: DVec3| b.min.cmpge(lo).all() && b.max.cmple(hi).all();
+        let regions = [
+            (DVec3::new(-0.2, -0.3, -2.0), DVec3::new(0.4, 0.1, 2.0)),
+            (DVec3::new(0.5, 0.5, 0.5), DVec3::new(2.0, 2.0, 2.0)),
+            (DVec3::new(-2.0, -2.0, -2.0), DVec3::new(2.0, 0.0, 2.0)),
+        ];
+        for (lo, hi) in regions {
+            let asked = std::sync::atomic::AtomicUsize::new(0);
+            let kept = mesh.piece_numbers_kept(&|b| {
+                asked.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if !meets(b, lo, hi) {
+                    Wanted::Nothing
+                } else if within(b, lo, hi) {
+                    Wanted::Everything
+                } else {
+                    Wanted::Partly
+                }
+            });
+            let mut rest = all.iter();
+            assert!(kept.iter().all(|k| rest.any(|a| a == k)), "not in piece_numbers' order");
+            for &n in &all {
+                if meets(&mesh.piece_box(n).unwrap(), lo, hi) {
+                    assert!(kept.contains(&n), "piece {n} meets the region but was left out");
+                }
+            }
+            assert!(kept.len() < all.len(), "{} of {} pieces kept", kept.len(), all.len());
+            assert!(asked.into_inner() > 0);
+        }
+        let far = mesh.piece_numbers_kept(&|b| {
+            if meets(b, DVec3::splat(5.0), DVec3::splat(6.0)) {
+                Wanted::Partly
+            } else {
+                Wanted::Nothing
+            }
+        });
+        assert!(far.len() <= 4, "{} pieces kept far from the mesh", far.len());
+    }
+
     #[test]
     fn pieces_hold_their_triangles() {
         let mesh = bumpy_sphere(24);
