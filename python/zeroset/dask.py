@@ -8,7 +8,8 @@ The scene reaches the workers as its recipe (see ``zeroset.Scene``): a path load
 file and the meshes it names must be on a path the workers share), RON text (its relative mesh
 paths resolve against ``base_dir`` on the worker), plus every object added in code, mesh arrays
 included. It is one piece of data in the graph, so each worker builds it (load and hierarchy)
-once, not once per block.
+once, not once per block; ``fetch`` of a frame sends it with a token, and a worker that built
+that token before (an earlier fetch of the same, unchanged scene) uses the scene it has.
 
 Every block is computed by the same code as the single-process call: a tile is a ``crop``
 window of the full frame, and crops are exact, so ``render(...)[aov].compute()`` equals
@@ -287,8 +288,9 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
     instead of 64 for a 4×4-tile frame of 4 AOVs). Where every worker shares this machine's
     memory (a ``LocalCluster``; checked once per client by a token file each worker reads back),
     those renders' tiles travel not at all: the arrays live in one shared-memory file in
-    ``/dev/shm``, each worker renders its tiles straight into it (``Scene.render(out=...)``: one
-    task a tile, no frame of its own, no copy) and returns only an acknowledgement, which is
+    ``/dev/shm``, each worker renders its tiles straight into it (``Scene.render(out=...)``: no
+    frame of its own, no copy; two tasks a worker thread, each a share of tiles from all over
+    the frame) and returns only an acknowledgement, which is
     waited for, never gathered; the file is kept for the next fetch of the same size once the arrays are gone (unlinked when this
     process ends; files of processes killed before that are unlinked by the next fetch). The
     values are those of ``.compute()``.
