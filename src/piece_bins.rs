@@ -114,8 +114,11 @@ impl<'a> PieceBins<'a> {
                 let projector = camera.box_projector(primitive.origin_rounding(camera.eye));
                 let whole = window.x0 == 0 && window.y0 == 0 && window.x1 == camera.width && window.y1 == camera.height;
                 // a crop (a Dask tile) projects only the pieces under the hierarchy's nodes it
-                // may see; the whole image sees all of them
-                let numbers = if whole {
+                // may see; the whole image sees all of them, and an object reaching behind the
+                // eye most likely has pieces there, which have no footprint and leave it without
+                // bins: not worth asking about its nodes (a crop of the level-8 mesh seen from
+                // inside its box took 0.0201 s before the nodes were asked about, 0.0218 s with)
+                let numbers = if whole || projector.footprint(&primitive.bounds(), TIGHT_WIDENING).is_none() {
                     pieces.piece_numbers()
                 } else {
                     pieces.piece_numbers_kept(&|bounds: &Aabb| wanted_in(&projector, bounds, window))
