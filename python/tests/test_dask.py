@@ -159,7 +159,7 @@ def test_fetch_gathers_from_the_workers_not_through_the_scheduler(client, repo, 
     comes straight from the worker that rendered it by default: the scheduler (here in this
     process) is never asked to gather, which would make every byte cross twice. ``direct=False``
     goes through it, with the same arrays."""
-    monkeypatch.setattr(zdask, "_workers_share_memory", lambda client: False)
+    monkeypatch.setattr(zdask, "_workers_share_memory", lambda client, workers=None: False)
     scheduler = client.cluster_for_tests.scheduler
     relayed = []
     gather = scheduler.handlers["gather"]

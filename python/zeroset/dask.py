@@ -300,7 +300,6 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
     ``direct_to_workers``); ``False`` where this process cannot reach the workers (only the
     scheduler), at the price of every byte crossing the network twice.
     """
-    out = {name: _empty(a.shape, a.dtype) for name, a in arrays.items()}
     if client is None:
         try:
             from distributed import default_client
@@ -310,13 +309,17 @@ def fetch(arrays: Dict[str, da.Array], client: Any = None, direct: Optional[bool
             client = False
     grouped = None if client is False else _by_render(arrays)
     if grouped is not None:
-        # the arrays of `render` / `render_views`: fetch each render's whole result (every AOV
-        # of a tile) once, rather than one future and one task per tile and AOV
         graph, renders = grouped
-        if _workers_share_memory(client):
-            shared = _fetch_in_shared_memory(client, arrays, graph, renders)
+        workers = _scheduler_workers(client)
+        if _workers_share_memory(client, workers):
+            shared = _fetch_in_shared_memory(client, arrays, graph, renders, workers)
             if shared is not None:
                 return shared
+    # the arrays the blocks are copied into (the shared-memory path returns its own)
+    out = {name: _empty(a.shape, a.dtype) for name, a in arrays.items()}
+    if grouped is not None:
+        # the arrays of `render` / `render_views`: fetch each render's whole result (every AOV
+        # of a tile) once, rather than one future and one task per tile and AOV
         futures = client.compute([Delayed(key, graph, layer=key[0]) for key in renders])
         where = {f.key: renders[key] for f, key in zip(futures, renders)}
 
@@ -378,20 +381,27 @@ def _read_token(path: str) -> Optional[str]:
         return None
 
 
-def _workers_share_memory(client: Any) -> bool:
-    """Whether every worker of ``client`` sees this process's shared-memory files: a token file
-    written here is read back by each worker (``client.run``), once per client and set of
-    workers. True for a ``LocalCluster`` and for workers on this machine sharing its
-    ``/dev/shm``; false for workers elsewhere and where there is no ``/dev/shm``."""
+def _scheduler_workers(client: Any) -> Dict[str, Any]:
+    """The workers of ``client`` as ``scheduler_info`` lists them (a round trip to the
+    scheduler), empty for a client that cannot say."""
+    try:
+        return client.scheduler_info()["workers"]
+    except Exception:  # noqa: BLE001 - a client that cannot say: the network path
+        return {}
+
+
+def _workers_share_memory(client: Any, workers: Optional[Dict[str, Any]] = None) -> bool:
+    """Whether every worker of ``client`` (``workers``, as ``_scheduler_workers`` gives them;
+    asked for when ``None``) sees this process's shared-memory files: a token file written here
+    is read back by each worker (``client.run``), once per client and set of workers. True for a
+    ``LocalCluster`` and for workers on this machine sharing its ``/dev/shm``; false for workers
+    elsewhere and where there is no ``/dev/shm``."""
     if not (os.path.isdir(_SHARED_DIR) and os.access(_SHARED_DIR, os.W_OK)):
         return False
-    try:
-        workers = tuple(sorted(client.scheduler_info()["workers"]))
-    except Exception:  # noqa: BLE001 - a client that cannot say: the network path
+    names = tuple(sorted(_scheduler_workers(client) if workers is None else workers))
+    if not names:
         return False
-    if not workers:
-        return False
-    key = (id(client), workers)
+    key = (id(client), names)
     if key not in _SHARING:
         token = uuid.uuid4().hex
         path = os.path.join(_SHARED_DIR, f"zeroset-token-{token}")
@@ -399,7 +409,7 @@ def _workers_share_memory(client: Any) -> bool:
             with open(path, "w", encoding="ascii") as f:
                 f.write(token)
             seen = client.run(_read_token, path)
-            _SHARING[key] = len(seen) == len(workers) and all(t == token for t in seen.values())
+            _SHARING[key] = len(seen) == len(names) and all(t == token for t in seen.values())
         except Exception:  # noqa: BLE001 - any failure: the network path
             _SHARING[key] = False
         finally:
@@ -546,7 +556,7 @@ def _layers_under(graph: Any, names: Iterable[str]) -> set:
 
 
 def _fetch_in_shared_memory(client: Any, arrays: Dict[str, da.Array], graph: Any,
-                            renders: Dict[Any, list]) -> Optional[Dict[str, np.ndarray]]:
+                            renders: Dict[Any, list], workers: Dict[str, Any]) -> Optional[Dict[str, np.ndarray]]:
     """``fetch`` of ``render`` / ``render_views`` arrays where every worker shares this
     machine's memory: the output arrays live in one shared-memory file, each worker renders its
     tiles into it where they go (``_render_direct``; a render it cannot take is rendered, then
@@ -565,7 +575,7 @@ def _fetch_in_shared_memory(client: Any, arrays: Dict[str, da.Array], graph: Any
     except OSError:
         return None  # no room in shared memory: the network path
     out = {name: _shared_array(memory, layout, name) for name in layout}
-    futures = _direct_futures(client, graph, renders, path, layout)
+    futures = _direct_futures(client, workers, graph, renders, path, layout)
     if futures is None:
         futures = _graph_futures(client, graph, renders, path, layout)
     # the results are acknowledgements (None): waited for, never gathered; a failed task (or a
@@ -687,7 +697,7 @@ def _scene_for_tasks(client: Any, scene: Scene, workers: Dict[str, Any]) -> Any:
     return future
 
 
-def _direct_futures(client: Any, graph: Any, renders: Dict[Any, list], path: str,
+def _direct_futures(client: Any, workers: Dict[str, Any], graph: Any, renders: Dict[Any, list], path: str,
                     layout: Dict[str, Tuple[int, Tuple[int, ...]]]) -> Optional[list]:
     """The tasks of ``_fetch_in_shared_memory`` where every render is a ``_render_direct`` of a
     scene that the graph holds as a literal (``render``'s and ``render_views``' arrays), all
@@ -714,7 +724,6 @@ def _direct_futures(client: Any, graph: Any, renders: Dict[Any, list], path: str
         if scene is None:
             return None
         by_scene.setdefault(id(scene), (scene, []))[1].append((kwargs, places))
-    workers = client.scheduler_info()["workers"]
     threads = max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
     held, tasks = [], []
     for scene, tiles in by_scene.values():

@@ -341,12 +341,11 @@ mod tests {
         assert!(hits > 1500, "{hits} hits");
     }
 
-    /// The pieces' boxes hold their triangles, and the pieces partition the triangles; the
-    /// numbers of the other slots name no piece.
     /// Pieces kept by the boxes they lie in: asked about nothing (every box wanted
     /// [`Wanted::Everything`]) the walk returns `piece_numbers` as it is; asked about a region,
     /// it returns a subsequence of it (the same order) holding every piece whose box meets the
-    /// region, and fewer pieces in all; a region outside the mesh keeps none.
+    /// region, and fewer pieces in all; a region outside the mesh keeps at most the few leaves
+    /// of the first levels, which are never asked about.
     #[test]
     fn kept_pieces_are_those_of_the_boxes_wanted() {
         let mesh = bumpy_sphere(48);
@@ -391,6 +390,8 @@ mod tests {
         assert!(far.len() <= 4, "{} pieces kept far from the mesh", far.len());
     }
 
+    /// The pieces' boxes hold their triangles, and the pieces partition the triangles; the
+    /// numbers of the other slots name no piece.
     #[test]
     fn pieces_hold_their_triangles() {
         let mesh = bumpy_sphere(24);
