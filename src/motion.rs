@@ -86,6 +86,9 @@ impl Intersect for Borrowed<'_> {
     fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 {
         self.0.normal_at(ray, raw)
     }
+    fn normal_at_f32(&self, ray: &Ray, raw: &RawHit) -> glam::Vec3 {
+        self.0.normal_at_f32(ray, raw)
+    }
     fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> {
         self.0.uv_at(ray, raw)
     }

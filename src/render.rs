@@ -37,7 +37,7 @@ use crate::piece_bins::{BandBins, PieceBins, RowBins};
 use crate::sampling::{pixel_samples, PixelSample};
 use crate::scene::{Light, Scene};
 use crate::tracing::scalar;
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -668,10 +668,11 @@ fn write_without_record<const NORMAL: bool, const HEADLIGHT: bool>(
         write_miss(pixel, context);
         return;
     };
+    // the f32 normal the AOV stores (`normal_at` rounded: the same values as the record's)
     let normal = if NORMAL {
-        scene.objects[object as usize].primitive.normal_at(ray, &raw)
+        scene.objects[object as usize].primitive.normal_at_f32(ray, &raw)
     } else {
-        DVec3::ZERO
+        Vec3::ZERO
     };
     let mut rest = &mut pixel[..];
     for aov in context.aovs {
@@ -679,13 +680,13 @@ fn write_without_record<const NORMAL: bool, const HEADLIGHT: bool>(
             Aov::Normal | Aov::Beauty => {
                 let v = if HEADLIGHT && *aov == Aov::Beauty {
                     let colour = scene.objects[object as usize].material.color;
-                    headlight(colour, scene.ambient, facing(normal, ray.dir), ray.dir)
+                    headlight(colour, scene.ambient, normal, ray.dir)
                 } else {
                     normal
                 };
-                rest[0] = v.x as f32;
-                rest[1] = v.y as f32;
-                rest[2] = v.z as f32;
+                rest[0] = v.x;
+                rest[1] = v.y;
+                rest[2] = v.z;
                 rest = &mut rest[3..];
                 continue;
             }
@@ -1036,11 +1037,17 @@ pub fn shade_at(scene: &Scene, object: u32, ray: &Ray, hit: &SurfaceHit, time: f
 
 /// The colour of a surface of colour `colour` lit by the headlight of a scene without lights:
 /// `colour·(ambient + max(n·v, 0))`, `n` the normal facing the viewer (zero for none) and
-/// `v = −dir/‖dir‖` the direction back along the ray.
+/// `v = −dir/‖dir‖` the direction back along the ray, worked out in f32 for the f32 beauty from
+/// the normal rounded to f32, whichever way it faces, as `|n·d| / ‖d‖` (the camera models' rays
+/// have unit directions; a zero normal gives the ambient term alone). Every path of the render
+/// shades with it, with or without a hit record: the same bits. Against the f64 formula of
+/// before, at most 9 ulps (1.8·10⁻⁷) on the shipped scenes' beauty.
 #[inline(always)]
-fn headlight(colour: DVec3, ambient: DVec3, facing_normal: DVec3, dir: DVec3) -> DVec3 {
-    let view = -dir.normalize();
-    colour * (ambient + DVec3::splat(facing_normal.dot(view).max(0.0)))
+fn headlight(colour: DVec3, ambient: DVec3, normal: Vec3, dir: DVec3) -> Vec3 {
+    let dir = dir.as_vec3();
+    // `max` turns a NaN (a direction rounded to zero or to infinity) into 0
+    let cosine = (normal.dot(dir).abs() / dir.length()).max(0.0);
+    colour.as_vec3() * (ambient.as_vec3() + Vec3::splat(cosine))
 }
 
 #[inline(always)]
@@ -1062,7 +1069,7 @@ fn shade_with(
         .as_ref()
         .map_or(DVec3::ZERO, |n| facing(by_component(n), dir));
     if scene.lights.is_empty() {
-        return headlight(material.color, scene.ambient, n, dir);
+        return headlight(material.color, scene.ambient, n.as_vec3(), dir).as_dvec3();
     }
     let view = -dir.normalize();
     let origin = secondary_offset(hit, ray.dir);

@@ -36,7 +36,8 @@
 //! Vertices `12 B` each (plus `12 B` with normals), triangles `12 B` (index triple, kept in BVH
 //! leaf order) plus `8 B` (leaf ↔ file order maps), their corners again in the leaves' rows
 //! (`36 B`, see [`leaf_rows`]: a leaf test reads its triangles' coordinates eight at a time,
-//! without going through the indices), 4-wide BVH nodes `128 B` each, about
+//! without going through the indices), each triangle's unit normal rounded to f32 (`12 B`, for
+//! [`Intersect::normal_at_f32`]; meshes of up to 2¹⁸ triangles), 4-wide BVH nodes `128 B` each, about
 //! `0.07 N` of them for `N` triangles on the benchmark meshes, which packets walk, and the same
 //! hierarchy collapsed into 8-wide nodes of `256 B`, about half as many, which single rays walk,
 //! made when the first single ray needs them (see [`Mesh::memory_bytes`]). The BVH is described
@@ -104,6 +105,11 @@ pub struct Mesh {
     /// The corners of the triangles in the hierarchy, leaf by leaf in rows (see [`leaf_rows`]):
     /// what the leaf tests read, up to eight triangles' values of one coordinate at a time.
     leaf_corners: Vec<f32>,
+    /// Each triangle's [`Intersect::normal_at`] rounded to f32, in the file's order (indexed by
+    /// [`RawHit::feature`]; zero for a skipped one): [`Intersect::normal_at_f32`] reads it, one
+    /// load where the f64 normal takes a square root and a division on every hit. Empty for a
+    /// mesh of more than [`NORMALS_TABLE_MAX`] triangles.
+    unit_normals: Vec<[f32; 3]>,
     /// For each leaf position, where its triangle sits in its leaf (see [`leaf_places`]): with
     /// it, a hit's leaf position alone finds the triangle's rows.
     leaf_places: Vec<u8>,
@@ -128,6 +134,71 @@ impl fmt::Debug for Mesh {
             .field("skipped", &self.skipped_triangles())
             .field("bounds", &self.bounds)
             .finish()
+    }
+}
+
+/// Triangles per task of the normals' table ([`unit_normals_into`]).
+const NORMALS_RUN: usize = 4096;
+
+/// The most triangles a mesh keeps the f32 normals' table for ([`Intersect::normal_at_f32`]).
+/// The table spares a hit the square root and division of its normal, which a small mesh waits
+/// on: the default render of the level-4 and level-6 bench meshes (5,120 and 81,920 triangles)
+/// 13 % faster. On a mesh past the caches a hit's normal waits on memory instead, whether read
+/// from the table or worked out from the leaf's rows: the level-8 mesh (1,310,720 triangles)
+/// rendered no faster with the table (0.0537 against 0.0539 s), which took 13 ms more to load
+/// (page faults on 15 MB of fresh memory) and 12 bytes a triangle.
+const NORMALS_TABLE_MAX: usize = 1 << 18;
+
+/// Into `out[i]`, the unit normal of triangle `run[i]` as [`Intersect::normal_at`] makes it
+/// ([`Mesh::plane`]'s `(b − a) × (c − a)` in f64, then glam's `normalize_or_zero`: the same
+/// operations in the same order, so the same f64 values), rounded to f32. Four triangles at a
+/// time, each step over the four lanes (packed square roots and divisions where one at a time
+/// waited on each).
+#[inline(always)]
+fn unit_normals_into(run: &[[u32; 3]], vertices: &[[f32; 3]], out: &mut [[f32; 3]]) {
+    let mut groups = run.chunks_exact(4);
+    let mut outs = out.chunks_exact_mut(4);
+    for (group, out) in (&mut groups).zip(&mut outs) {
+        // lane `l` is triangle `group[l]`: its corners `a`, and the edges `b − a`, `c − a`
+        let (mut a, mut e1, mut e2) = ([[0.0f64; 4]; 3], [[0.0f64; 4]; 3], [[0.0f64; 4]; 3]);
+        for (l, t) in group.iter().enumerate() {
+            let [p, q, r] = t.map(|i| vertices[i as usize]);
+            for k in 0..3 {
+                a[k][l] = f64::from(p[k]);
+                e1[k][l] = f64::from(q[k]) - a[k][l];
+                e2[k][l] = f64::from(r[k]) - a[k][l];
+            }
+        }
+        // glam's `cross`: x = s.y·r.z − r.y·s.z, y = s.z·r.x − r.z·s.x, z = s.x·r.y − r.x·s.y;
+        // then `normalize_or_zero`: `1 / √(n·n)`, the dot summed left to right
+        let (mut n, mut rcp) = ([[0.0f64; 4]; 3], [0.0f64; 4]);
+        for l in 0..4 {
+            n[0][l] = e1[1][l] * e2[2][l] - e2[1][l] * e1[2][l];
+            n[1][l] = e1[2][l] * e2[0][l] - e2[2][l] * e1[0][l];
+            n[2][l] = e1[0][l] * e2[1][l] - e2[0][l] * e1[1][l];
+        }
+        for l in 0..4 {
+            rcp[l] = 1.0 / ((n[0][l] * n[0][l] + n[1][l] * n[1][l]) + n[2][l] * n[2][l]).sqrt();
+        }
+        // `rcp.is_finite() && rcp > 0` (false for NaN), as a select the lanes share
+        let mut unit = [[0.0f32; 4]; 3];
+        for k in 0..3 {
+            for l in 0..4 {
+                let r = rcp[l];
+                unit[k][l] = if r > 0.0 && r < f64::INFINITY {
+                    (n[k][l] * r) as f32
+                } else {
+                    0.0
+                };
+            }
+        }
+        for (l, out) in out.iter_mut().enumerate() {
+            *out = [unit[0][l], unit[1][l], unit[2][l]];
+        }
+    }
+    for (t, unit) in groups.remainder().iter().zip(outs.into_remainder()) {
+        let [a, b, c] = t.map(|i| v64(vertices[i as usize]));
+        *unit = (b - a).cross(c - a).normalize_or_zero().as_vec3().to_array();
     }
 }
 
@@ -623,6 +694,22 @@ impl Mesh {
             }
         }
         let tris: Vec<[u32; 3]> = leaf_to_file.par_iter().map(|&f| indices[f as usize]).collect();
+        // a triangle left out of the hierarchy (a zero cross product) gets a zero normal, as
+        // `normal_at` answers
+        let mut unit_normals = Vec::new();
+        if indices.len() <= NORMALS_TABLE_MAX {
+            unit_normals = vec![[0.0; 3]; indices.len()];
+            unit_normals
+                .par_chunks_mut(NORMALS_RUN)
+                .zip(indices.par_chunks(NORMALS_RUN))
+                .for_each(|(out, run)| {
+                    crate::with_fma!(unit_normals_into(
+                        run: &[[u32; 3]] = run,
+                        vertices: &[[f32; 3]] = &vertices,
+                        out: &mut [[f32; 3]] = out,
+                    ) -> ())
+                });
+        }
         drop(indices);
         let leaf_corners = leaf_rows(&bvh, &tris[..in_bvh], &vertices);
         let leaf_places = leaf_places(&bvh, in_bvh);
@@ -645,6 +732,7 @@ impl Mesh {
             in_bvh,
             leaf_corners,
             leaf_places,
+            unit_normals,
             octs: std::sync::OnceLock::new(),
             bvh,
             bounds,
@@ -708,6 +796,7 @@ impl Mesh {
             + self.tris.capacity() * 12
             + self.leaf_corners.capacity() * 4
             + self.leaf_places.capacity()
+            + self.unit_normals.capacity() * 12
             + (self.leaf_to_file.capacity() + self.file_to_leaf.capacity()) * 4
             + self.bvh.memory_bytes()
             + self.octs.get().map_or(0, Octs::memory_bytes)
@@ -1349,6 +1438,17 @@ impl Intersect for Mesh {
     /// The hit triangle's geometric normal, `(b − a) × (c − a)` normalised.
     fn normal_at(&self, _ray: &Ray, raw: &RawHit) -> DVec3 {
         self.hit_plane(raw).map_or(DVec3::ZERO, |(n, _)| n.normalize_or_zero())
+    }
+
+    /// The hit triangle's normal from the f32 table made with the mesh (the same rounded
+    /// values as `normal_at(…).as_vec3()`); without one (a large mesh), `normal_at` rounded.
+    fn normal_at_f32(&self, ray: &Ray, raw: &RawHit) -> glam::Vec3 {
+        if self.unit_normals.is_empty() {
+            return self.normal_at(ray, raw).as_vec3();
+        }
+        self.unit_normals
+            .get(raw.feature as usize)
+            .map_or(glam::Vec3::ZERO, |&n| glam::Vec3::from_array(n))
     }
 
     /// The barycentrics `(u, v)` of the hit (see the module docs).

@@ -16,7 +16,7 @@ use crate::math::central_difference;
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::root::{self, RootOptions};
-use glam::{DVec2, DVec3};
+use glam::{DVec2, DVec3, Vec3};
 
 /// A surface given as the zero set of a scalar function Φ.
 ///
@@ -189,6 +189,14 @@ pub trait Intersect: Implicit {
         self.gradient(ray.at(raw.t)).normalize_or_zero()
     }
 
+    /// [`Intersect::normal_at`] rounded to f32, component by component: always exactly
+    /// `normal_at(ray, raw).as_vec3()`. For outputs stored in f32 (the render's AOVs); a type
+    /// that keeps its normals rounded (a mesh's per-triangle table) answers from them without
+    /// the square root and division of the f64 normal. The default rounds `normal_at`.
+    fn normal_at_f32(&self, ray: &Ray, raw: &RawHit) -> Vec3 {
+        self.normal_at(ray, raw).as_vec3()
+    }
+
     /// Surface parameters at the hit, where the type has them. The default has none; types that
     /// implement [`Parametric`] return `Some(Parametric::uv(point))`.
     fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> {
@@ -334,6 +342,7 @@ macro_rules! forward_through_pointer {
             fn intersect_each(&self, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>], uncertain: &mut [bool]) { (**self).intersect_each(rays, ranges, hits, uncertain) }
             fn root_options(&self) -> RootOptions { (**self).root_options() }
             fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 { (**self).normal_at(ray, raw) }
+            fn normal_at_f32(&self, ray: &Ray, raw: &RawHit) -> Vec3 { (**self).normal_at_f32(ray, raw) }
             fn uv_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec2> { (**self).uv_at(ray, raw) }
             fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 { (**self).hit_error(ray, raw) }
             fn shading_normal_at(&self, ray: &Ray, raw: &RawHit) -> Option<DVec3> { (**self).shading_normal_at(ray, raw) }

@@ -368,3 +368,68 @@ fn instances_share_one_mesh_and_match_transformed_copies() {
     eprintln!("instances vs copies: max rel t difference {max_rel:.2e}");
     assert!(max_rel < 1e-5);
 }
+
+/// `normal_at_f32` (the mesh's f32 table) is `normal_at` rounded to f32, bit for bit, on every
+/// triangle of meshes with every group/remainder split of the table's four-lane runs: random
+/// triangles spanning many magnitudes (from `10⁻⁶` to `10⁶`), slivers, exactly degenerate ones
+/// (zero normal, left out of the hierarchy) and repeated vertices; the last mesh is past the
+/// size up to which the table is kept (its f32 normals are `normal_at`'s, rounded on the way).
+/// The f64 normal itself is checked against the normalised cross product worked out here.
+#[test]
+fn f32_normals_are_the_exact_normals_rounded() {
+    let mut rng = StdRng::seed_from_u64(0x6e6f726d);
+    for count in [1usize, 3, 4, 5, 7, 8, 9, 4099, 10_001, (1 << 18) + 1] {
+        let mut vertices: Vec<[f32; 3]> = Vec::new();
+        let mut tris = Vec::new();
+        for i in 0..count {
+            let scale = 10f32.powi(rng.random_range(-6..=6));
+            let corner = |rng: &mut StdRng| {
+                [
+                    rng.random_range(-1.0f32..1.0) * scale,
+                    rng.random_range(-1.0f32..1.0) * scale,
+                    rng.random_range(-1.0f32..1.0) * scale,
+                ]
+            };
+            let a = corner(&mut rng);
+            let b = corner(&mut rng);
+            let c = match i % 5 {
+                // exactly degenerate: on the line through a and b
+                0 if i > 0 => b,
+                // a sliver: c a hair off a
+                1 => [a[0] * (1.0 + f32::EPSILON), a[1], a[2]],
+                _ => corner(&mut rng),
+            };
+            let n = vertices.len() as u32;
+            vertices.extend([a, b, c]);
+            tris.push([n, n + 1, n + 2]);
+        }
+        let mesh = Mesh::new(vertices.clone(), tris.clone(), None).unwrap();
+        let ray = Ray::new(DVec3::ZERO, DVec3::Z);
+        for (i, t) in tris.iter().enumerate() {
+            let raw = RawHit::on_feature(1.0, i as u32);
+            let exact = mesh.normal_at(&ray, &raw);
+            let [a, b, c] = t.map(|k| DVec3::from_array(vertices[k as usize].map(f64::from)));
+            let cross = (b - a).cross(c - a);
+            let length = cross.length();
+            if length > 0.0 && length.is_finite() {
+                assert!(
+                    (exact - cross / length).length() < 1e-15,
+                    "triangle {i}: {exact} against {}",
+                    cross / length
+                );
+            } else {
+                assert_eq!(exact, DVec3::ZERO, "triangle {i}");
+            }
+            let rounded = mesh.normal_at_f32(&ray, &raw);
+            assert_eq!(
+                rounded.to_array().map(f32::to_bits),
+                exact.as_vec3().to_array().map(f32::to_bits),
+                "triangle {i} of {count}: {rounded} against {exact}"
+            );
+        }
+        // a feature past the last triangle: zero, as `normal_at` answers
+        let past = RawHit::on_feature(1.0, count as u32);
+        assert_eq!(mesh.normal_at_f32(&ray, &past), glam::Vec3::ZERO);
+        assert_eq!(mesh.normal_at(&ray, &past), DVec3::ZERO);
+    }
+}

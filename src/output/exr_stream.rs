@@ -59,6 +59,8 @@ pub struct ExrStream {
     /// File position of the offset table.
     table_start: u64,
     state: Mutex<Written>,
+    /// Written bands' byte buffers, for the next bands to encode into ([`BandSink::prepare`]).
+    spare: Mutex<Vec<Vec<u8>>>,
 }
 
 /// What has been written so far.
@@ -128,6 +130,7 @@ impl ExrStream {
             window_y0: layout.window.y0,
             block_count,
             table_start,
+            spare: Mutex::new(Vec::new()),
             state: Mutex::new(Written {
                 file,
                 out,
@@ -138,15 +141,49 @@ impl ExrStream {
         })
     }
 
-    /// Appends `rows`' samples to `out` in the file's order: per row, each channel's samples
-    /// along the row (`row[x·stride + source]` for pixel `x`), little-endian.
-    fn gather(&self, rows: &[f32], out: &mut Vec<u8>) {
-        for row in rows.chunks_exact(self.width * self.stride) {
-            for &source in &self.sources {
-                let start = out.len();
-                out.resize(start + self.width * 4, 0);
-                for (bytes, pixel) in out[start..].chunks_exact_mut(4).zip(row.chunks_exact(self.stride)) {
-                    bytes.copy_from_slice(&pixel[source].to_le_bytes());
+    /// Writes `rows`' samples into `out` (four bytes a sample, exactly) in the file's order: per
+    /// row, each channel's samples along the row (`row[x·stride + source]` for pixel `x`),
+    /// little-endian.
+    fn gather(&self, rows: &[f32], out: &mut [u8]) {
+        match self.stride {
+            // the AOV render (Depth, Normal, Alpha) and the default outputs (beauty, A, Z, N):
+            // with the stride known, each pixel's samples are read once and the compiler
+            // shuffles them into the channels' runs
+            5 => self.gather_pixels::<5>(rows, out),
+            8 => self.gather_pixels::<8>(rows, out),
+            _ => {
+                let row_bytes = self.width * self.stride * 4;
+                for (row, out) in rows
+                    .chunks_exact(self.width * self.stride)
+                    .zip(out.chunks_exact_mut(row_bytes))
+                {
+                    for (&source, out) in self.sources.iter().zip(out.chunks_exact_mut(self.width * 4)) {
+                        for (bytes, pixel) in out.chunks_exact_mut(4).zip(row.chunks_exact(self.stride)) {
+                            bytes.copy_from_slice(&pixel[source].to_le_bytes());
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`ExrStream::gather`] for `STRIDE` channels a pixel: a pass over each row's pixels,
+    /// each pixel's samples going to their channels' runs.
+    #[inline(always)]
+    fn gather_pixels<const STRIDE: usize>(&self, rows: &[f32], out: &mut [u8]) {
+        let mut destination = [0usize; STRIDE];
+        for (c, &source) in self.sources.iter().enumerate() {
+            destination[source] = c * self.width * 4;
+        }
+        let row_bytes = self.width * STRIDE * 4;
+        for (row, out) in rows
+            .chunks_exact(self.width * STRIDE)
+            .zip(out.chunks_exact_mut(row_bytes))
+        {
+            for (x, pixel) in row.chunks_exact(STRIDE).enumerate() {
+                let pixel: &[f32; STRIDE] = pixel.try_into().expect("STRIDE samples");
+                for (&sample, &at) in pixel.iter().zip(&destination) {
+                    out[at + 4 * x..at + 4 * x + 4].copy_from_slice(&sample.to_le_bytes());
                 }
             }
         }
@@ -194,7 +231,21 @@ impl BandSink for ExrStream {
     fn prepare(&self, first_row: u32, rows: &[f32]) -> Result<Vec<u8>> {
         let row_len = self.width * self.stride;
         let lines = rows.len() / row_len.max(1);
-        let mut encoded = Vec::with_capacity(rows.len() * 4 + 16 * lines);
+        // a written band's bytes, whose pages are mapped (fresh memory is faulted in and zeroed
+        // page by page); uncompressed, a band's bytes have one length for every band but the
+        // last, so `resize` writes nothing and every byte is overwritten below
+        let mut encoded = self
+            .spare
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .pop()
+            .unwrap_or_default();
+        if self.uncompressed {
+            encoded.resize(rows.len() * 4 + 8 * lines.div_ceil(self.lines_per_block), 0);
+        } else {
+            encoded.clear();
+        }
+        let mut at = 0;
         let mut line = 0;
         while line < lines {
             let block_lines = self.lines_per_block.min(lines - line);
@@ -210,11 +261,13 @@ impl BandSink for ExrStream {
                     .with_context(|| format!("{}: row {position} is past the format's limit", self.path.display()))?;
                 let bytes = i32::try_from(block_rows.len() * 4)
                     .with_context(|| format!("{}: a line of more than 2 GiB", self.path.display()))?;
-                encoded.extend_from_slice(&y.to_le_bytes());
-                encoded.extend_from_slice(&bytes.to_le_bytes());
-                self.gather(block_rows, &mut encoded);
+                encoded[at..at + 4].copy_from_slice(&y.to_le_bytes());
+                encoded[at + 4..at + 8].copy_from_slice(&bytes.to_le_bytes());
+                let end = at + 8 + block_rows.len() * 4;
+                self.gather(block_rows, &mut encoded[at + 8..end]);
+                at = end;
             } else {
-                let mut data = Vec::with_capacity(block_rows.len() * 4);
+                let mut data = vec![0; block_rows.len() * 4];
                 self.gather(block_rows, &mut data);
                 let block = UncompressedBlock {
                     index: BlockIndex {
@@ -232,6 +285,10 @@ impl BandSink for ExrStream {
             }
             line += block_lines;
         }
+        debug_assert!(
+            !self.uncompressed || at == encoded.len(),
+            "every byte of the band written"
+        );
         Ok(encoded)
     }
 
@@ -259,6 +316,9 @@ impl BandSink for ExrStream {
             start_writeback(written.out.get_ref(), from, to - from);
             written.writeback = to;
         }
+        drop(written);
+        // the bytes are in the file (or its buffer): the vector serves a later band
+        self.spare.lock().unwrap_or_else(PoisonError::into_inner).push(prepared);
         Ok(())
     }
 }
