@@ -145,45 +145,48 @@ impl ExrStream {
     /// row, each channel's samples along the row (`row[x·stride + source]` for pixel `x`),
     /// little-endian.
     fn gather(&self, rows: &[f32], out: &mut [u8]) {
+        // the AOV render's (Depth, Normal, Alpha) and the default outputs' (beauty, A, Z, N)
+        // strides made constants in copies of their own (mesh4's default render: 3.44 -> 2.56
+        // ms of CPU)
         match self.stride {
-            // the AOV render (Depth, Normal, Alpha) and the default outputs (beauty, A, Z, N):
-            // with the stride known, each pixel's samples are read once and the compiler
-            // shuffles them into the channels' runs
-            5 => self.gather_pixels::<5>(rows, out),
-            8 => self.gather_pixels::<8>(rows, out),
-            _ => {
-                let row_bytes = self.width * self.stride * 4;
+            5 => self.gather_strided(5, rows, out),
+            8 => self.gather_strided(8, rows, out),
+            stride => self.gather_strided(stride, rows, out),
+        }
+    }
+
+    /// [`ExrStream::gather`] for `stride` samples a pixel.
+    #[inline(always)]
+    fn gather_strided(&self, stride: usize, rows: &[f32], out: &mut [u8]) {
+        let width = self.width;
+        match bytemuck::try_cast_slice_mut::<u8, u32>(out) {
+            // a channel at a time, its run filled from the row's pixels as 32-bit words (a
+            // sample's little-endian bytes are its bits' word here; the row, a few tens of
+            // kilobytes, stays in cache across the channels): quadrics' AOV render 2.67 ->
+            // 1.30 ms of CPU against the bytes a pixel at a time
+            Ok(words) if cfg!(target_endian = "little") => {
                 for (row, out) in rows
-                    .chunks_exact(self.width * self.stride)
-                    .zip(out.chunks_exact_mut(row_bytes))
+                    .chunks_exact(width * stride)
+                    .zip(words.chunks_exact_mut(width * stride))
                 {
-                    for (&source, out) in self.sources.iter().zip(out.chunks_exact_mut(self.width * 4)) {
-                        for (bytes, pixel) in out.chunks_exact_mut(4).zip(row.chunks_exact(self.stride)) {
-                            bytes.copy_from_slice(&pixel[source].to_le_bytes());
+                    for (run, &source) in out.chunks_exact_mut(width).zip(&self.sources) {
+                        for (word, pixel) in run.iter_mut().zip(row.chunks_exact(stride)) {
+                            *word = pixel[source].to_bits();
                         }
                     }
                 }
             }
-        }
-    }
-
-    /// [`ExrStream::gather`] for `STRIDE` channels a pixel: a pass over each row's pixels,
-    /// each pixel's samples going to their channels' runs.
-    #[inline(always)]
-    fn gather_pixels<const STRIDE: usize>(&self, rows: &[f32], out: &mut [u8]) {
-        let mut destination = [0usize; STRIDE];
-        for (c, &source) in self.sources.iter().enumerate() {
-            destination[source] = c * self.width * 4;
-        }
-        let row_bytes = self.width * STRIDE * 4;
-        for (row, out) in rows
-            .chunks_exact(self.width * STRIDE)
-            .zip(out.chunks_exact_mut(row_bytes))
-        {
-            for (x, pixel) in row.chunks_exact(STRIDE).enumerate() {
-                let pixel: &[f32; STRIDE] = pixel.try_into().expect("STRIDE samples");
-                for (&sample, &at) in pixel.iter().zip(&destination) {
-                    out[at + 4 * x..at + 4 * x + 4].copy_from_slice(&sample.to_le_bytes());
+            // `out` not aligned for words (or a big-endian machine): byte by byte
+            _ => {
+                for (row, out) in rows
+                    .chunks_exact(width * stride)
+                    .zip(out.chunks_exact_mut(width * stride * 4))
+                {
+                    for (run, &source) in out.chunks_exact_mut(width * 4).zip(&self.sources) {
+                        for (bytes, pixel) in run.chunks_exact_mut(4).zip(row.chunks_exact(stride)) {
+                            bytes.copy_from_slice(&pixel[source].to_le_bytes());
+                        }
+                    }
                 }
             }
         }
