@@ -321,10 +321,7 @@ impl<'a> Tracer<'a> {
         let start = Instant::now();
         let aovs = &layout.aovs;
         let sampled = scene.sampling.spp > 1 || scene.has_motion();
-        let uncertain_offset = {
-            let at = aovs.iter().position(|a| *a == Aov::Uncertain);
-            at.map(|k| aovs[..k].iter().map(|a| a.channels().len()).sum())
-        };
+        let uncertain_offset = channel_offset_in(aovs, Aov::Uncertain);
         // the paths that trace pixel by pixel (samples, the Uncertain flag) keep their own
         let bins = if sampled || uncertain_offset.is_some() {
             None
@@ -778,7 +775,7 @@ impl RecordFree {
 /// the offset of its first channel, for the AOVs rendered. Worked out once per render, so that a
 /// pixel stores each value at its place instead of walking the AOV list (the walk's match and
 /// slicing were a third of the row loop's own time in the level-4 mesh's default render).
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 struct ValueOffsets {
     depth: Option<usize>,
     distance: Option<usize>,
@@ -791,25 +788,15 @@ struct ValueOffsets {
 impl ValueOffsets {
     /// The offsets of `aovs` (in channel order, without repeats).
     fn of(aovs: &[Aov]) -> Self {
-        let mut offsets = Self::default();
-        let mut at = 0;
-        for aov in aovs {
-            let slot = match aov {
-                Aov::Depth => &mut offsets.depth,
-                Aov::Distance => &mut offsets.distance,
-                Aov::Alpha => &mut offsets.alpha,
-                Aov::PrimitiveId => &mut offsets.id,
-                Aov::Normal => &mut offsets.normal,
-                Aov::Beauty => &mut offsets.beauty,
-                _ => {
-                    at += aov.channels().len();
-                    continue;
-                }
-            };
-            *slot = Some(at);
-            at += aov.channels().len();
+        let at = |aov| channel_offset_in(aovs, aov);
+        Self {
+            depth: at(Aov::Depth),
+            distance: at(Aov::Distance),
+            alpha: at(Aov::Alpha),
+            id: at(Aov::PrimitiveId),
+            normal: at(Aov::Normal),
+            beauty: at(Aov::Beauty),
         }
-        offsets
     }
 }
 
@@ -1078,9 +1065,9 @@ pub fn shade_at(scene: &Scene, object: u32, ray: &Ray, hit: &SurfaceHit, time: f
 /// `v = −dir/‖dir‖` the direction back along the ray, worked out in f32 for the f32 beauty from
 /// the normal rounded to f32, whichever way it faces, as `|n·d| / ‖d‖`, or `|n·d|` where `d`
 /// is a unit vector within f32 rounding (every camera model's rays); a zero normal gives the
-/// ambient term alone. Every path of the render
-/// shades with it, with or without a hit record: the same bits. Against the f64 formula of
-/// before, at most 9 ulps (1.8·10⁻⁷) on the shipped scenes' beauty.
+/// ambient term alone. Every path of the render shades with it, with or without a hit record:
+/// the same bits. Against the f64 formula of before, at most 9 ulps (1.8·10⁻⁷) on the shipped
+/// scenes' beauty.
 #[inline(always)]
 fn headlight(colour: DVec3, ambient: DVec3, normal: Vec3, dir: DVec3) -> Vec3 {
     let dir = dir.as_vec3();

@@ -450,23 +450,18 @@ impl QuadBvh {
                     Wanted::Partly => true,
                 };
                 let mut numbers = Vec::new();
-                // depth first as `walk_slots_from`, each node with whether its slots are asked about
-                let mut pending = vec![(quad.child[s] as usize, asking)];
-                while let Some((q, asking)) = pending.pop() {
-                    let quad = &self.quads[q];
-                    for s in 0..quad.len as usize {
-                        if quad.count[s] != 0 {
-                            numbers.push((4 * q + s) as u32);
-                            continue;
-                        }
-                        let below = match asking.then(|| wanted(quad, s)) {
-                            Some(Wanted::Nothing) => continue,
-                            Some(Wanted::Partly) => true,
-                            Some(Wanted::Everything) | None => false,
-                        };
-                        pending.push((quad.child[s] as usize, below));
+                // each node with whether its inner slots are asked about
+                self.walk_slots_with(quad.child[s] as usize, asking, |q, quad, s, asking| {
+                    if quad.count[s] != 0 {
+                        numbers.push((4 * q + s) as u32);
+                        return None;
                     }
-                }
+                    match asking.then(|| wanted(quad, s)) {
+                        Some(Wanted::Nothing) => None,
+                        Some(Wanted::Partly) => Some(true),
+                        Some(Wanted::Everything) | None => Some(false),
+                    }
+                });
                 numbers
             })
             .collect();
@@ -484,12 +479,28 @@ impl QuadBvh {
 
     /// [`QuadBvh::walk_slots`] below node `root` (its slots being level 1).
     fn walk_slots_from(&self, root: usize, mut visit: impl FnMut(usize, &Quad, usize, u32) -> bool) {
-        let mut pending = vec![(root, 1u32)];
-        while let Some((q, level)) = pending.pop() {
+        self.walk_slots_with(root, 1, |q, quad, s, level| {
+            visit(q, quad, s, level).then_some(level + 1)
+        });
+    }
+
+    /// The slots reached from node `root`, depth first, each visited with its node's index and
+    /// the state its node was entered with (`state` for `root`'s): `visit(q, quad, slot, state)`
+    /// returns the state to enter an inner slot's node with, or `None` not to enter it.
+    fn walk_slots_with<T: Copy>(
+        &self,
+        root: usize,
+        state: T,
+        mut visit: impl FnMut(usize, &Quad, usize, T) -> Option<T>,
+    ) {
+        let mut pending = vec![(root, state)];
+        while let Some((q, state)) = pending.pop() {
             let quad = &self.quads[q];
             for s in 0..quad.len as usize {
-                if visit(q, quad, s, level) && quad.count[s] == 0 {
-                    pending.push((quad.child[s] as usize, level + 1));
+                if let Some(below) = visit(q, quad, s, state) {
+                    if quad.count[s] == 0 {
+                        pending.push((quad.child[s] as usize, below));
+                    }
                 }
             }
         }
