@@ -37,7 +37,7 @@
 //! few tens of bytes per piece: on a machine where first touching a page costs microseconds,
 //! per-row lists of a million-triangle mesh's pieces would take longer to write than to use.
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use zeroset_primitives::{Aabb, Interval, Pieces, RawHit, Ray, Wanted};
 
@@ -239,18 +239,24 @@ impl<'a> PieceBins<'a> {
     }
 
     /// [`Scene::intersect`]`(ray, range)` for the ray of a pixel whose pieces are `candidates`
-    /// (nearest first, each with its [`Seen::near`]).
+    /// (nearest first, each with its [`Seen::near`]), and where `NORMAL` asks for it, the hit's
+    /// `normal_at_f32` if a lone object's pieces work it out along the way
+    /// ([`Scene::intersect_lone_pieces`]).
     #[inline]
-    pub(crate) fn intersect(
+    pub(crate) fn intersect<const NORMAL: bool>(
         &self,
         scene: &Scene,
         ray: &Ray,
         range: Interval,
         candidates: &[Listed],
-    ) -> Option<(u32, RawHit)> {
+    ) -> Option<(u32, RawHit, Option<Vec3>)> {
         match &self.source {
-            Source::Lone { object, pieces } => scene.intersect_lone_pieces(*object, *pieces, ray, range, candidates),
-            Source::Objects { always } => scene.intersect_candidates(ray, range, always, candidates),
+            Source::Lone { object, pieces } => {
+                scene.intersect_lone_pieces::<NORMAL>(*object, *pieces, ray, range, candidates)
+            }
+            Source::Objects { always } => scene
+                .intersect_candidates(ray, range, always, candidates)
+                .map(|(object, raw)| (object, raw, None)),
         }
     }
 }

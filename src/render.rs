@@ -600,8 +600,13 @@ fn render_rows_binned(
             }
             match row_rays.ray_into(column, &mut ray) {
                 Ok(()) => {
-                    let hit = bins.intersect(scene, &ray, Interval::POSITIVE, candidates);
-                    write_pixel(pixel, scene, context, &ray, hit);
+                    // the normal with the hit where the pixel writes one and the pieces find it
+                    let (hit, normal) = if context.record_free.writes_normal() {
+                        split_normal(bins.intersect::<true>(scene, &ray, Interval::POSITIVE, candidates))
+                    } else {
+                        split_normal(bins.intersect::<false>(scene, &ray, Interval::POSITIVE, candidates))
+                    };
+                    write_pixel_knowing(pixel, scene, context, &ray, hit, normal);
                 }
                 Err(reason) => {
                     context.no_ray.add(reason);
@@ -628,13 +633,41 @@ fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut
     flag_uncertain(pixel, context, exhausted_before);
 }
 
+/// The hit of [`PieceBins::intersect`] and the normal it may come with.
+#[inline(always)]
+fn split_normal(found: Option<(u32, RawHit, Option<Vec3>)>) -> (Option<(u32, RawHit)>, Option<Vec3>) {
+    match found {
+        Some((object, raw, normal)) => (Some((object, raw)), normal),
+        None => (None, None),
+    }
+}
+
 /// Completes the closest hit (if any) of a pixel's `ray` and writes every AOV of `context`.
 #[inline(always)]
 fn write_pixel(pixel: &mut [f32], scene: &Scene, context: &RowContext, ray: &Ray, hit: Option<(u32, RawHit)>) {
+    write_pixel_knowing(pixel, scene, context, ray, hit, None);
+}
+
+/// [`write_pixel`], given the hit's `normal_at_f32` where the trace found it (`known_normal`:
+/// the record-free path takes it instead of asking the primitive again).
+#[inline(always)]
+fn write_pixel_knowing(
+    pixel: &mut [f32],
+    scene: &Scene,
+    context: &RowContext,
+    ray: &Ray,
+    hit: Option<(u32, RawHit)>,
+    known_normal: Option<Vec3>,
+) {
+    let record_free = |pixel: &mut [f32], normal: bool, headlight: bool| match (normal, headlight) {
+        (false, _) => write_without_record::<false, false>(pixel, scene, context, ray, hit, None),
+        (true, false) => write_without_record::<true, false>(pixel, scene, context, ray, hit, known_normal),
+        (true, true) => write_without_record::<true, true>(pixel, scene, context, ray, hit, known_normal),
+    };
     match context.record_free {
-        RecordFree::Scalars => return write_without_record::<false, false>(pixel, scene, context, ray, hit),
-        RecordFree::WithNormal => return write_without_record::<true, false>(pixel, scene, context, ray, hit),
-        RecordFree::WithHeadlight => return write_without_record::<true, true>(pixel, scene, context, ray, hit),
+        RecordFree::Scalars => return record_free(pixel, false, false),
+        RecordFree::WithNormal => return record_free(pixel, true, false),
+        RecordFree::WithHeadlight => return record_free(pixel, true, true),
         RecordFree::No => {}
     }
     #[allow(clippy::manual_map, reason = "no closure: see `completed`")]
@@ -661,14 +694,16 @@ fn write_without_record<const NORMAL: bool, const HEADLIGHT: bool>(
     context: &RowContext,
     ray: &Ray,
     hit: Option<(u32, RawHit)>,
+    known_normal: Option<Vec3>,
 ) {
     let Some((object, raw)) = hit else {
         write_miss(pixel, context);
         return;
     };
-    // the f32 normal the AOV stores (`normal_at` rounded: the same values as the record's)
+    // the f32 normal the AOV stores (`normal_at` rounded: the same values as the record's),
+    // unless the trace found it already
     let normal = if NORMAL {
-        scene.objects[object as usize].primitive.normal_at_f32(ray, &raw)
+        known_normal.unwrap_or_else(|| scene.objects[object as usize].primitive.normal_at_f32(ray, &raw))
     } else {
         Vec3::ZERO
     };
@@ -756,6 +791,12 @@ enum RecordFree {
 }
 
 impl RecordFree {
+    /// Whether the record-free pixel writes the hit's normal (or shades with it).
+    #[inline(always)]
+    fn writes_normal(self) -> bool {
+        matches!(self, RecordFree::WithNormal | RecordFree::WithHeadlight)
+    }
+
     /// The path of a render of `aovs` in `scene`.
     fn of(aovs: &[Aov], scene: &Scene) -> Self {
         let scalar = |a: &Aov| matches!(a, Aov::Depth | Aov::Distance | Aov::Alpha | Aov::PrimitiveId);

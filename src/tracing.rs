@@ -1,6 +1,7 @@
 //! Tracing rays through a loaded [`Scene`]: the hierarchy over its objects and the closest-hit
 //! and occlusion queries that walk it. The render loop, `query` and Python all come here.
 
+use glam::Vec3;
 use zeroset_primitives::root::uncertain_while;
 use zeroset_primitives::{Aabb, Bvh, Interval, RawHit, Ray};
 
@@ -180,24 +181,32 @@ impl Scene {
     }
 
     /// [`Scene::intersect`] in a scene whose lone object `object` has the `pieces`, for a ray
-    /// that can only meet the pieces `candidates` (see [`zeroset_primitives::Pieces`]). A
-    /// direction that needs rescaling takes [`Scene::intersect`] itself.
+    /// that can only meet the pieces `candidates` (see [`zeroset_primitives::Pieces`]), with,
+    /// where `NORMAL` asks for it and the pieces work it out along the way, the hit's
+    /// `normal_at_f32` ([`zeroset_primitives::Pieces::intersect_pieces_nearest_first_with_normal`]).
+    /// A direction that needs rescaling takes [`Scene::intersect`] itself.
     #[inline]
-    pub(crate) fn intersect_lone_pieces(
+    pub(crate) fn intersect_lone_pieces<const NORMAL: bool>(
         &self,
         object: u32,
         pieces: &dyn zeroset_primitives::Pieces,
         ray: &Ray,
         range: Interval,
         candidates: &[(u32, f32)],
-    ) -> Option<(u32, RawHit)> {
+    ) -> Option<(u32, RawHit, Option<Vec3>)> {
         debug_assert_eq!(self.lone_object(), Some(object));
         if scaled_direction_size(ray).is_some() {
-            return self.intersect(ray, range);
+            return self.intersect(ray, range).map(|(object, raw)| (object, raw, None));
         }
-        pieces
-            .intersect_pieces_nearest_first(ray, range, candidates)
-            .map(|raw| (object, raw))
+        if NORMAL {
+            pieces
+                .intersect_pieces_nearest_first_with_normal(ray, range, candidates)
+                .map(|(raw, normal)| (object, raw, normal))
+        } else {
+            pieces
+                .intersect_pieces_nearest_first(ray, range, candidates)
+                .map(|raw| (object, raw, None))
+        }
     }
 
     /// Whether some object has infinite bounds (a plane): tested by every ray.

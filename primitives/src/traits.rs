@@ -305,6 +305,20 @@ pub trait Pieces: Sync {
         let numbers: Vec<u32> = candidates.iter().map(|&(number, _)| number).collect();
         self.intersect_pieces(ray, range, &numbers)
     }
+
+    /// [`Pieces::intersect_pieces_nearest_first`], and with the hit the normal
+    /// [`Intersect::normal_at_f32`] gives for it, bit for bit, where the type works it out along
+    /// the way (a mesh: from the triangle's rows the hit was found in, before they leave the
+    /// cache); `None` in its place where not (the default).
+    fn intersect_pieces_nearest_first_with_normal(
+        &self,
+        ray: &Ray,
+        range: Interval,
+        candidates: &[(u32, f32)],
+    ) -> Option<(RawHit, Option<Vec3>)> {
+        self.intersect_pieces_nearest_first(ray, range, candidates)
+            .map(|hit| (hit, None))
+    }
 }
 
 /// What a caller of [`Pieces::piece_numbers_kept`] needs of the pieces lying inside a box.

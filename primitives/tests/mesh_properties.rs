@@ -433,3 +433,61 @@ fn f32_normals_are_the_exact_normals_rounded() {
         assert_eq!(mesh.normal_at(&ray, &past), DVec3::ZERO);
     }
 }
+
+/// The normal the pieces find with the hit (`intersect_pieces_nearest_first_with_normal`, which
+/// the renderer's pixel bins use) is `normal_at_f32`'s for that hit, bit for bit, and the hit is
+/// `intersect`'s: on a height field small enough to keep the normals' table and on one past the
+/// size up to which the table is kept (there the normal is normalised from the plane the hit's
+/// `t` was found on). Rays from above, toward random points of the field and past its edges.
+#[test]
+fn normals_found_with_the_hit_are_normal_at_f32() {
+    let mut rng = StdRng::seed_from_u64(0x6869_746e);
+    // 2·39² = 3,042 triangles, and 2·363² = 263,538 > 2¹⁸
+    for side in [40usize, 364] {
+        let at = |i: usize| -1.0 + 2.0 * i as f32 / (side - 1) as f32;
+        let mut vertices = Vec::with_capacity(side * side);
+        for j in 0..side {
+            for i in 0..side {
+                let (x, y) = (at(i), at(j));
+                let z = 0.05 * (3.0 * x).sin() * (2.0 * y).cos() + 0.002 * rng.random_range(-1.0f32..1.0);
+                vertices.push([x, y, z]);
+            }
+        }
+        let index = |i: usize, j: usize| (j * side + i) as u32;
+        let mut tris = Vec::with_capacity(2 * (side - 1) * (side - 1));
+        for j in 0..side - 1 {
+            for i in 0..side - 1 {
+                tris.push([index(i, j), index(i + 1, j), index(i + 1, j + 1)]);
+                tris.push([index(i, j), index(i + 1, j + 1), index(i, j + 1)]);
+            }
+        }
+        let mesh = Mesh::new(vertices, tris, None).unwrap();
+        let pieces = mesh.pieces().unwrap();
+        // every piece, each with distance 0 (a lower bound on any distance): all are tested
+        let listed: Vec<(u32, f32)> = pieces.piece_numbers().into_iter().map(|n| (n, 0.0)).collect();
+        let mut hits = 0;
+        for trial in 0..200 {
+            let origin = DVec3::new(rng.random_range(-1.2..1.2), rng.random_range(-1.2..1.2), 2.0);
+            let target = DVec3::new(rng.random_range(-1.1..1.1), rng.random_range(-1.1..1.1), 0.0);
+            let ray = Ray::new(origin, target - origin);
+            let range = Interval::POSITIVE;
+            let walk = mesh.intersect(&ray, range);
+            let found = pieces.intersect_pieces_nearest_first_with_normal(&ray, range, &listed);
+            assert_eq!(found.map(|(hit, _)| hit), walk, "side {side}, trial {trial}");
+            if let Some((hit, normal)) = found {
+                hits += 1;
+                let normal = normal.expect("a mesh finds the normal with the hit");
+                assert_eq!(
+                    normal.to_array().map(f32::to_bits),
+                    mesh.normal_at_f32(&ray, &hit).to_array().map(f32::to_bits),
+                    "side {side}, trial {trial}"
+                );
+                assert!(
+                    (normal.length() - 1.0).abs() < 1e-6,
+                    "side {side}, trial {trial}: {normal}"
+                );
+            }
+        }
+        assert!(hits > 150, "side {side}: {hits} hits");
+    }
+}

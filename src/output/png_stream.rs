@@ -58,10 +58,11 @@ enum Progress {
 /// values for positive numbers) gives the bin holding the wanted rank, and only that bin's
 /// depths are selected from.
 struct DepthPlane {
-    /// Per pixel: the depth if counted, else NaN.
-    counted: Vec<f32>,
-    /// Per pixel: `ln z` if coloured, else NaN.
-    logs: Vec<f32>,
+    /// Per pixel: the depth `z` if coloured, `−z` if counted but not coloured (a counted depth is
+    /// positive), NaN if not counted. The logarithms of the coloured ones are taken when the
+    /// preview is coloured ([`DepthPlane::log`]), in parallel, not pixel by pixel as the bands
+    /// are written in order.
+    depths: Vec<f32>,
     /// Counted depths per bin of `bits >> 16`.
     histogram: Vec<u64>,
     /// The nearest counted depth (`+∞` before any).
@@ -71,8 +72,7 @@ struct DepthPlane {
 impl DepthPlane {
     fn with_capacity(pixels: usize) -> Self {
         Self {
-            counted: Vec::with_capacity(pixels),
-            logs: Vec::with_capacity(pixels),
+            depths: Vec::with_capacity(pixels),
             histogram: vec![0; 1 << 16],
             nearest: f32::INFINITY,
         }
@@ -84,8 +84,21 @@ impl DepthPlane {
             self.histogram[(z.to_bits() >> 16) as usize] += 1;
             self.nearest = self.nearest.min(z);
         }
-        self.counted.push(if counts { z } else { f32::NAN });
-        self.logs.push(if counts && hit { z.ln() } else { f32::NAN });
+        self.depths.push(match (counts, hit) {
+            (true, true) => z,
+            (true, false) => -z,
+            (false, _) => f32::NAN,
+        });
+    }
+
+    /// `ln z` of pixel `i` if coloured, else NaN.
+    fn log(&self, i: usize) -> f32 {
+        let z = self.depths[i];
+        if z > 0.0 {
+            z.ln()
+        } else {
+            f32::NAN
+        }
     }
 
     /// `(ln nearest, ln percentile − ln nearest)`, as `depth_scale` computes it over all depths.
@@ -99,9 +112,9 @@ impl DepthPlane {
                 bin += 1;
             }
             let mut members: Vec<f32> = self
-                .counted
+                .depths
                 .par_iter()
-                .copied()
+                .map(|z| z.abs())
                 .filter(|z| !z.is_nan() && (z.to_bits() >> 16) as usize == bin)
                 .collect();
             *members.select_nth_unstable_by(rank - below, f32::total_cmp).1
@@ -175,10 +188,8 @@ impl PreviewStream {
             }
             Progress::Depths(plane) => {
                 let scale = plane.scale();
-                drop(plane.counted);
-                let logs = plane.logs;
                 save(self.width, self.height, &self.path, |i| {
-                    depth_pixel_of_log(logs[i], scale)
+                    depth_pixel_of_log(plane.log(i), scale)
                 })
             }
         }
@@ -190,16 +201,30 @@ impl BandSink for PreviewStream {
     fn prepare(&self, _first_row: u32, rows: &[f32]) -> Result<Vec<u8>> {
         let (o, stride) = (self.offset, self.stride);
         let pixels = rows.chunks_exact(stride);
-        Ok(match self.aov {
-            Aov::Depth => Vec::new(),
-            Aov::Beauty => pixels
-                .flat_map(|p| {
-                    let uncovered = self.alpha.map_or(0.0, |a| 1.0 - p[a]);
+        if self.aov == Aov::Depth {
+            return Ok(Vec::new());
+        }
+        // every byte written below (a flattened collect grew its vector byte by byte)
+        let mut bytes = vec![0u8; 3 * pixels.len()];
+        let out = bytes.chunks_exact_mut(3);
+        if self.aov == Aov::Beauty {
+            // a pixel nothing covers (`A = 0`, no colour) shows the background: the same bytes
+            // for every such pixel, those `beauty_pixel` gives it (`±0 + 1·background`)
+            let uncovered_bytes = beauty_pixel(&self.table, &[0.0; 3], 1.0, self.background);
+            for (rgb, p) in out.zip(pixels) {
+                let uncovered = self.alpha.map_or(0.0, |a| 1.0 - p[a]);
+                rgb.copy_from_slice(&if uncovered == 1.0 && p[o..o + 3] == [0.0; 3] {
+                    uncovered_bytes
+                } else {
                     beauty_pixel(&self.table, &p[o..], uncovered, self.background)
-                })
-                .collect(),
-            _ => pixels.flat_map(|p| normal_pixel(&p[o..])).collect(),
-        })
+                });
+            }
+        } else {
+            for (rgb, p) in out.zip(pixels) {
+                rgb.copy_from_slice(&normal_pixel(&p[o..]));
+            }
+        }
+        Ok(bytes)
     }
 
     fn write(&self, _first_row: u32, rows: &[f32], prepared: Vec<u8>) -> Result<()> {
@@ -246,8 +271,16 @@ mod tests {
                     counted.push(z);
                 }
                 // a coloured pixel holds ln z, the others NaN
-                let log = plane.logs[i];
+                let log = plane.log(i);
                 assert_eq!(log.is_nan(), !(hit && z.is_finite() && z > 0.0), "{i}");
+                let counted = plane.depths[i].abs();
+                assert_eq!(counted.is_nan(), !(z.is_finite() && z > 0.0), "{i}");
+                if !log.is_nan() {
+                    assert_eq!(log.to_bits(), z.ln().to_bits(), "{i}");
+                }
+                if !counted.is_nan() {
+                    assert_eq!(counted.to_bits(), z.to_bits(), "{i}");
+                }
             }
             let (a, b) = (plane.scale(), depth_scale(&mut counted));
             assert_eq!(

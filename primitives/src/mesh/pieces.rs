@@ -20,6 +20,7 @@ use crate::bvh::{cull_bound, Quad};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Pieces, Wanted};
+use glam::Vec3;
 
 impl Mesh {
     /// The node and slot of the leaf numbered `number`, if one is.
@@ -76,37 +77,78 @@ impl Mesh {
 }
 
 /// The candidates `listed()` of `mesh` (`(number, near)`, see [`Mesh::closest_among`]; `empty`
-/// where there are none): the ray's set-up, the copy for its axes, the f64 `t`.
+/// where there are none): the ray's set-up, the copy for its axes, then the closest candidate
+/// handed to `finish` (with the ray's query).
 #[inline(always)]
-fn among_listed<I: Iterator<Item = (u32, Option<f32>)>>(
+fn among_listed<I: Iterator<Item = (u32, Option<f32>)>, R>(
     mesh: &Mesh,
     ray: &Ray,
     range: Interval,
     empty: bool,
     listed: impl Fn() -> I,
-) -> Option<RawHit> {
+    finish: impl FnOnce(&MeshQuery, Option<Candidate>) -> Option<R>,
+) -> Option<R> {
     if empty {
         return None;
     }
     let query = mesh.entry(ray, range)?.query();
     let best = by_axes!(query.ray.k, mesh.closest_among(ray, range, &query, listed()));
-    mesh.finish(ray, range, &query, best)
+    finish(&query, best)
 }
 
-/// [`Pieces::intersect_pieces`] of `mesh` ([`among_listed`], every candidate tested).
+/// [`Pieces::intersect_pieces`] of `mesh` ([`among_listed`], every candidate tested, the f64
+/// `t` worked out).
 #[inline(always)]
 fn among(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<RawHit> {
-    among_listed(mesh, ray, range, candidates.is_empty(), || {
-        candidates.iter().map(|&number| (number, None))
-    })
+    among_listed(
+        mesh,
+        ray,
+        range,
+        candidates.is_empty(),
+        || candidates.iter().map(|&number| (number, None)),
+        |query, best| mesh.finish(ray, range, query, best),
+    )
 }
 
 /// [`Pieces::intersect_pieces_nearest_first`] of `mesh` ([`among_listed`], the list ending where
-/// the candidates lie beyond the closest hit so far).
+/// the candidates lie beyond the closest hit so far), finished by `finish`.
 #[inline(always)]
-fn among_nearest_first(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[(u32, f32)]) -> Option<RawHit> {
-    among_listed(mesh, ray, range, candidates.is_empty(), || {
-        candidates.iter().map(|&(number, near)| (number, Some(near)))
+fn among_nearest_first<R>(
+    mesh: &Mesh,
+    ray: &Ray,
+    range: Interval,
+    candidates: &[(u32, f32)],
+    finish: impl FnOnce(&MeshQuery, Option<Candidate>) -> Option<R>,
+) -> Option<R> {
+    among_listed(
+        mesh,
+        ray,
+        range,
+        candidates.is_empty(),
+        || candidates.iter().map(|&(number, near)| (number, Some(near))),
+        finish,
+    )
+}
+
+/// [`among_nearest_first`] giving the raw hit ([`Mesh::finish`]).
+#[inline(always)]
+fn nearest_first(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[(u32, f32)]) -> Option<RawHit> {
+    among_nearest_first(mesh, ray, range, candidates, |query, best| {
+        mesh.finish(ray, range, query, best)
+    })
+}
+
+/// [`among_nearest_first`] giving the raw hit and its f32 normal ([`Mesh::finish_with_normal`]).
+#[inline(always)]
+fn nearest_first_with_normal(
+    mesh: &Mesh,
+    ray: &Ray,
+    range: Interval,
+    candidates: &[(u32, f32)],
+) -> Option<(RawHit, Option<Vec3>)> {
+    among_nearest_first(mesh, ray, range, candidates, |query, best| {
+        mesh.finish_with_normal(ray, range, query, best)
+            .map(|(hit, normal)| (hit, Some(normal)))
     })
 }
 
@@ -142,9 +184,24 @@ impl Pieces for Mesh {
         ) -> Option<RawHit>)
     }
 
-    /// [`among_nearest_first`] in its AVX2+FMA copy where the CPU has them.
+    /// [`nearest_first_with_normal`] in its AVX2+FMA copy where the CPU has them.
+    fn intersect_pieces_nearest_first_with_normal(
+        &self,
+        ray: &Ray,
+        range: Interval,
+        candidates: &[(u32, f32)],
+    ) -> Option<(RawHit, Option<Vec3>)> {
+        crate::with_fma!(nearest_first_with_normal(
+            mesh: &Mesh = self,
+            ray: &Ray = ray,
+            range: Interval = range,
+            candidates: &[(u32, f32)] = candidates,
+        ) -> Option<(RawHit, Option<Vec3>)>)
+    }
+
+    /// [`nearest_first`] in its AVX2+FMA copy where the CPU has them.
     fn intersect_pieces_nearest_first(&self, ray: &Ray, range: Interval, candidates: &[(u32, f32)]) -> Option<RawHit> {
-        crate::with_fma!(among_nearest_first(
+        crate::with_fma!(nearest_first(
             mesh: &Mesh = self,
             ray: &Ray = ray,
             range: Interval = range,
