@@ -659,15 +659,15 @@ fn write_pixel_knowing(
     hit: Option<(u32, RawHit)>,
     known_normal: Option<Vec3>,
 ) {
-    let record_free = |pixel: &mut [f32], normal: bool, headlight: bool| match (normal, headlight) {
-        (false, _) => write_without_record::<false, false>(pixel, scene, context, ray, hit, None),
-        (true, false) => write_without_record::<true, false>(pixel, scene, context, ray, hit, known_normal),
-        (true, true) => write_without_record::<true, true>(pixel, scene, context, ray, hit, known_normal),
-    };
+    // (no closure for these three: left to the compiler, one was not inlined)
     match context.record_free {
-        RecordFree::Scalars => return record_free(pixel, false, false),
-        RecordFree::WithNormal => return record_free(pixel, true, false),
-        RecordFree::WithHeadlight => return record_free(pixel, true, true),
+        RecordFree::Scalars => return write_without_record::<false, false>(pixel, scene, context, ray, hit, None),
+        RecordFree::WithNormal => {
+            return write_without_record::<true, false>(pixel, scene, context, ray, hit, known_normal)
+        }
+        RecordFree::WithHeadlight => {
+            return write_without_record::<true, true>(pixel, scene, context, ray, hit, known_normal)
+        }
         RecordFree::No => {}
     }
     #[allow(clippy::manual_map, reason = "no closure: see `completed`")]

@@ -77,68 +77,61 @@ impl Mesh {
 }
 
 /// The candidates `listed()` of `mesh` (`(number, near)`, see [`Mesh::closest_among`]; `empty`
-/// where there are none): the ray's set-up, the copy for its axes, then the closest candidate
-/// handed to `finish` (with the ray's query).
+/// where there are none): the ray's set-up, the copy for its axes, the f64 `t`, and where
+/// `NORMAL` asks for it the hit's f32 normal ([`Mesh::finish_with_normal`]). (No closure to
+/// finish with: left to the compiler, one was not inlined.)
 #[inline(always)]
-fn among_listed<I: Iterator<Item = (u32, Option<f32>)>, R>(
+fn among_listed<const NORMAL: bool, I: Iterator<Item = (u32, Option<f32>)>>(
     mesh: &Mesh,
     ray: &Ray,
     range: Interval,
     empty: bool,
     listed: impl Fn() -> I,
-    finish: impl FnOnce(&MeshQuery, Option<Candidate>) -> Option<R>,
-) -> Option<R> {
+) -> Option<(RawHit, Option<Vec3>)> {
     if empty {
         return None;
     }
     let query = mesh.entry(ray, range)?.query();
     let best = by_axes!(query.ray.k, mesh.closest_among(ray, range, &query, listed()));
-    finish(&query, best)
+    if NORMAL {
+        let (hit, normal) = mesh.finish_with_normal(ray, range, &query, best)?;
+        Some((hit, Some(normal)))
+    } else {
+        Some((mesh.finish(ray, range, &query, best)?, None))
+    }
 }
 
-/// [`Pieces::intersect_pieces`] of `mesh` ([`among_listed`], every candidate tested, the f64
-/// `t` worked out).
+/// [`Pieces::intersect_pieces`] of `mesh` ([`among_listed`], every candidate tested).
 #[inline(always)]
 fn among(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[u32]) -> Option<RawHit> {
-    among_listed(
-        mesh,
-        ray,
-        range,
-        candidates.is_empty(),
-        || candidates.iter().map(|&number| (number, None)),
-        |query, best| mesh.finish(ray, range, query, best),
-    )
+    let found = among_listed::<false, _>(mesh, ray, range, candidates.is_empty(), || {
+        candidates.iter().map(|&number| (number, None))
+    });
+    Some(found?.0)
 }
 
 /// [`Pieces::intersect_pieces_nearest_first`] of `mesh` ([`among_listed`], the list ending where
-/// the candidates lie beyond the closest hit so far), finished by `finish`.
+/// the candidates lie beyond the closest hit so far), with the hit's normal where `NORMAL`
+/// asks for it.
 #[inline(always)]
-fn among_nearest_first<R>(
+fn among_nearest_first<const NORMAL: bool>(
     mesh: &Mesh,
     ray: &Ray,
     range: Interval,
     candidates: &[(u32, f32)],
-    finish: impl FnOnce(&MeshQuery, Option<Candidate>) -> Option<R>,
-) -> Option<R> {
-    among_listed(
-        mesh,
-        ray,
-        range,
-        candidates.is_empty(),
-        || candidates.iter().map(|&(number, near)| (number, Some(near))),
-        finish,
-    )
-}
-
-/// [`among_nearest_first`] giving the raw hit ([`Mesh::finish`]).
-#[inline(always)]
-fn nearest_first(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[(u32, f32)]) -> Option<RawHit> {
-    among_nearest_first(mesh, ray, range, candidates, |query, best| {
-        mesh.finish(ray, range, query, best)
+) -> Option<(RawHit, Option<Vec3>)> {
+    among_listed::<NORMAL, _>(mesh, ray, range, candidates.is_empty(), || {
+        candidates.iter().map(|&(number, near)| (number, Some(near)))
     })
 }
 
-/// [`among_nearest_first`] giving the raw hit and its f32 normal ([`Mesh::finish_with_normal`]).
+/// [`among_nearest_first`], the raw hit alone.
+#[inline(always)]
+fn nearest_first(mesh: &Mesh, ray: &Ray, range: Interval, candidates: &[(u32, f32)]) -> Option<RawHit> {
+    Some(among_nearest_first::<false>(mesh, ray, range, candidates)?.0)
+}
+
+/// [`among_nearest_first`] with the hit's f32 normal.
 #[inline(always)]
 fn nearest_first_with_normal(
     mesh: &Mesh,
@@ -146,10 +139,7 @@ fn nearest_first_with_normal(
     range: Interval,
     candidates: &[(u32, f32)],
 ) -> Option<(RawHit, Option<Vec3>)> {
-    among_nearest_first(mesh, ray, range, candidates, |query, best| {
-        mesh.finish_with_normal(ray, range, query, best)
-            .map(|(hit, normal)| (hit, Some(normal)))
-    })
+    among_nearest_first::<true>(mesh, ray, range, candidates)
 }
 
 impl Pieces for Mesh {
