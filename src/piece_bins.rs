@@ -239,11 +239,34 @@ impl<'a> PieceBins<'a> {
     }
 
     /// [`Scene::intersect`]`(ray, range)` for the ray of a pixel whose pieces are `candidates`
-    /// (nearest first, each with its [`Seen::near`]), and where `NORMAL` asks for it, the hit's
-    /// `normal_at_f32` if a lone object's pieces work it out along the way
-    /// ([`Scene::intersect_lone_pieces`]).
+    /// (nearest first, each with its [`Seen::near`]).
     #[inline]
-    pub(crate) fn intersect<const NORMAL: bool>(
+    pub(crate) fn intersect(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        range: Interval,
+        candidates: &[Listed],
+    ) -> Option<(u32, RawHit)> {
+        match &self.source {
+            Source::Lone { object, pieces } => scene
+                .intersect_lone_pieces::<false>(*object, *pieces, ray, range, candidates)
+                .map(|(object, raw, _)| (object, raw)),
+            Source::Objects { always } => scene.intersect_candidates(ray, range, always, candidates),
+        }
+    }
+
+    /// Whether the pieces are a lone object's, which may find the hit's normal with the hit
+    /// ([`PieceBins::intersect_lone_with_normal`]).
+    pub(crate) fn lone(&self) -> bool {
+        matches!(self.source, Source::Lone { .. })
+    }
+
+    /// [`PieceBins::intersect`] where the pieces are a lone object's ([`PieceBins::lone`]), with
+    /// the hit's `normal_at_f32` if the pieces work it out along the way
+    /// ([`Scene::intersect_lone_pieces`]); `None` for bins of several objects.
+    #[inline]
+    pub(crate) fn intersect_lone_with_normal(
         &self,
         scene: &Scene,
         ray: &Ray,
@@ -252,11 +275,9 @@ impl<'a> PieceBins<'a> {
     ) -> Option<(u32, RawHit, Option<Vec3>)> {
         match &self.source {
             Source::Lone { object, pieces } => {
-                scene.intersect_lone_pieces::<NORMAL>(*object, *pieces, ray, range, candidates)
+                scene.intersect_lone_pieces::<true>(*object, *pieces, ray, range, candidates)
             }
-            Source::Objects { always } => scene
-                .intersect_candidates(ray, range, always, candidates)
-                .map(|(object, raw)| (object, raw, None)),
+            Source::Objects { .. } => None,
         }
     }
 }

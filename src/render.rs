@@ -583,6 +583,7 @@ fn render_rows_binned(
     let (mut band, mut row_bins) = (BandBins::default(), RowBins::default());
     bins.band(y, rows, x0, width, &mut band);
     let every_pixel = bins.tests_every_pixel();
+    let normal_with_hit = bins.lone() && context.record_free.writes_normal();
     let pixel_rays = camera.pixel_rays(x0, width);
     let mut ray = Ray::new(DVec3::ZERO, DVec3::ZERO);
     let mut directions = Vec::new();
@@ -600,11 +601,12 @@ fn render_rows_binned(
             }
             match row_rays.ray_into(column, &mut ray) {
                 Ok(()) => {
-                    // the normal with the hit where the pixel writes one and the pieces find it
-                    let (hit, normal) = if context.record_free.writes_normal() {
-                        split_normal(bins.intersect::<true>(scene, &ray, Interval::POSITIVE, candidates))
+                    // the normal with the hit where the pixel writes one and a lone object's
+                    // pieces find it (bins of several objects keep one call of their test)
+                    let (hit, normal) = if normal_with_hit {
+                        split_normal(bins.intersect_lone_with_normal(scene, &ray, Interval::POSITIVE, candidates))
                     } else {
-                        split_normal(bins.intersect::<false>(scene, &ray, Interval::POSITIVE, candidates))
+                        (bins.intersect(scene, &ray, Interval::POSITIVE, candidates), None)
                     };
                     write_pixel_knowing(pixel, scene, context, &ray, hit, normal);
                 }
