@@ -42,6 +42,13 @@ pub(crate) struct SrgbTable {
 const SRGB_BUCKETS: usize = (0x3F80_0000 >> 16) as usize;
 
 impl SrgbTable {
+    /// The table, made once per process, when first asked for (about a millisecond's work, which
+    /// every preview used to repeat, the depth and normal previews without using it).
+    pub(crate) fn shared() -> &'static Self {
+        static TABLE: std::sync::OnceLock<SrgbTable> = std::sync::OnceLock::new();
+        TABLE.get_or_init(Self::new)
+    }
+
     pub(crate) fn new() -> Self {
         let mut thresholds = [0.0; 255];
         for (k, t) in thresholds.iter_mut().enumerate() {
@@ -212,10 +219,10 @@ fn write_preview(frame: &Frame, aov: Aov, path: &Path, background: [f32; 3]) -> 
     let (w, h) = (frame.window.width(), frame.window.height());
     match aov {
         Aov::Beauty => {
-            let table = SrgbTable::new();
+            let table = SrgbTable::shared();
             save(w, h, path, |i| {
                 let uncovered = alpha.map_or(0.0, |a| 1.0 - frame.samples[i * stride + a]);
-                beauty_pixel(&table, &frame.samples[i * stride + o..], uncovered, background)
+                beauty_pixel(table, &frame.samples[i * stride + o..], uncovered, background)
             })
         }
         Aov::Depth => {

@@ -36,7 +36,7 @@ pub struct PreviewStream {
     width: u32,
     height: u32,
     background: [f32; 3],
-    table: SrgbTable,
+    table: &'static SrgbTable,
     state: Mutex<Progress>,
 }
 
@@ -164,7 +164,7 @@ impl PreviewStream {
             width,
             height,
             background,
-            table: SrgbTable::new(),
+            table: SrgbTable::shared(),
             state: Mutex::new(state),
         })
     }
@@ -210,13 +210,13 @@ impl BandSink for PreviewStream {
         if self.aov == Aov::Beauty {
             // a pixel nothing covers (`A = 0`, no colour) shows the background: the same bytes
             // for every such pixel, those `beauty_pixel` gives it (`±0 + 1·background`)
-            let uncovered_bytes = beauty_pixel(&self.table, &[0.0; 3], 1.0, self.background);
+            let uncovered_bytes = beauty_pixel(self.table, &[0.0; 3], 1.0, self.background);
             for (rgb, p) in out.zip(pixels) {
                 let uncovered = self.alpha.map_or(0.0, |a| 1.0 - p[a]);
                 rgb.copy_from_slice(&if uncovered == 1.0 && p[o..o + 3] == [0.0; 3] {
                     uncovered_bytes
                 } else {
-                    beauty_pixel(&self.table, &p[o..], uncovered, self.background)
+                    beauty_pixel(self.table, &p[o..], uncovered, self.background)
                 });
             }
         } else {
