@@ -37,7 +37,7 @@
 //! few tens of bytes per piece: on a machine where first touching a page costs microseconds,
 //! per-row lists of a million-triangle mesh's pieces would take longer to write than to use.
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 use rayon::prelude::*;
 use zeroset_primitives::{Aabb, Interval, Pieces, RawHit, Ray, Wanted};
 
@@ -256,27 +256,11 @@ impl<'a> PieceBins<'a> {
         }
     }
 
-    /// Whether the pieces are a lone object's, which may find the hit's normal with the hit
-    /// ([`PieceBins::intersect_lone_with_normal`]).
-    pub(crate) fn lone(&self) -> bool {
-        matches!(self.source, Source::Lone { .. })
-    }
-
-    /// [`PieceBins::intersect`] where the pieces are a lone object's ([`PieceBins::lone`]), with
-    /// the hit's `normal_at_f32` if the pieces work it out along the way
-    /// ([`Scene::intersect_lone_pieces`]); `None` for bins of several objects.
-    #[inline]
-    pub(crate) fn intersect_lone_with_normal(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        range: Interval,
-        candidates: &[Listed],
-    ) -> Option<(u32, RawHit, Option<Vec3>)> {
-        match &self.source {
-            Source::Lone { object, pieces } => {
-                scene.intersect_lone_pieces::<true>(*object, *pieces, ray, range, candidates)
-            }
+    /// The lone object and its pieces, where the bins list a lone object's pieces: the caller
+    /// may then ask them for the hit's normal with the hit ([`Scene::intersect_lone_pieces`]).
+    pub(crate) fn lone(&self) -> Option<(u32, &'a dyn Pieces)> {
+        match self.source {
+            Source::Lone { object, pieces } => Some((object, pieces)),
             Source::Objects { .. } => None,
         }
     }

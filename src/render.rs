@@ -583,7 +583,8 @@ fn render_rows_binned(
     let (mut band, mut row_bins) = (BandBins::default(), RowBins::default());
     bins.band(y, rows, x0, width, &mut band);
     let every_pixel = bins.tests_every_pixel();
-    let normal_with_hit = bins.lone() && context.record_free.writes_normal();
+    // a lone object's pieces, where the pixels write the normal: asked for it with the hit
+    let normal_with_hit = bins.lone().filter(|_| context.record_free.writes_normal());
     let pixel_rays = camera.pixel_rays(x0, width);
     let mut ray = Ray::new(DVec3::ZERO, DVec3::ZERO);
     let mut directions = Vec::new();
@@ -603,10 +604,15 @@ fn render_rows_binned(
                 Ok(()) => {
                     // the normal with the hit where the pixel writes one and a lone object's
                     // pieces find it (bins of several objects keep one call of their test)
-                    let (hit, normal) = if normal_with_hit {
-                        split_normal(bins.intersect_lone_with_normal(scene, &ray, Interval::POSITIVE, candidates))
-                    } else {
-                        (bins.intersect(scene, &ray, Interval::POSITIVE, candidates), None)
+                    let (hit, normal) = match normal_with_hit {
+                        Some((object, pieces)) => split_normal(scene.intersect_lone_pieces::<true>(
+                            object,
+                            pieces,
+                            &ray,
+                            Interval::POSITIVE,
+                            candidates,
+                        )),
+                        None => (bins.intersect(scene, &ray, Interval::POSITIVE, candidates), None),
                     };
                     write_pixel_knowing(pixel, scene, context, &ray, hit, normal);
                 }
@@ -635,7 +641,7 @@ fn render_pixel(scene: &Scene, context: &RowContext, x: u32, y: u32, pixel: &mut
     flag_uncertain(pixel, context, exhausted_before);
 }
 
-/// The hit of [`PieceBins::intersect`] and the normal it may come with.
+/// The hit of [`Scene::intersect_lone_pieces`] and the normal it may come with.
 #[inline(always)]
 fn split_normal(found: Option<(u32, RawHit, Option<Vec3>)>) -> (Option<(u32, RawHit)>, Option<Vec3>) {
     match found {

@@ -1238,11 +1238,21 @@ impl Mesh {
         best: Option<Candidate>,
     ) -> Option<(RawHit, glam::Vec3)> {
         let (hit, n) = self.finish_on_plane(ray, range, query, best?)?;
-        let normal = match self.unit_normals.get(hit.feature as usize) {
-            Some(&unit) => glam::Vec3::from_array(unit),
-            None => n.normalize_or_zero().as_vec3(),
-        };
-        Some((hit, normal))
+        Some((hit, self.unit_normal_f32(hit.feature, || Some(n))))
+    }
+
+    /// The f32 unit normal of triangle `feature` (file order), [`Intersect::normal_at_f32`]'s
+    /// answer: the table's entry where the mesh keeps one, else `plane()` (the triangle's
+    /// unnormalised normal, `None` for no triangle) normalised as `normal_at` does and rounded;
+    /// zero for no triangle.
+    #[inline(always)]
+    fn unit_normal_f32(&self, feature: u32, plane: impl FnOnce() -> Option<DVec3>) -> glam::Vec3 {
+        if self.unit_normals.is_empty() {
+            return plane().map_or(glam::Vec3::ZERO, |n| n.normalize_or_zero().as_vec3());
+        }
+        self.unit_normals
+            .get(feature as usize)
+            .map_or(glam::Vec3::ZERO, |&n| glam::Vec3::from_array(n))
     }
 
     /// The raw hit of the candidate `best` (`t` recomputed in f64 on the triangle's plane) and
@@ -1476,13 +1486,8 @@ impl Intersect for Mesh {
 
     /// The hit triangle's normal from the f32 table made with the mesh (the same rounded
     /// values as `normal_at(…).as_vec3()`); without one (a large mesh), `normal_at` rounded.
-    fn normal_at_f32(&self, ray: &Ray, raw: &RawHit) -> glam::Vec3 {
-        if self.unit_normals.is_empty() {
-            return self.normal_at(ray, raw).as_vec3();
-        }
-        self.unit_normals
-            .get(raw.feature as usize)
-            .map_or(glam::Vec3::ZERO, |&n| glam::Vec3::from_array(n))
+    fn normal_at_f32(&self, _ray: &Ray, raw: &RawHit) -> glam::Vec3 {
+        self.unit_normal_f32(raw.feature, || self.hit_plane(raw).map(|(n, _)| n))
     }
 
     /// The barycentrics `(u, v)` of the hit (see the module docs).
