@@ -115,8 +115,10 @@ pub fn trace_batch(scene: &Scene, rays: &[QueryRay]) -> Vec<QueryHit> {
 /// The order in which a batch's rays are traced. The answers are the same whatever the order;
 /// only the speed differs. `Input` traces each ray alone, as given; `Sorted` sorts the batch
 /// for coherence and traces it in packets of [`PACKET`] neighbouring rays
-/// ([`Scene::intersect_packet`]), which pays where the batch has coherence to recover (rays from
-/// many cameras, shuffled); see the README's "Throughput" for what it gives on random rays.
+/// ([`Scene::intersect_packet`]). On every batch measured (random rays, camera rays in pixel
+/// order or shuffled, many cameras' rays shuffled together) `Input` is the faster: the single-ray
+/// walks lose little to a lack of order, less than sorting costs (see the README's "Command
+/// line", `zeroset query`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum RayOrder {
     /// As given.
