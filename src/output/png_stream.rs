@@ -273,13 +273,14 @@ mod tests {
                 // a coloured pixel holds ln z, the others NaN
                 let log = plane.log(i);
                 assert_eq!(log.is_nan(), !(hit && z.is_finite() && z > 0.0), "{i}");
-                let counted = plane.depths[i].abs();
-                assert_eq!(counted.is_nan(), !(z.is_finite() && z > 0.0), "{i}");
+                // a counted pixel holds ±z, the others NaN
+                let stored = plane.depths[i].abs();
+                assert_eq!(stored.is_nan(), !(z.is_finite() && z > 0.0), "{i}");
                 if !log.is_nan() {
                     assert_eq!(log.to_bits(), z.ln().to_bits(), "{i}");
                 }
-                if !counted.is_nan() {
-                    assert_eq!(counted.to_bits(), z.to_bits(), "{i}");
+                if !stored.is_nan() {
+                    assert_eq!(stored.to_bits(), z.to_bits(), "{i}");
                 }
             }
             let (a, b) = (plane.scale(), depth_scale(&mut counted));
