@@ -18,11 +18,14 @@
 
 use crate::bounds::Aabb;
 use crate::error::PrimitiveError;
-use crate::expr::{Expr, Jet};
+use crate::expr::cells::CellTree;
+use crate::expr::tape::Tape;
+use crate::expr::{coordinates_along, Expr, Jet};
 use crate::hit::RawHit;
+use crate::isolation::{count_outcome, isolate_in, AlongRay, Isolated};
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
-use crate::root::RootOptions;
+use crate::root::{RootOptions, RootReport};
 use crate::traits::{Implicit, Intersect};
 use glam::DVec3;
 use std::fmt;
@@ -30,8 +33,175 @@ use std::sync::Arc;
 
 #[derive(Clone)]
 enum Phi {
-    Expression(Arc<Expr>),
+    Expression(Arc<Compiled>),
     Closure(Arc<dyn Fn(DVec3) -> f64 + Send + Sync>),
+}
+
+/// An expression with its tape and the octree of its box ([`crate::expr::cells`]).
+struct Compiled {
+    expr: Expr,
+    tape: Tape,
+    cells: CellTree,
+}
+
+/// Scratch space of the tape evaluations, one per thread.
+#[derive(Default)]
+struct Scratch {
+    points: Vec<f64>,
+    enclosures: Vec<Enclosure>,
+    jets: Vec<Jet<Enclosure>>,
+    gradients: Vec<Jet<f64>>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+/// Runs `f` with this thread's scratch space (a fresh one if it is already in use).
+fn with_scratch<R>(f: impl FnOnce(&mut Scratch) -> R) -> R {
+    SCRATCH.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut scratch) => f(&mut scratch),
+        Err(_) => f(&mut Scratch::default()),
+    })
+}
+
+/// Φ as [`Function::phi`] reports it: `+∞` where the expression is not finite.
+fn finite_or_outside(v: f64) -> f64 {
+    if v.is_finite() {
+        v
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// `g(t)` on the pieces of a ray inside one leaf of the octree: the leaf's pruned tape where
+/// the points lie in its grown cell (the full tape's values there), the full tape elsewhere.
+struct LeafAlong<'a> {
+    ray: &'a Ray,
+    leaf: &'a Tape,
+    full: &'a Tape,
+    cell_lo: DVec3,
+    cell_hi: DVec3,
+    bounds: &'a Aabb,
+    scratch: &'a mut Scratch,
+}
+
+impl<'a> LeafAlong<'a> {
+    fn tape_for(&self, c: &[Enclosure; 3]) -> &'a Tape {
+        let inside = (0..3).all(|a| c[a].lo >= self.cell_lo[a] && c[a].hi <= self.cell_hi[a]);
+        if inside {
+            self.leaf
+        } else {
+            self.full
+        }
+    }
+}
+
+impl AlongRay for LeafAlong<'_> {
+    fn value(&mut self, piece: Interval) -> Enclosure {
+        match coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) {
+            Some(c) => {
+                let tape = self.tape_for(&c);
+                tape.eval(c, &mut self.scratch.enclosures)
+            }
+            None => Enclosure::point(f64::INFINITY),
+        }
+    }
+
+    fn jet(&mut self, piece: Interval) -> Jet<Enclosure> {
+        match coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) {
+            Some(c) => {
+                let d = self.ray.dir;
+                let vars = [
+                    Jet::new(c[0], Enclosure::point(d.x)),
+                    Jet::new(c[1], Enclosure::point(d.y)),
+                    Jet::new(c[2], Enclosure::point(d.z)),
+                ];
+                let tape = self.tape_for(&c);
+                tape.eval(vars, &mut self.scratch.jets)
+            }
+            None => Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE),
+        }
+    }
+
+    fn point(&mut self, t: f64) -> f64 {
+        let p = self.ray.at(t);
+        let tape = if (p.cmpge(self.cell_lo) & p.cmple(self.cell_hi)).all() {
+            self.leaf
+        } else {
+            self.full
+        };
+        finite_or_outside(tape.eval_f64(p.to_array(), &mut self.scratch.points))
+    }
+
+    fn within_boundary(&mut self, _t: f64) -> bool {
+        true
+    }
+}
+
+impl Compiled {
+    /// The first root along `ray` in `segment` (clipped to the grown bounds), walking the
+    /// octree's leaves front to back and isolating in each with its pruned tape; the per-ray
+    /// budget is shared by the leaves. `None` when the octree's margin does not cover the ray's
+    /// rounding (the caller then isolates with the full tape).
+    fn first_root(&self, ray: &Ray, segment: Interval, bounds: &Aabb, options: &RootOptions) -> Option<RootReport> {
+        let far = segment.min.abs().max(segment.max.abs());
+        if !self.cells.margin_covers(ray.origin, ray.dir, far) {
+            return None;
+        }
+        let mut evaluations = 0u32;
+        let mut outcome = Isolated::default();
+        let mut found_in = 0u32;
+        with_scratch(|scratch| {
+            self.cells.walk(
+                ray.origin,
+                ray.dir,
+                segment.min,
+                segment.max,
+                &mut |number, leaf, lo, hi, ta, tb| {
+                    let mut along = LeafAlong {
+                        ray,
+                        leaf,
+                        full: &self.tape,
+                        cell_lo: lo,
+                        cell_hi: hi,
+                        bounds,
+                        scratch: &mut *scratch,
+                    };
+                    let piece = isolate_in(
+                        &mut along,
+                        Interval::new(ta, tb),
+                        options.tolerance,
+                        options.max_evaluations,
+                        &mut evaluations,
+                    );
+                    outcome.undefined_seen |= piece.undefined_seen;
+                    outcome.exhausted = piece.exhausted;
+                    outcome.hit = piece.hit;
+                    found_in = number;
+                    piece.hit.is_some() || piece.exhausted
+                },
+            );
+        });
+        let uncertain = count_outcome(outcome.hit, outcome.exhausted, outcome.undefined_seen);
+        Some(RootReport {
+            // the leaf's number + 1 (0: found without the octree), for the normal
+            hit: outcome.hit.map(|(t, _)| RawHit::on_feature(t, found_in + 1)),
+            lipschitz_violated: false,
+            evaluations,
+            uncertain,
+        })
+    }
+
+    /// ∇Φ at `p`, from the tape of leaf `feature − 1` where `p` lies in its grown cell (the
+    /// same derivatives, see [`crate::expr::tape`]), else from the full tape.
+    fn gradient(&self, p: DVec3, feature: u32) -> DVec3 {
+        let tape = feature
+            .checked_sub(1)
+            .and_then(|leaf| self.cells.tape_at(leaf, p))
+            .unwrap_or(&self.tape);
+        DVec3::from_array(with_scratch(|s| tape.gradient(p.to_array(), &mut s.gradients)))
+    }
 }
 
 /// Φ given by an expression or a closure inside an explicit box (the surface outside the box is
@@ -49,7 +219,7 @@ impl fmt::Debug for Function {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let mut d = f.debug_struct("Function");
         if let Phi::Expression(e) = &self.phi {
-            d.field("phi", &e.source());
+            d.field("phi", &e.expr.source());
         }
         d.field("bounds", &self.bounds)
             .field("lipschitz", &self.lipschitz)
@@ -139,8 +309,10 @@ impl Function {
                 }
             }
         }
+        let tape = expr.compile();
+        let cells = CellTree::new(&tape, bounds.min, bounds.max);
         Ok(Self {
-            phi: Phi::Expression(Arc::new(expr)),
+            phi: Phi::Expression(Arc::new(Compiled { expr, tape, cells })),
             bounds,
             lipschitz: None,
             options,
@@ -165,7 +337,7 @@ impl Function {
     #[must_use]
     pub fn expr(&self) -> Option<&Expr> {
         match &self.phi {
-            Phi::Expression(e) => Some(e),
+            Phi::Expression(e) => Some(&e.expr),
             Phi::Closure(_) => None,
         }
     }
@@ -184,14 +356,7 @@ impl Implicit for Function {
     /// from an expression.
     fn phi(&self, p: DVec3) -> f64 {
         match &self.phi {
-            Phi::Expression(e) => {
-                let v = e.eval(p);
-                if v.is_finite() {
-                    v
-                } else {
-                    f64::INFINITY
-                }
-            }
+            Phi::Expression(e) => finite_or_outside(with_scratch(|s| e.tape.eval_f64(p.to_array(), &mut s.points))),
             Phi::Closure(f) => f(p),
         }
     }
@@ -204,7 +369,7 @@ impl Implicit for Function {
     /// rule of [`Implicit::gradient`]).
     fn gradient(&self, p: DVec3) -> DVec3 {
         match &self.phi {
-            Phi::Expression(e) => e.gradient(p),
+            Phi::Expression(e) => DVec3::from_array(with_scratch(|s| e.tape.gradient(p.to_array(), &mut s.gradients))),
             Phi::Closure(f) => crate::math::central_difference(|q| f(q), p, 6e-6 * self.bounds.diagonal_length()),
         }
     }
@@ -217,8 +382,17 @@ impl Implicit for Function {
         match &self.phi {
             // outside the box there is no surface: a piece that misses it is root-free
             Phi::Expression(e) => Some(
-                e.enclose_along_in(ray, segment, self.bounds.min, self.bounds.max)
-                    .unwrap_or(Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE)),
+                match coordinates_along(ray, segment, self.bounds.min, self.bounds.max) {
+                    Some(c) => {
+                        let vars = [
+                            Jet::new(c[0], Enclosure::point(ray.dir.x)),
+                            Jet::new(c[1], Enclosure::point(ray.dir.y)),
+                            Jet::new(c[2], Enclosure::point(ray.dir.z)),
+                        ];
+                        with_scratch(|s| e.tape.eval(vars, &mut s.jets))
+                    }
+                    None => Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE),
+                },
             ),
             Phi::Closure(_) => None,
         }
@@ -227,8 +401,10 @@ impl Implicit for Function {
     fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> {
         match &self.phi {
             Phi::Expression(e) => Some(
-                e.enclose_value_along_in(ray, segment, self.bounds.min, self.bounds.max)
-                    .unwrap_or(Enclosure::point(f64::INFINITY)),
+                match coordinates_along(ray, segment, self.bounds.min, self.bounds.max) {
+                    Some(c) => with_scratch(|s| e.tape.eval(c, &mut s.enclosures)),
+                    None => Enclosure::point(f64::INFINITY),
+                },
             ),
             Phi::Closure(_) => None,
         }
@@ -236,8 +412,33 @@ impl Implicit for Function {
 }
 
 impl Intersect for Function {
+    /// An expression: the octree's leaves front to back, each isolated with its pruned tape
+    /// (see [`crate::expr::cells`]); a closure: the generic finder.
+    fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        if let Phi::Expression(compiled) = &self.phi {
+            // the clipping of the generic finder ([`crate::root::first_root`])
+            let margin = self.options.tolerance * ray.dir.length();
+            let clipped = self.bounds.expanded(margin).clip(ray, range)?;
+            if !clipped.min.is_finite() || !clipped.max.is_finite() || !ray.is_valid() {
+                return None;
+            }
+            if let Some(report) = compiled.first_root(ray, clipped, &self.bounds, &self.options) {
+                return report.hit;
+            }
+        }
+        crate::root::first_root(self, ray, range, &self.options).hit
+    }
+
     fn root_options(&self) -> RootOptions {
         self.options
+    }
+
+    /// The normalised gradient, from the pruned tape of the leaf the hit was found in.
+    fn normal_at(&self, ray: &Ray, raw: &RawHit) -> DVec3 {
+        match &self.phi {
+            Phi::Expression(compiled) => compiled.gradient(ray.at(raw.t), raw.feature).normalize_or_zero(),
+            Phi::Closure(_) => self.gradient(ray.at(raw.t)).normalize_or_zero(),
+        }
     }
 
     /// The rounding bound of the default plus the root's own uncertainty: the hit lies within

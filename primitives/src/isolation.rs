@@ -72,47 +72,88 @@ fn differ(ga: f64, gb: f64) -> bool {
     ga == 0.0 || gb == 0.0 || (ga < 0.0) != (gb < 0.0)
 }
 
-/// The first root of Φ along `ray` in `segment` (already clipped to the bounds), by interval
-/// isolation (see the module docs). The budget is [`RootOptions::max_evaluations`], counting
-/// enclosures and point values alike.
-pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
-    surface: &I,
-    ray: &Ray,
+/// What the isolation needs of `g(t) = Φ(o + t·d)` on pieces of one ray: enclosures of the
+/// value (and of value and slope together) over a piece, point values, and whether a point of
+/// the zero set belongs to the surface. [`isolate_first_root`] asks an [`Implicit`] type; the
+/// compiled expressions of [`crate::Function`] answer from the tape pruned to the cell a piece
+/// lies in (the same numbers there, see [`crate::expr::tape`]).
+pub(crate) trait AlongRay {
+    /// An enclosure of `g` over `piece` (`ENTIRE` when none is known).
+    fn value(&mut self, piece: Interval) -> Enclosure;
+    /// Enclosures of `g` and `g′` over `piece`.
+    fn jet(&mut self, piece: Interval) -> Jet<Enclosure>;
+    /// `g(t)` in f64.
+    fn point(&mut self, t: f64) -> f64;
+    /// Whether the zero-set point at `t` belongs to the surface.
+    fn within_boundary(&mut self, t: f64) -> bool;
+}
+
+struct ImplicitAlong<'a, I: Implicit + ?Sized> {
+    surface: &'a I,
+    ray: &'a Ray,
+}
+
+impl<I: Implicit + ?Sized> AlongRay for ImplicitAlong<'_, I> {
+    fn value(&mut self, piece: Interval) -> Enclosure {
+        self.surface
+            .enclose_value_along(self.ray, piece)
+            .unwrap_or(Enclosure::ENTIRE)
+    }
+    fn jet(&mut self, piece: Interval) -> Jet<Enclosure> {
+        self.surface
+            .enclose_along(self.ray, piece)
+            .unwrap_or(Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE))
+    }
+    fn point(&mut self, t: f64) -> f64 {
+        self.surface.phi(self.ray.at(t))
+    }
+    fn within_boundary(&mut self, t: f64) -> bool {
+        self.surface.within_boundary(self.ray.at(t))
+    }
+}
+
+/// The outcome of isolating on one segment ([`isolate_in`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Isolated {
+    /// The first root (or undecided touch) and whether it is uncertain (a touch).
+    pub hit: Option<(f64, bool)>,
+    /// The budget ran out before the segment was decided.
+    pub exhausted: bool,
+    /// A piece no wider than the tolerance where Φ may be undefined was skipped.
+    pub undefined_seen: bool,
+}
+
+/// The first root of `g` in `segment` by interval isolation (steps 1–4 of the module docs),
+/// counting enclosures and point values in `evaluations` against `budget`. Nothing is counted
+/// process-wide here: [`count_outcome`] does it once per ray.
+pub(crate) fn isolate_in<P: AlongRay>(
+    along: &mut P,
     segment: Interval,
-    options: &RootOptions,
-) -> RootReport {
-    let tolerance = options.tolerance.max(f64::MIN_POSITIVE);
-    let mut report = RootReport {
-        hit: None,
-        lipschitz_violated: false,
-        evaluations: 0,
-        uncertain: false,
-    };
-    let mut undefined_seen = false;
-    let mut evaluations = 0u32;
-    let point = |t: f64, evaluations: &mut u32| {
+    tolerance: f64,
+    budget: u32,
+    evaluations: &mut u32,
+) -> Isolated {
+    let tolerance = tolerance.max(f64::MIN_POSITIVE);
+    let mut out = Isolated::default();
+    let point = |along: &mut P, t: f64, evaluations: &mut u32| {
         *evaluations = evaluations.saturating_add(1);
-        surface.phi(ray.at(t))
+        along.point(t)
     };
     // pieces to examine, the front one last (popped first)
-    let mut stack: Vec<(f64, f64)> = vec![(segment.min, segment.max)];
+    let mut stack = PieceStack::new((segment.min, segment.max));
     while let Some((a, b)) = stack.pop() {
-        if evaluations >= options.max_evaluations {
-            EXHAUSTED.fetch_add(1, Ordering::Relaxed);
-            crate::root::note_uncertain_on_thread();
-            report.uncertain = true;
+        if *evaluations >= budget {
+            out.exhausted = true;
             break;
         }
         // the value alone first: most pieces (and whole rays that miss) are pruned by it
-        evaluations += 1;
+        *evaluations += 1;
         let piece = Interval::new(a, b);
-        let value = surface.enclose_value_along(ray, piece).unwrap_or(Enclosure::ENTIRE);
+        let value = along.value(piece);
         if !value.undefined && !value.contains_zero() {
             continue; // 1. root-free
         }
-        let enclosure = surface
-            .enclose_along(ray, piece)
-            .unwrap_or(Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE));
+        let enclosure = along.jet(piece);
         let value = enclosure.value;
         let defined = !value.undefined;
         if defined && !value.contains_zero() {
@@ -122,14 +163,14 @@ pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
         let splittable = b - a > tolerance && mid > a && mid < b;
         let (t, uncertain) = if defined && !enclosure.slope.contains_zero() {
             // 2. strictly monotone: a root iff the end values differ in sign
-            let (ga, gb) = (point(a, &mut evaluations), point(b, &mut evaluations));
+            let (ga, gb) = (point(along, a, evaluations), point(along, b, evaluations));
             if differ(ga, gb) {
                 let t = if ga == 0.0 {
                     a
                 } else if gb == 0.0 {
                     b
                 } else {
-                    refine_bracket(|t| point(t, &mut evaluations), (a, ga), (b, gb), tolerance)
+                    refine_bracket(|t| point(along, t, evaluations), (a, ga), (b, gb), tolerance)
                 };
                 (t, false)
             } else {
@@ -141,21 +182,16 @@ pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
             stack.push((a, mid));
             continue;
         } else if !defined {
-            undefined_seen = true;
+            out.undefined_seen = true;
             continue;
         } else {
             // 4. at the tolerance: a crossing, or a touch that cannot be excluded
-            let (ga, gb) = (point(a, &mut evaluations), point(b, &mut evaluations));
+            let (ga, gb) = (point(along, a, evaluations), point(along, b, evaluations));
             let t = if ga.abs() <= gb.abs() { a } else { b };
             (t, !differ(ga, gb))
         };
-        if surface.within_boundary(ray.at(t)) {
-            if uncertain {
-                TANGENT.fetch_add(1, Ordering::Relaxed);
-                crate::root::note_uncertain_on_thread();
-                report.uncertain = true;
-            }
-            report.hit = Some(RawHit::at(t));
+        if along.within_boundary(t) {
+            out.hit = Some((t, uncertain));
             break;
         }
         // not part of the surface: go on after it
@@ -164,10 +200,95 @@ pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
             stack.push((next, b));
         }
     }
+    out
+}
+
+/// A stack of pieces kept in place for the usual depths (a piece list grows by one per halving
+/// level), spilling to the heap past them: no allocation per ray.
+struct PieceStack {
+    inline: [(f64, f64); 64],
+    len: usize,
+    spilled: Vec<(f64, f64)>,
+}
+
+impl PieceStack {
+    fn new(first: (f64, f64)) -> Self {
+        let mut inline = [(0.0, 0.0); 64];
+        inline[0] = first;
+        Self {
+            inline,
+            len: 1,
+            spilled: Vec::new(),
+        }
+    }
+
+    #[inline]
+    fn push(&mut self, piece: (f64, f64)) {
+        if self.len < self.inline.len() {
+            self.inline[self.len] = piece;
+            self.len += 1;
+        } else {
+            self.spilled.push(piece);
+        }
+    }
+
+    #[inline]
+    fn pop(&mut self) -> Option<(f64, f64)> {
+        if let Some(piece) = self.spilled.pop() {
+            return Some(piece);
+        }
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        Some(self.inline[self.len])
+    }
+}
+
+/// Counts a ray's outcome process-wide (and on its thread) once: a touch reported as a hit,
+/// an exhausted budget, pieces skipped as undefined.
+pub(crate) fn count_outcome(hit: Option<(f64, bool)>, exhausted: bool, undefined_seen: bool) -> bool {
+    let mut uncertain = false;
+    if exhausted {
+        EXHAUSTED.fetch_add(1, Ordering::Relaxed);
+        crate::root::note_uncertain_on_thread();
+        uncertain = true;
+    }
+    if let Some((_, true)) = hit {
+        TANGENT.fetch_add(1, Ordering::Relaxed);
+        crate::root::note_uncertain_on_thread();
+        uncertain = true;
+    }
     if undefined_seen {
         UNDEFINED.fetch_add(1, Ordering::Relaxed);
         crate::root::note_uncertain_on_thread();
     }
-    report.evaluations = evaluations;
-    report
+    uncertain
+}
+
+/// The first root of Φ along `ray` in `segment` (already clipped to the bounds), by interval
+/// isolation (see the module docs). The budget is [`RootOptions::max_evaluations`], counting
+/// enclosures and point values alike.
+pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
+    surface: &I,
+    ray: &Ray,
+    segment: Interval,
+    options: &RootOptions,
+) -> RootReport {
+    let mut evaluations = 0u32;
+    let mut along = ImplicitAlong { surface, ray };
+    let out = isolate_in(
+        &mut along,
+        segment,
+        options.tolerance,
+        options.max_evaluations,
+        &mut evaluations,
+    );
+    let uncertain = count_outcome(out.hit, out.exhausted, out.undefined_seen);
+    RootReport {
+        hit: out.hit.map(|(t, _)| RawHit::at(t)),
+        lipschitz_violated: false,
+        evaluations,
+        uncertain,
+    }
 }

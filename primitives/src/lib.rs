@@ -68,6 +68,7 @@ pub mod triangle;
 
 // implicit combinators and user functions
 pub mod csg;
+pub mod field;
 pub mod function;
 
 #[cfg(feature = "testing")]
@@ -99,6 +100,7 @@ pub use triangle::Triangle;
 
 pub use csg::{Csg, CsgOp, Offset, SmoothUnion};
 pub use expr::Expr;
+pub use field::{FieldSurface, ScalarField};
 pub use function::Function;
 pub use isolation::{uncertain_counts, UncertainCounts};
 

@@ -1,16 +1,19 @@
 //! A gyroid sheet clipped by a box.
 //!
 //! `g(p) = sin(ωx)cos(ωy) + sin(ωy)cos(ωz) + sin(ωz)cos(ωx)`; the sheet of half-thickness `τ` is
-//! `|g| − τ/2 ≤ 0`, intersected with the box `|p| ≤ half`: Φ = `max((|g| − τ/2)/(2√3·ω), box
-//! SDF)`, both branches 1-Lipschitz: each component of ∇g is a sum of two products of sines and
-//! cosines times ω, so at most 2ω in size, and `|∇g| ≤ 2√3·ω`. Declaring the bound lets the
-//! generic root finder sphere-trace safely.
+//! `|g| − τ/2 ≤ 0`, intersected with the box `|p| ≤ half`: Φ = `max((|g| − τ/2)/(2√3·ω),
+//! max|pᵢ| − half)`, both branches 1-Lipschitz: each component of ∇g is a sum of two products of sines and
+//! cosines times ω, so at most 2ω in size, and `|∇g| ≤ 2√3·ω`.
+//!
+//! Φ is written once, generically ([`ScalarField`]): the first roots are isolated by interval
+//! arithmetic (no Lipschitz bound needed) and the normals are the exact gradient.
 
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
 use zeroset::registry::{BuildContext, SceneShape};
-use zeroset_primitives::{Aabb, Implicit, Intersect, Primitive, PrimitiveError};
+use zeroset_primitives::expr::Scalar;
+use zeroset_primitives::{Aabb, FieldSurface, Primitive, PrimitiveError, ScalarField};
 
 /// A gyroid sheet of `thickness` at spatial frequency `frequency`, clipped to the cube of
 /// half-size `half_size` centred at the origin.
@@ -25,27 +28,22 @@ pub struct Gyroid {
     pub half_size: f64,
 }
 
-impl Implicit for Gyroid {
-    fn phi(&self, p: DVec3) -> f64 {
-        let w = self.frequency;
-        let (x, y, z) = (w * p.x, w * p.y, w * p.z);
+impl ScalarField for Gyroid {
+    fn phi<T: Scalar>(&self, [px, py, pz]: [T; 3]) -> T {
+        let w = T::constant(self.frequency);
+        let (x, y, z) = (w * px, w * py, w * pz);
         let g = x.sin() * y.cos() + y.sin() * z.cos() + z.sin() * x.cos();
-        let sheet = (g.abs() - 0.5 * self.thickness) / (2.0 * 3f64.sqrt() * w);
-        let q = p.abs() - DVec3::splat(self.half_size);
-        let cube = q.max(DVec3::ZERO).length() + q.max_element().min(0.0);
+        let sheet = (g.abs() - T::constant(0.5 * self.thickness)) / T::constant(2.0 * 3f64.sqrt() * self.frequency);
+        // the cube as max |pᵢ| − half: the cube's zero set and sign, 1-Lipschitz, and
+        // differentiable on its faces (the Euclidean distance's √ is not, at 0)
+        let cube = px.abs().max(py.abs()).max(pz.abs()) - T::constant(self.half_size);
         sheet.max(cube)
     }
 
     fn bounds(&self) -> Aabb {
         Aabb::new(DVec3::splat(-self.half_size), DVec3::splat(self.half_size))
     }
-
-    fn lipschitz(&self) -> Option<f64> {
-        Some(1.0)
-    }
 }
-
-impl Intersect for Gyroid {}
 
 impl SceneShape for Gyroid {
     fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
@@ -65,6 +63,6 @@ impl SceneShape for Gyroid {
                 format!("must lie in (0, 1.5), got {}", self.thickness),
             ));
         }
-        Ok(Arc::new(*self))
+        Ok(Arc::new(FieldSurface::new(*self)))
     }
 }

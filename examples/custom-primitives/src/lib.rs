@@ -3,10 +3,10 @@
 //!
 //! | RON name        | type                 | what the type writes                                        |
 //! |-----------------|----------------------|-------------------------------------------------------------|
-//! | `Torus`         | [`Torus`]            | Φ and bounds only: normals by central differences, hits by the generic root finder |
+//! | `Torus`         | [`Torus`]            | Φ once, generically, and bounds: exact normals, guaranteed first roots |
 //! | `QuarticTorus`  | [`QuarticTorus`]     | the same torus with its analytic gradient and closed-form quartic intersection |
 //! | `Superellipsoid`| [`Superellipsoid`]   | Φ and bounds (Barr's superquadric, rescaled to be distance-like) |
-//! | `Gyroid`        | [`Gyroid`]           | Φ, bounds and a Lipschitz bound: a gyroid sheet clipped by a box |
+//! | `Gyroid`        | [`Gyroid`]           | Φ once, generically, and bounds: a gyroid sheet clipped by a box |
 //!
 //! [`register_all`] registers them; `src/main.rs` is a complete `zeroset` binary with them.
 

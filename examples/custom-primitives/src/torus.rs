@@ -2,12 +2,19 @@
 //! at the origin (place it with an object `transform`).
 //!
 //! Φ(p) = √((√(x² + z²) − R)² + y²) − r, the signed distance (Lipschitz bound 1).
+//!
+//! [`Torus`] writes Φ once, generically ([`ScalarField`]): zeroset evaluates it at points, over
+//! intervals (guaranteed first roots) and with forward-mode derivatives (exact normals).
+//! [`QuarticTorus`] is the same surface in closed form.
 
 use glam::{DVec2, DVec3};
 use serde::Deserialize;
 use std::sync::Arc;
 use zeroset::registry::{BuildContext, SceneShape};
-use zeroset_primitives::{Aabb, Implicit, Intersect, Interval, Primitive, PrimitiveError, RawHit, Ray};
+use zeroset_primitives::expr::Scalar;
+use zeroset_primitives::{
+    Aabb, FieldSurface, Implicit, Intersect, Interval, Primitive, PrimitiveError, RawHit, Ray, ScalarField,
+};
 
 fn validate(major: f64, minor: f64, name: &'static str) -> Result<(), PrimitiveError> {
     if !(minor.is_finite() && minor > 0.0) {
@@ -36,8 +43,9 @@ fn torus_bounds(major: f64, minor: f64) -> Aabb {
     Aabb::new(DVec3::new(-e, -minor, -e), DVec3::new(e, minor, e))
 }
 
-/// The torus as a user writes it with the least code: Φ and bounds. Everything else — normals
-/// (central differences of Φ) and intersection (the generic root finder) — is zeroset's default.
+/// The torus as a user writes it with the least code: Φ once, generic over the number type, and
+/// bounds. Everything else — exact normals (forward-mode gradient) and guaranteed first roots
+/// (interval isolation) — comes from [`FieldSurface`].
 #[derive(Clone, Copy, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Torus {
@@ -47,9 +55,10 @@ pub struct Torus {
     pub minor: f64,
 }
 
-impl Implicit for Torus {
-    fn phi(&self, p: DVec3) -> f64 {
-        torus_phi(self.major, self.minor, p)
+impl ScalarField for Torus {
+    fn phi<T: Scalar>(&self, [x, y, z]: [T; 3]) -> T {
+        let ring = (x * x + z * z).sqrt() - T::constant(self.major);
+        (ring * ring + y * y).sqrt() - T::constant(self.minor)
     }
 
     fn bounds(&self) -> Aabb {
@@ -57,12 +66,10 @@ impl Implicit for Torus {
     }
 }
 
-impl Intersect for Torus {}
-
 impl SceneShape for Torus {
     fn build(&self, _: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         validate(self.major, self.minor, "Torus")?;
-        Ok(Arc::new(*self))
+        Ok(Arc::new(FieldSurface::new(*self)))
     }
 }
 

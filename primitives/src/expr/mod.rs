@@ -25,8 +25,10 @@
 //! - [`Expr::gradient`]: the analytic ∇Φ at a point (forward mode along x, y, z);
 //! - [`Expr::domain_error`]: the first operation undefined at a point, with its column.
 
+pub mod cells;
 mod parse;
 pub mod scalar;
+pub mod tape;
 
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
@@ -244,7 +246,7 @@ fn checked(node: &Node, p: &[f64; 3]) -> Result<f64, DomainError> {
 }
 
 /// Enclosures of the coordinates `oᵢ + t·dᵢ`, `t ∈ segment`, intersected with `[lo, hi]`.
-fn coordinates_along(ray: &Ray, segment: Interval, lo: DVec3, hi: DVec3) -> Option<[Enclosure; 3]> {
+pub(crate) fn coordinates_along(ray: &Ray, segment: Interval, lo: DVec3, hi: DVec3) -> Option<[Enclosure; 3]> {
     let t = Enclosure::new(segment.min, segment.max);
     let mut out = [Enclosure::ENTIRE; 3];
     for (axis, slot) in out.iter_mut().enumerate() {
@@ -265,6 +267,13 @@ impl Expr {
             root: parse::parse(text)?,
             source: text.to_string(),
         })
+    }
+
+    /// The expression compiled to an instruction tape ([`tape::Tape`]): the same numbers as
+    /// the tree walk, evaluated by one loop.
+    #[must_use]
+    pub fn compile(&self) -> tape::Tape {
+        tape::Tape::compile(&self.root)
     }
 
     /// The text it was parsed from.

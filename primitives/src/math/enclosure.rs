@@ -57,15 +57,51 @@ fn add_directed<const DOWN: bool>(a: f64, b: f64) -> f64 {
     directed::<DOWN>(s, e)
 }
 
-/// `a · b` rounded towards −∞ and towards +∞ (one product and one fused multiply-add for the
-/// exact error); `0 · ∞ = 0` (the exact product of a finite zero factor with an unbounded one).
-fn mul_both(a: f64, b: f64) -> (f64, f64) {
+/// The exact error `a·b − p` of the nearest product `p = a·b` by Dekker's two-product (Veltkamp's
+/// split, no fused multiply-add, which a portable build would call in software), or `None`
+/// outside the range where the split cannot overflow and the error is representable.
+#[inline]
+fn product_error(a: f64, b: f64, p: f64) -> Option<f64> {
+    const SPLITTER: f64 = 134_217_729.0; // 2^27 + 1
+    const BIG: f64 = 6.696_928_794_914_171e299; // 2^996
+    const SMALL: f64 = 2.004_168_360_008_972_8e-292; // 2^-969
+    if !(a.abs() < BIG && b.abs() < BIG && p.abs() < BIG && p.abs() > SMALL) {
+        return None;
+    }
+    let split = |x: f64| {
+        let c = SPLITTER * x;
+        let hi = c - (c - x);
+        (hi, x - hi)
+    };
+    let (ah, al) = split(a);
+    let (bh, bl) = split(b);
+    Some(((ah * bh - p) + ah * bl + al * bh) + al * bl)
+}
+
+/// `a · b` rounded towards −∞ (`DOWN`) or +∞: the nearest product, moved one ulp to the
+/// requested side where its exact error says it lies on the other (exact products stay exact),
+/// or one ulp outward where the error cannot be computed; `0 · ∞ = 0` (the exact product of a
+/// finite zero factor with an unbounded one).
+#[inline]
+fn mul_directed<const DOWN: bool>(a: f64, b: f64) -> f64 {
     if a == 0.0 || b == 0.0 {
-        return (0.0, 0.0);
+        return 0.0;
     }
     let p = a * b;
-    let e = a.mul_add(b, -p);
-    (directed::<true>(p, e), directed::<false>(p, e))
+    match product_error(a, b, p) {
+        Some(e) => directed::<DOWN>(p, e),
+        None if p == 0.0 => {
+            // an underflow: the exact product is a tiny number of the factors' sign
+            let positive = (a > 0.0) == (b > 0.0);
+            match (DOWN, positive) {
+                (true, true) | (false, false) => 0.0,
+                (true, false) => -f64::from_bits(1),
+                (false, true) => f64::from_bits(1),
+            }
+        }
+        None if DOWN => p.next_down(),
+        None => p.next_up(),
+    }
 }
 
 /// `a / b` rounded towards −∞ and towards +∞: the residual `a − q·b` (exact by FMA) has the
@@ -277,19 +313,21 @@ impl Enclosure {
         }
         if n == 2 {
             // the square, with directed products: exact where the square is representable
-            let (lo2, hi2) = (mul_both(self.lo, self.lo), mul_both(self.hi, self.hi));
-            let (lo, hi) = if self.lo >= 0.0 {
-                (lo2.0, hi2.1)
-            } else if self.hi <= 0.0 {
-                (hi2.0, lo2.1)
+            let (down, up) = (mul_directed::<true>, mul_directed::<false>);
+            let (l, h) = (self.lo, self.hi);
+            let (lo, hi) = if l >= 0.0 {
+                (down(l, l), up(h, h))
+            } else if h <= 0.0 {
+                (down(h, h), up(l, l))
             } else {
-                (0.0, lo2.1.max(hi2.1))
+                (0.0, up(l, l).max(up(h, h)))
             };
             return Self::checked(lo, hi, self.undefined);
         }
+
         // each powi rounds at most ~n times; widen by n ulps (relative error ≤ γₙ)
         let ulps = n.unsigned_abs() + 1;
-        let (a, b) = (self.lo.powi(n), self.hi.powi(n));
+        let (a, b) = (power(self.lo, n), power(self.hi, n));
         if n % 2 == 1 {
             Self::widened(a, b, ulps, self.undefined)
         } else if self.lo >= 0.0 {
@@ -499,6 +537,25 @@ impl Sub for Enclosure {
     }
 }
 
+/// `xⁿ` for `n ≥ 1` by repeated squaring, inline (the same products, in the same order, as the
+/// runtime's `powi`).
+#[inline]
+pub(crate) fn power(x: f64, n: i32) -> f64 {
+    let mut base = x;
+    let mut n = n.unsigned_abs();
+    let mut result = 1.0;
+    loop {
+        if n & 1 == 1 {
+            result *= base;
+        }
+        n >>= 1;
+        if n == 0 {
+            return result;
+        }
+        base *= base;
+    }
+}
+
 /// The smallest lower and largest upper bound of four directed results.
 fn hull_of(bounds: [(f64, f64); 4]) -> (f64, f64) {
     let lo = bounds[0].0.min(bounds[1].0).min(bounds[2].0.min(bounds[3].0));
@@ -508,13 +565,35 @@ fn hull_of(bounds: [(f64, f64); 4]) -> (f64, f64) {
 
 impl Mul for Enclosure {
     type Output = Self;
+    /// The product by the signs of the factors' bounds (two directed products in the eight
+    /// cases where the signs decide which corners bound it, four where both straddle 0).
     fn mul(self, o: Self) -> Self {
-        let (lo, hi) = hull_of([
-            mul_both(self.lo, o.lo),
-            mul_both(self.lo, o.hi),
-            mul_both(self.hi, o.lo),
-            mul_both(self.hi, o.hi),
-        ]);
+        let (al, ah, bl, bh) = (self.lo, self.hi, o.lo, o.hi);
+        let down = mul_directed::<true>;
+        let up = mul_directed::<false>;
+        let (lo, hi) = if al >= 0.0 {
+            if bl >= 0.0 {
+                (down(al, bl), up(ah, bh))
+            } else if bh <= 0.0 {
+                (down(ah, bl), up(al, bh))
+            } else {
+                (down(ah, bl), up(ah, bh))
+            }
+        } else if ah <= 0.0 {
+            if bl >= 0.0 {
+                (down(al, bh), up(ah, bl))
+            } else if bh <= 0.0 {
+                (down(ah, bh), up(al, bl))
+            } else {
+                (down(al, bh), up(al, bl))
+            }
+        } else if bl >= 0.0 {
+            (down(al, bh), up(ah, bh))
+        } else if bh <= 0.0 {
+            (down(ah, bl), up(al, bl))
+        } else {
+            (down(al, bh).min(down(ah, bl)), up(al, bl).max(up(ah, bh)))
+        };
         Self::checked(lo, hi, self.flag(o))
     }
 }

@@ -1,0 +1,349 @@
+//! An octree of a box that knows, cell by cell, whether Φ may vanish there, and with which
+//! pruned tape: built once, shared by every ray (and point query) that crosses the box.
+//!
+//! **Built** by interval evaluation ([`Tape::eval_choices`]) over each cell grown by a margin
+//! `m` on every side: a cell whose enclosure of Φ excludes 0 (and is defined) holds no point of
+//! the zero set and is marked **empty** (Φ > 0 all over it, or Φ < 0 all over it); otherwise it
+//! is split in eight, each child evaluated with the tape pruned over its parent (Keeter 2020,
+//! "Massively parallel rendering of complex closed-form implicit surfaces"; libfive), down to
+//! [`MAX_DEPTH`] levels, where a **leaf** keeps the tape pruned over itself. A pruned tape gives
+//! the full tape's values bit for bit inside its grown cell ([`crate::expr::tape`]).
+//!
+//! **Walked** front to back along a ray ([`CellTree::walk`]): the ray's parameter range is cut
+//! at the cells' mid-planes, and every `t` of the range is handed to exactly one leaf or empty
+//! cell (the cuts are computed values, so the pieces cover the range with no gap whatever the
+//! rounding). A point `o + t·d` handed to a cell lies in it up to the rounding of the cuts,
+//! which the margin covers whenever [`CellTree::margin_covers`] says so; a caller that cannot
+//! rely on it (an origin far beyond the box's scale) evaluates the full tape instead.
+
+use super::tape::{Choice, Tape};
+use crate::math::enclosure::Enclosure;
+use glam::DVec3;
+use std::sync::Arc;
+
+/// Levels of the octree below its root (a leaf is `1/2^MAX_DEPTH` of the box on each axis).
+pub const MAX_DEPTH: u32 = 5;
+
+/// Margin added on every side of a cell before its interval evaluation, relative to the box's
+/// diagonal.
+const MARGIN: f64 = 1e-6;
+
+/// A cell of the tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Cell {
+    /// Φ cannot vanish in the (grown) cell.
+    Empty,
+    /// Eight children, at this index of the node table (bit 0: upper x half, 1: y, 2: z).
+    Inner(u32),
+    /// A leaf with this index into the leaf table.
+    Leaf(u32),
+}
+
+/// The octree (see the module docs).
+#[derive(Debug)]
+pub struct CellTree {
+    lo: DVec3,
+    hi: DVec3,
+    margin: f64,
+    root: Cell,
+    nodes: Vec<[Cell; 8]>,
+    tapes: Vec<Arc<Tape>>,
+    leaves: Vec<Leaf>,
+}
+
+/// A leaf: its cell grown by the margin, and its tape's index.
+#[derive(Clone, Copy, Debug)]
+struct Leaf {
+    lo: DVec3,
+    hi: DVec3,
+    tape: u32,
+}
+
+/// A cell as built, before the tables are laid out.
+enum Built {
+    Empty,
+    Leaf(Arc<Tape>, DVec3, DVec3),
+    Inner(Box<[Built; 8]>),
+}
+
+fn child_box(lo: DVec3, hi: DVec3, bits: usize) -> (DVec3, DVec3) {
+    let mid = 0.5 * (lo + hi);
+    let pick = |axis: usize, l: f64, m: f64, h: f64| if bits >> axis & 1 == 1 { (m, h) } else { (l, m) };
+    let (x0, x1) = pick(0, lo.x, mid.x, hi.x);
+    let (y0, y1) = pick(1, lo.y, mid.y, hi.y);
+    let (z0, z1) = pick(2, lo.z, mid.z, hi.z);
+    (DVec3::new(x0, y0, z0), DVec3::new(x1, y1, z1))
+}
+
+fn build(tape: &Arc<Tape>, lo: DVec3, hi: DVec3, margin: f64, depth: u32) -> Built {
+    let vars = [
+        Enclosure::new(lo.x - margin, hi.x + margin),
+        Enclosure::new(lo.y - margin, hi.y + margin),
+        Enclosure::new(lo.z - margin, hi.z + margin),
+    ];
+    let mut slots = Vec::new();
+    let mut choices: Vec<Choice> = Vec::new();
+    let value = tape.eval_choices(vars, &mut slots, &mut choices);
+    if !value.undefined && !value.contains_zero() {
+        return Built::Empty;
+    }
+    let pruned = match tape.pruned(&choices) {
+        Some(shorter) => Arc::new(shorter),
+        None => Arc::clone(tape),
+    };
+    if depth == MAX_DEPTH {
+        return Built::Leaf(pruned, lo, hi);
+    }
+    let children = |bits: usize| {
+        let (l, h) = child_box(lo, hi, bits);
+        build(&pruned, l, h, margin, depth + 1)
+    };
+    let built: Vec<Built> = if depth < 2 {
+        use rayon::prelude::*;
+        (0..8).into_par_iter().map(children).collect()
+    } else {
+        (0..8).map(children).collect()
+    };
+    let Ok(built) = <Box<[Built; 8]>>::try_from(built.into_boxed_slice()) else {
+        unreachable!("eight children")
+    };
+    if built.iter().all(|c| matches!(c, Built::Empty)) {
+        return Built::Empty;
+    }
+    Built::Inner(built)
+}
+
+impl CellTree {
+    /// The tree of `tape` over the box `[lo, hi]` (finite, non-empty).
+    #[must_use]
+    pub fn new(tape: &Tape, lo: DVec3, hi: DVec3) -> Self {
+        let margin = MARGIN * (hi - lo).length();
+        let built = build(&Arc::new(tape.clone()), lo, hi, margin, 0);
+        let mut tree = Self {
+            lo,
+            hi,
+            margin,
+            root: Cell::Empty,
+            nodes: Vec::new(),
+            tapes: Vec::new(),
+            leaves: Vec::new(),
+        };
+        let mut seen = std::collections::HashMap::new();
+        tree.root = tree.lay_out(built, &mut seen);
+        tree
+    }
+
+    fn lay_out(&mut self, built: Built, seen: &mut std::collections::HashMap<*const Tape, u32>) -> Cell {
+        match built {
+            Built::Empty => Cell::Empty,
+            Built::Leaf(tape, lo, hi) => {
+                let key = Arc::as_ptr(&tape);
+                let index = *seen.entry(key).or_insert_with(|| {
+                    self.tapes.push(Arc::clone(&tape));
+                    (self.tapes.len() - 1) as u32
+                });
+                let m = DVec3::splat(self.margin);
+                self.leaves.push(Leaf {
+                    lo: lo - m,
+                    hi: hi + m,
+                    tape: index,
+                });
+                Cell::Leaf((self.leaves.len() - 1) as u32)
+            }
+            Built::Inner(children) => {
+                let index = self.nodes.len();
+                self.nodes.push([Cell::Empty; 8]);
+                for (bits, child) in children.into_iter().enumerate() {
+                    let cell = self.lay_out(child, seen);
+                    self.nodes[index][bits] = cell;
+                }
+                Cell::Inner(index as u32)
+            }
+        }
+    }
+
+    /// The margin each cell was grown by (absolute).
+    #[must_use]
+    pub fn margin(&self) -> f64 {
+        self.margin
+    }
+
+    /// Whether the margin covers the rounding of points `o + t·d` handed to cells by
+    /// [`CellTree::walk`] for `t` up to `t_max` in magnitude: a few ulps of `|o| + |t|·|d|` (the
+    /// cuts' and the point's rounding), with a factor of 64 to spare.
+    #[must_use]
+    pub fn margin_covers(&self, origin: DVec3, dir: DVec3, t_max: f64) -> bool {
+        let scale = origin.abs().max_element() + t_max.abs() * dir.abs().max_element() + self.hi.abs().max_element();
+        64.0 * f64::EPSILON * scale < self.margin
+    }
+
+    /// The tape that gives Φ at `p`, knowing `p` was found in leaf `leaf` (a number handed
+    /// to [`CellTree::walk`]'s visitor): that leaf's pruned tape if `p` lies in its grown cell,
+    /// else `None` (the full tape is then the one to use).
+    #[must_use]
+    pub fn tape_at(&self, leaf: u32, p: DVec3) -> Option<&Tape> {
+        let leaf = self.leaves.get(leaf as usize)?;
+        (p.cmpge(leaf.lo) & p.cmple(leaf.hi))
+            .all()
+            .then(|| &*self.tapes[leaf.tape as usize])
+    }
+
+    /// Number of leaves' distinct tapes and of inner nodes (for reports and tests).
+    #[must_use]
+    pub fn sizes(&self) -> (usize, usize) {
+        (self.tapes.len(), self.nodes.len())
+    }
+
+    /// Hands each leaf the ray `origin + t·dir` passes through, front to back, for `t` in
+    /// `[t0, t1]` (already clipped to the box): `visit(leaf, tape, grown_lo, grown_hi, ta, tb)`
+    /// with the leaf's number, its tape and its cell grown by the margin, the pieces `[ta, tb]`
+    /// covering `[t0, t1]` less the pieces in empty cells. Stops when `visit` returns `true`,
+    /// and then returns `true`.
+    pub fn walk(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t0: f64,
+        t1: f64,
+        visit: &mut impl FnMut(u32, &Tape, DVec3, DVec3, f64, f64) -> bool,
+    ) -> bool {
+        let inv = dir.recip();
+        self.walk_cell(self.root, self.lo, self.hi, origin, dir, inv, t0, t1, visit)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn walk_cell(
+        &self,
+        cell: Cell,
+        lo: DVec3,
+        hi: DVec3,
+        origin: DVec3,
+        dir: DVec3,
+        inv: DVec3,
+        t0: f64,
+        t1: f64,
+        visit: &mut impl FnMut(u32, &Tape, DVec3, DVec3, f64, f64) -> bool,
+    ) -> bool {
+        match cell {
+            Cell::Empty => false,
+            Cell::Leaf(index) => {
+                let leaf = &self.leaves[index as usize];
+                visit(index, &self.tapes[leaf.tape as usize], leaf.lo, leaf.hi, t0, t1)
+            }
+            Cell::Inner(node) => {
+                let mid = 0.5 * (lo + hi);
+                // where the ray crosses each mid-plane (never, along an axis it does not move on)
+                let mut cut = [f64::INFINITY; 3];
+                let mut bits = 0usize;
+                for axis in 0..3 {
+                    let d = dir[axis];
+                    let upper = if d > 0.0 {
+                        cut[axis] = (mid[axis] - origin[axis]) * inv[axis];
+                        cut[axis] <= t0
+                    } else if d < 0.0 {
+                        cut[axis] = (mid[axis] - origin[axis]) * inv[axis];
+                        cut[axis] > t0
+                    } else {
+                        origin[axis] >= mid[axis]
+                    };
+                    if upper {
+                        bits |= 1 << axis;
+                    }
+                }
+                let children = &self.nodes[node as usize];
+                let mut t = t0;
+                loop {
+                    let mut next = t1;
+                    for &c in &cut {
+                        if c > t && c < next {
+                            next = c;
+                        }
+                    }
+                    let child = children[bits];
+                    if child != Cell::Empty {
+                        let (l, h) = child_box(lo, hi, bits);
+                        if self.walk_cell(child, l, h, origin, dir, inv, t, next, visit) {
+                            return true;
+                        }
+                    }
+                    if next >= t1 {
+                        return false;
+                    }
+                    for (axis, &c) in cut.iter().enumerate() {
+                        if c == next {
+                            bits ^= 1 << axis;
+                        }
+                    }
+                    t = next;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::expr::Expr;
+
+    /// Every `t` of a ray's range lands in exactly one cell, in order, and the cells handed out
+    /// contain the points (up to the margin); empty cells hold no sign change of Φ.
+    #[test]
+    fn walks_cover_the_range_and_skip_only_empty_cells() {
+        let e = Expr::parse("min(sqrt(x^2 + y^2 + z^2) - 0.5, sqrt((x - 0.8)^2 + y^2 + z^2) - 0.2)").unwrap();
+        let tape = e.compile();
+        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
+        let tree = CellTree::new(&tape, lo, hi);
+        let (tapes, nodes) = tree.sizes();
+        assert!(tapes > 2 && nodes > 8, "{tapes} {nodes}");
+        let mut rng = 0x1234_5678_u64;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..300 {
+            let o = DVec3::new(next() * 6.0 - 3.0, next() * 6.0 - 3.0, 3.0);
+            let target = DVec3::new(next() - 0.5, next() - 0.5, next() - 0.5);
+            let d = target - o;
+            let ray = crate::Ray::new(o, d);
+            let Some(range) = crate::Aabb::new(lo, hi).clip(&ray, crate::Interval::POSITIVE) else {
+                continue;
+            };
+            let mut pieces: Vec<(f64, f64)> = Vec::new();
+            tree.walk(o, d, range.min, range.max, &mut |number, leaf, l, h, ta, tb| {
+                assert!(ta <= tb);
+                for t in [ta, 0.5 * (ta + tb), tb] {
+                    let p = ray.at(t);
+                    assert!((p.cmpge(l) & p.cmple(h)).all(), "{p} outside {l} {h}");
+                    assert!(std::ptr::eq(tree.tape_at(number, p).unwrap(), leaf));
+                    // the leaf's tape has the full tape's value here
+                    let mut s = Vec::new();
+                    assert_eq!(leaf.eval_f64(p.to_array(), &mut s).to_bits(), e.eval(p).to_bits());
+                }
+                pieces.push((ta, tb));
+                false
+            });
+            // ordered, disjoint
+            for w in pieces.windows(2) {
+                assert!(w[0].1 <= w[1].0);
+            }
+            // a sign change of Φ along the range lies in a piece handed out
+            let n = 2000;
+            let mut prev = e.eval(ray.at(range.min));
+            for k in 1..=n {
+                let t = range.min + (range.max - range.min) * f64::from(k) / f64::from(n);
+                let v = e.eval(ray.at(t));
+                if (v < 0.0) != (prev < 0.0) {
+                    let tp = range.min + (range.max - range.min) * f64::from(k - 1) / f64::from(n);
+                    assert!(
+                        pieces.iter().any(|&(a, b)| a <= t && tp <= b),
+                        "sign change in [{tp}, {t}] not in {pieces:?}"
+                    );
+                }
+                prev = v;
+            }
+        }
+    }
+}
