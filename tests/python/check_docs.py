@@ -12,7 +12,7 @@ What runs, each block in a scratch copy of ``scenes/`` and ``examples/*/scenes/`
 document, so a block may use the files an earlier block of the same document wrote):
 
 - fenced ``sh`` / ``bash`` blocks, as one ``bash -eo pipefail`` script, with ``zeroset`` on the
-  ``PATH`` (the binary above) and ``cargo run --release --`` read as ``zeroset`` (the same
+  ``PATH`` (the binary above), ``python3`` the interpreter running this script, and ``cargo run --release --`` read as ``zeroset`` (the same
   command, without a build);
 - ``console`` blocks: the lines that start with ``$ `` (the rest is output, not compared);
 - ``python`` blocks, each saved as a script and run (so ``if __name__ == "__main__":`` guards
@@ -128,6 +128,9 @@ def main() -> int:
     shims = root / "bin"
     shims.mkdir()
     (shims / "zeroset").symlink_to(binary)
+    for name in ("python3", "python"):  # sh blocks' Python is this one, with its packages
+        (shims / name).write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
+        (shims / name).chmod(0o755)
     env = dict(os.environ, PATH=f"{shims}{os.pathsep}{os.environ.get('PATH', '')}", MPLBACKEND="Agg")
     passed = failed = skipped = 0
     try:
