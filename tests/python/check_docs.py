@@ -8,8 +8,9 @@ Environment: ``ZEROSET``, the zeroset binary the commands call (default ``target
 else ``target/debug/zeroset``). ``python3`` blocks run with this interpreter; they need the
 ``zeroset`` package installed (``pip install ./python``).
 
-What runs, each block in a scratch copy of ``scenes/`` and ``examples/*/scenes/`` (one copy per
-document, so a block may use the files an earlier block of the same document wrote):
+What runs, each block in a scratch directory that looks like the checkout (``scenes/`` copied,
+the rest linked; one per document, so a block may use the files an earlier block of the same
+document wrote):
 
 - fenced ``sh`` / ``bash`` blocks, as one ``bash -eo pipefail`` script, with ``zeroset`` on the
   ``PATH`` (the binary above), ``python3`` the interpreter running this script, and ``cargo run --release --`` read as ``zeroset`` (the same
@@ -104,11 +105,13 @@ def zeroset_binary() -> Path:
 
 
 def workspace(root: Path) -> Path:
-    """A scratch copy of what the docs' commands read."""
+    """A scratch directory that looks like the checkout: `scenes/` copied (blocks may write
+    beside the scenes), every other top-level entry but `target/` and `.git` linked."""
     work = Path(tempfile.mkdtemp(prefix="docs-", dir=root))
     shutil.copytree(REPO / "scenes", work / "scenes")
-    for scenes in (REPO / "examples").glob("*/scenes"):
-        shutil.copytree(scenes, work / scenes.relative_to(REPO))
+    for entry in REPO.iterdir():
+        if entry.name not in ("scenes", "target", ".git", "out", "bench-results"):
+            (work / entry.name).symlink_to(entry)
     return work
 
 
