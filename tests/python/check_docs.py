@@ -28,7 +28,8 @@ Markers, an HTML comment on the line just before the fence:
   skipped, with the reason, where one does not import (``python`` blocks are checked for their
   own imports the same way).
 
-Other blocks (``rust``, ``text``, ``toml``, RON fragments) are not run. Prints one line a block
+Other blocks (``rust``, ``text``, ``toml``, RON fragments) are not run. Each document's relative
+links must point at files that exist (one check a document). Prints one line a block
 and, last, ``N passed, M failed``; exits 1 if any failed.
 """
 
@@ -79,6 +80,18 @@ def blocks(path: Path):
         marker = MARKER.match(lines[prev]) if prev >= 0 else None
         kind, text = (marker.group(1), marker.group(2)) if marker else (None, "")
         yield start + 1, lang, "\n".join(body) + "\n", kind, text
+
+
+def broken_links(path: Path) -> list[str]:
+    """Relative link targets (`[text](target)`, images included) that do not exist."""
+    text = re.sub(r"```.*?```", "", path.read_text(encoding="utf-8"), flags=re.S)
+    broken = []
+    for target in re.findall(r"\]\(([^)\s]+)\)", text):
+        if re.match(r"^[a-z]+:", target) or target.startswith("#"):
+            continue
+        if not (path.parent / target.split("#")[0]).exists():
+            broken.append(target)
+    return broken
 
 
 def missing_modules(names) -> list[str]:
@@ -140,6 +153,13 @@ def main() -> int:
         for path in files:
             work = workspace(root)
             name = path.relative_to(REPO) if path.is_relative_to(REPO) else path
+            broken = broken_links(path)
+            if broken:
+                failed += 1
+                print(f"FAIL {name}: links to missing files: {', '.join(broken)}")
+            else:
+                passed += 1
+                print(f"ok   {name} (links)")
             for number, (line, lang, code, kind, text) in enumerate(blocks(path)):
                 where = f"{name}:{line} ({lang})"
                 script = None
