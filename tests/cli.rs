@@ -1110,12 +1110,12 @@ fn oiiotool_add_of_crops_is_exact_and_over_is_not() {
     );
 }
 
-/// A unit sphere as a `Function` with a budget of 4 evaluations per ray: a ray through the sphere
-/// needs more to isolate its root and runs out (reported as a miss, counted, flagged); a ray
-/// through the box that misses the sphere is decided by its first enclosure (Φ ≥ 1.1 along it);
-/// a ray missing the box evaluates nothing.
-const LOOSE_SCENE: &str = "Scene(camera: (eye: (0, 0, -6), look_at: (0, 0, 0), vfov_deg: 60, width: 12, height: 4), \
-    objects: [(name: \"loose\", shape: Function(phi: \"sqrt(x^2 + y^2 + z^2) - 1\", min: (-2, -2, -2), max: (2, 2, 2), budget: 4))])";
+/// A unit spherical shell 2·10⁻⁴ thick as a `Function` with the smallest budget, 2 evaluations
+/// per ray: a ray through the shell needs more to separate its two walls and runs out (reported
+/// as a miss, counted, flagged); a ray through the box far from the shell crosses only cells its
+/// octree proved empty; a ray missing the box evaluates nothing.
+const LOOSE_SCENE: &str = "Scene(camera: (eye: (0, 0, -6), look_at: (0, 0, 0), vfov_deg: 30, width: 12, height: 4), \
+    objects: [(name: \"loose\", shape: Function(phi: \"abs(sqrt(x^2 + y^2 + z^2) - 1) - 1e-4\", min: (-2, -2, -2), max: (2, 2, 2), budget: 2))])";
 
 #[test]
 fn exhausted_budgets_are_counted_and_flagged() {
@@ -1142,7 +1142,7 @@ fn exhausted_budgets_are_counted_and_flagged() {
     assert!(stdout(&o).lines().all(|l| l.split(',').count() == 12));
     assert!(stderr(&o).contains("warning: 1 rays"), "{}", stderr(&o));
 
-    // a render: the pixels whose rays cross the box are flagged, the others not
+    // a render: the pixels whose rays cross the shell are flagged, the others not
     let exr = dir.path().join("loose.exr");
     let o = run(&[
         "render",

@@ -37,11 +37,14 @@ enum Phi {
     Closure(Arc<dyn Fn(DVec3) -> f64 + Send + Sync>),
 }
 
-/// An expression with its tape and the octree of its box ([`crate::expr::cells`]).
+/// An expression with its tape and the octree of its box ([`crate::expr::cells`]), built when
+/// the first ray needs it (a scene's functions that no ray reaches, and point queries, cost
+/// nothing).
 struct Compiled {
     expr: Expr,
     tape: Tape,
-    cells: CellTree,
+    bounds: Aabb,
+    cells: std::sync::OnceLock<CellTree>,
 }
 
 /// Scratch space of the tape evaluations, one per thread.
@@ -140,20 +143,30 @@ impl AlongRay for LeafAlong<'_> {
 }
 
 impl Compiled {
+    /// The octree, built on first use (in parallel unless called from a thread of a parallel
+    /// loop, where a nested parallel build could take up work that waits on this very build).
+    fn cells(&self) -> &CellTree {
+        self.cells.get_or_init(|| {
+            let parallel = rayon::current_thread_index().is_none();
+            CellTree::new(&self.tape, self.bounds.min, self.bounds.max, parallel)
+        })
+    }
+
     /// The first root along `ray` in `segment` (clipped to the grown bounds), walking the
     /// octree's leaves front to back and isolating in each with its pruned tape; the per-ray
     /// budget is shared by the leaves. `None` when the octree's margin does not cover the ray's
     /// rounding (the caller then isolates with the full tape).
     fn first_root(&self, ray: &Ray, segment: Interval, bounds: &Aabb, options: &RootOptions) -> Option<RootReport> {
+        let cells = self.cells();
         let far = segment.min.abs().max(segment.max.abs());
-        if !self.cells.margin_covers(ray.origin, ray.dir, far) {
+        if !cells.margin_covers(ray.origin, ray.dir, far) {
             return None;
         }
         let mut evaluations = 0u32;
         let mut outcome = Isolated::default();
         let mut found_in = 0u32;
         with_scratch(|scratch| {
-            self.cells.walk(
+            cells.walk(
                 ray.origin,
                 ray.dir,
                 segment.min,
@@ -198,7 +211,7 @@ impl Compiled {
     fn gradient(&self, p: DVec3, feature: u32) -> DVec3 {
         let tape = feature
             .checked_sub(1)
-            .and_then(|leaf| self.cells.tape_at(leaf, p))
+            .and_then(|leaf| self.cells.get()?.tape_at(leaf, p))
             .unwrap_or(&self.tape);
         DVec3::from_array(with_scratch(|s| tape.gradient(p.to_array(), &mut s.gradients)))
     }
@@ -310,9 +323,13 @@ impl Function {
             }
         }
         let tape = expr.compile();
-        let cells = CellTree::new(&tape, bounds.min, bounds.max);
         Ok(Self {
-            phi: Phi::Expression(Arc::new(Compiled { expr, tape, cells })),
+            phi: Phi::Expression(Arc::new(Compiled {
+                expr,
+                tape,
+                bounds,
+                cells: std::sync::OnceLock::new(),
+            })),
             bounds,
             lipschitz: None,
             options,

@@ -75,37 +75,54 @@ fn child_box(lo: DVec3, hi: DVec3, bits: usize) -> (DVec3, DVec3) {
     (DVec3::new(x0, y0, z0), DVec3::new(x1, y1, z1))
 }
 
-fn build(tape: &Arc<Tape>, lo: DVec3, hi: DVec3, margin: f64, depth: u32) -> Built {
+/// Scratch space of a build (one per thread of it).
+#[derive(Default)]
+struct Scratch {
+    slots: Vec<Enclosure>,
+    choices: Vec<Choice>,
+}
+
+fn build(
+    tape: &Arc<Tape>,
+    lo: DVec3,
+    hi: DVec3,
+    margin: f64,
+    depth: u32,
+    parallel: bool,
+    scratch: &mut Scratch,
+) -> Built {
     let vars = [
         Enclosure::new(lo.x - margin, hi.x + margin),
         Enclosure::new(lo.y - margin, hi.y + margin),
         Enclosure::new(lo.z - margin, hi.z + margin),
     ];
-    let mut slots = Vec::new();
-    let mut choices: Vec<Choice> = Vec::new();
-    let value = tape.eval_choices(vars, &mut slots, &mut choices);
+    let value = tape.eval_choices(vars, &mut scratch.slots, &mut scratch.choices);
     if !value.undefined && !value.contains_zero() {
         return Built::Empty;
     }
-    let pruned = match tape.pruned(&choices) {
+    let pruned = match tape.pruned(&scratch.choices) {
         Some(shorter) => Arc::new(shorter),
         None => Arc::clone(tape),
     };
     if depth == MAX_DEPTH {
         return Built::Leaf(pruned, lo, hi);
     }
-    let children = |bits: usize| {
+    let child = |bits: usize, scratch: &mut Scratch| {
         let (l, h) = child_box(lo, hi, bits);
-        build(&pruned, l, h, margin, depth + 1)
+        build(&pruned, l, h, margin, depth + 1, parallel, scratch)
     };
-    let built: Vec<Built> = if depth < 2 {
+    let built: Box<[Built; 8]> = if parallel && depth < 2 {
         use rayon::prelude::*;
-        (0..8).into_par_iter().map(children).collect()
+        let built: Vec<Built> = (0..8)
+            .into_par_iter()
+            .map(|bits| child(bits, &mut Scratch::default()))
+            .collect();
+        let Ok(built) = <Box<[Built; 8]>>::try_from(built.into_boxed_slice()) else {
+            unreachable!("eight children")
+        };
+        built
     } else {
-        (0..8).map(children).collect()
-    };
-    let Ok(built) = <Box<[Built; 8]>>::try_from(built.into_boxed_slice()) else {
-        unreachable!("eight children")
+        Box::new(std::array::from_fn(|bits| child(bits, scratch)))
     };
     if built.iter().all(|c| matches!(c, Built::Empty)) {
         return Built::Empty;
@@ -114,11 +131,20 @@ fn build(tape: &Arc<Tape>, lo: DVec3, hi: DVec3, margin: f64, depth: u32) -> Bui
 }
 
 impl CellTree {
-    /// The tree of `tape` over the box `[lo, hi]` (finite, non-empty).
+    /// The tree of `tape` over the box `[lo, hi]` (finite, non-empty), its upper levels built
+    /// on rayon's threads if `parallel`.
     #[must_use]
-    pub fn new(tape: &Tape, lo: DVec3, hi: DVec3) -> Self {
+    pub fn new(tape: &Tape, lo: DVec3, hi: DVec3, parallel: bool) -> Self {
         let margin = MARGIN * (hi - lo).length();
-        let built = build(&Arc::new(tape.clone()), lo, hi, margin, 0);
+        let built = build(
+            &Arc::new(tape.clone()),
+            lo,
+            hi,
+            margin,
+            0,
+            parallel,
+            &mut Scratch::default(),
+        );
         let mut tree = Self {
             lo,
             hi,
@@ -293,7 +319,7 @@ mod tests {
         let e = Expr::parse("min(sqrt(x^2 + y^2 + z^2) - 0.5, sqrt((x - 0.8)^2 + y^2 + z^2) - 0.2)").unwrap();
         let tape = e.compile();
         let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
-        let tree = CellTree::new(&tape, lo, hi);
+        let tree = CellTree::new(&tape, lo, hi, true);
         let (tapes, nodes) = tree.sizes();
         assert!(tapes > 2 && nodes > 8, "{tapes} {nodes}");
         let mut rng = 0x1234_5678_u64;

@@ -107,7 +107,7 @@ pub struct Tape {
 }
 
 /// Applies a one-argument function in any scalar type (the tree walk's dispatch).
-#[inline]
+#[inline(always)]
 fn call1<T: Scalar>(f: Func1, a: T) -> T {
     match f {
         Func1::Sqrt => a.sqrt(),
@@ -130,7 +130,7 @@ fn call1<T: Scalar>(f: Func1, a: T) -> T {
     }
 }
 
-#[inline]
+#[inline(always)]
 fn call2<T: Scalar>(f: Func2, a: T, b: T) -> T {
     match f {
         Func2::Min => a.min(b),
@@ -139,7 +139,7 @@ fn call2<T: Scalar>(f: Func2, a: T, b: T) -> T {
     }
 }
 
-#[inline]
+#[inline(always)]
 fn step<T: Scalar>(op: &Op, slots: &[T], vars: &[T; 3]) -> T {
     let s = |a: u32| slots[a as usize];
     match *op {
