@@ -35,9 +35,12 @@
 //! level 4 27.2 → 26.0 ms, level 6 34.6 → 33.1 ms, level 8 42.0 → 41.2 ms (the rays the ball
 //! turns away alone: 6.2 → 4.9 ms on level 4).
 
-use super::{single_ray_in_ball, Candidate, Mesh, MeshQuery};
+use super::query::{Candidate, MeshQuery};
+use super::storage::Mesh;
+use super::walk::single_ray_in_ball;
 use crate::bvh::oct::{push_entered_unbranched, Oct, OCT_STACK};
-use crate::bvh::{cull_bound, next_within, prefetch, prefetch_node, worth_prefetching, Pending};
+use crate::bvh::prefetching::{prefetch, prefetch_node, worth_prefetching};
+use crate::bvh::walk::{cull_bound, next_within, Pending};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use std::mem::MaybeUninit;
