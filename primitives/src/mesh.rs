@@ -35,7 +35,7 @@
 //! # Storage
 //! Vertices `12 B` each (plus `12 B` with normals), triangles `12 B` (index triple, kept in BVH
 //! leaf order) plus `8 B` (leaf ↔ file order maps), their corners again in the leaves' rows
-//! (`36 B`, see [`leaf_rows`]: a leaf test reads its triangles' coordinates eight at a time,
+//! (`36 B`, see `rows.rs`: a leaf test reads its triangles' coordinates eight at a time,
 //! without going through the indices), each triangle's unit normal rounded to f32 (`12 B`, for
 //! [`Intersect::normal_at_f32`]; meshes of up to 2¹⁸ triangles), 4-wide BVH nodes `128 B` each, about
 //! `0.07 N` of them for `N` triangles on the benchmark meshes, which packets walk, and the same
@@ -85,6 +85,10 @@ mod walk;
 mod watertight;
 
 pub use storage::{is_degenerate_triangle, Mesh};
+
+// names the module docs link to
+#[cfg(doc)]
+use crate::{hit::RawHit, traits::Intersect};
 
 #[cfg(test)]
 mod tests;

@@ -210,8 +210,7 @@ impl<const N: usize> Bins<N> {
     /// items are added alternately to these bins and to a second set, merged at the end (the
     /// same bins: unions and sums in any order): neighbouring items (a mesh's triangles come
     /// in surface order) fall in the same bins, and each update of a bin waited for the
-    /// previous one to be written. The level-8 bench mesh's load and build: 0.288 → 0.281 s
-    /// (medians of 9 alternating runs).
+    /// previous one to be written (see docs/performance.md).
     fn add(&mut self, tris: &[BuildItem], lo: Vec3A, scale: Vec3A) {
         if tris.len() < 4 * N {
             self.add_each(tris, lo, scale);

@@ -3,11 +3,9 @@
 //!
 //! Why. A ray walking a mesh's quads waits at every node for the next one: on a cache-resident
 //! mesh for the slab test and the choice of child, on a mesh many times the cache for memory too
-//! (a ray entering the box of a 1.3-million-triangle mesh visits about 11 quads, about 155 ns
-//! each). Eight children a node take fewer levels: camera rays on the level-4 bench mesh visit 3.8
-//! octs where they visited 5.0 quads. The eight slab tests are one loop that the AVX2 copy of the
-//! walk ([`crate::with_fma!`]) computes 8 wide, so an oct costs about what a quad did there. (A
-//! first version tested the eight boxes as two explicit SSE halves: slower than the quads.)
+//! (see docs/performance.md). Eight children a node take fewer levels, so fewer waits. The eight
+//! slab tests are one loop that the AVX2 copy of the walk ([`crate::with_fma!`]) computes 8 wide,
+//! so an oct costs about what a quad did there (two explicit SSE halves did not).
 //!
 //! Same hits. The boxes are the quads' own child boxes moved up a level and the leaves are the
 //! quads' leaves (the same items, the same leaf order), so the walk meets the same candidates and
@@ -212,11 +210,8 @@ pub(crate) fn push_entered(
 /// [`OCT_STACK`] keeps beyond the deepest walk). The same pushes and the same answer.
 ///
 /// For the interleaved walks (`mesh/stream.rs`), whose random rays mispredicted those branches
-/// about twice a ray (cachegrind, 30,000 random rays entering the level-4 mesh's ball):
-/// `cast_rays` on 10⁶ random rays, medians of 9 alternating runs, level 6 31.6 → 30.7 ms,
-/// levels 4 and 8 unchanged. The single walk keeps the branches: there the extra instructions
-/// (about 200 a ray on the level-4 mesh) cost what the mispredictions did (25.0 against
-/// 24.7 ms).
+/// about twice a ray. The single walk keeps the branches: there the extra instructions cost what
+/// the mispredictions did (see docs/performance.md).
 #[inline(always)]
 pub(crate) fn push_entered_unbranched(
     o: &Oct,

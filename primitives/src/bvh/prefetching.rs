@@ -9,8 +9,7 @@ const PREFETCH_MIN_BYTES: usize = 512 << 10;
 /// Whether a walk over `nodes` should prefetch the entered children ([`prefetch_children`]):
 /// only where the nodes outgrow a core's L2 cache. In a smaller hierarchy they are in cache
 /// already, and the prefetch loop's data-dependent trip count only costs mispredicted branches
-/// (mesh4's octs: 1505 -> 1386 instructions and 18.4 -> 14.7 mispredictions a ray entering the
-/// box, cachegrind).
+/// (see docs/performance.md).
 #[inline(always)]
 pub(crate) fn worth_prefetching<N>(nodes: &[N]) -> bool {
     std::mem::size_of_val(nodes) >= PREFETCH_MIN_BYTES

@@ -292,7 +292,7 @@ impl Mesh {
     /// The raw hit of the candidate `best` (`t` recomputed in f64 on the triangle's plane) and
     /// that plane's unnormalised normal; `None` where `t` lies beyond the range.
     #[inline(always)]
-    pub(super) fn finish_on_plane(
+    fn finish_on_plane(
         &self,
         ray: &Ray,
         range: Interval,

@@ -80,7 +80,7 @@ impl LeafRows<'_> {
 
     /// The three rows of `corner`'s components in the order `k`.
     #[inline(always)]
-    pub(super) fn corner_rows(&self, corner: usize, k: [usize; 3]) -> [Lanes; 3] {
+    fn corner_rows(&self, corner: usize, k: [usize; 3]) -> [Lanes; 3] {
         // no `map` with a closure: closures are not inlined into the AVX2 copies
         [
             self.row(3 * corner + k[0]),

@@ -49,7 +49,7 @@ pub struct Mesh {
     /// [`RawHit::feature`]; zero for a skipped one): [`Intersect::normal_at_f32`] reads it, one
     /// load where the f64 normal takes a square root and a division on every hit. Empty for a
     /// mesh of more than [`NORMALS_TABLE_MAX`] triangles.
-    pub(super) unit_normals: Vec<[f32; 3]>,
+    unit_normals: Vec<[f32; 3]>,
     /// For each leaf position, where its triangle sits in its leaf (see [`leaf_places`]): with
     /// it, a hit's leaf position alone finds the triangle's rows.
     pub(super) leaf_places: Vec<u8>,
@@ -140,6 +140,7 @@ fn unit_normals_into(run: &[[u32; 3]], vertices: &[[f32; 3]], out: &mut [[f32; 3
     }
 }
 
+#[inline]
 pub(super) fn v64(v: [f32; 3]) -> DVec3 {
     DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))
 }
@@ -429,13 +430,15 @@ impl Mesh {
     }
 
     /// `t` of `ray` on the plane of the triangle at leaf position `k` (f64).
+    #[inline]
     pub(super) fn plane_t(&self, ray: &Ray, k: usize) -> Option<f64> {
         let (n, a) = self.plane(k);
         plane_t(n, a, ray)
     }
 
-    /// The 8-wide nodes, collapsed from the quads the first time a single ray asks (about 68 ms
-    /// for 1.3 million triangles; concurrent first callers wait for the one that makes them).
+    /// The 8-wide nodes, collapsed from the quads the first time a single ray asks (a one-off cost
+    /// linear in the nodes, see docs/performance.md; concurrent first callers wait for the one
+    /// that makes them).
     #[inline(always)]
     pub(super) fn octs(&self) -> &Octs {
         self.octs

@@ -20,7 +20,7 @@ impl Mesh {
     /// The single-ray walk of `query` (whose axes are `[KX, KY, KZ]`), the root's slab test
     /// `root` made ([`Mesh::enters_root`]): the closest candidate.
     #[inline(always)]
-    pub(super) fn closest_candidate<const KX: usize, const KY: usize, const KZ: usize>(
+    fn closest_candidate<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
         ray: &Ray,
         range: Interval,
@@ -152,13 +152,7 @@ pub(super) fn walk(mesh: &Mesh, ray: &Ray, range: Interval, entry: MeshEntry, ro
 /// it: inlined, the walk's stack and register saves would be paid by every ray, also by those
 /// passing the mesh by (most of a random batch).
 #[inline(never)]
-pub(super) fn walk_either(
-    mesh: &Mesh,
-    ray: &Ray,
-    range: Interval,
-    entry: MeshEntry,
-    root: (u32, [f32; 8]),
-) -> Option<RawHit> {
+fn walk_either(mesh: &Mesh, ray: &Ray, range: Interval, entry: MeshEntry, root: (u32, [f32; 8])) -> Option<RawHit> {
     crate::with_fma!(walk(
         mesh: &Mesh = mesh,
         ray: &Ray = ray,
