@@ -1,21 +1,18 @@
 //! The one hierarchy builder, shared by the scene (over objects) and by meshes (over
 //! triangles): parallel binned-SAH build of 4-wide SoA nodes ([`Quad`]) over f32 item boxes,
-//! for ordered closest-hit traversal (four child boxes per SSE slab test) and for nearest-point
-//! queries. Items are referred to by their position in leaf order.
-//!
-//! Layout. A quad's slot `s` is a leaf when `count[s] > 0` (items `child[s]..child[s] +
-//! count[s]` of the leaf order) and otherwise refers to the quad `child[s]`; quads are laid out
-//! depth first from the root `quads[0]`, and the root's box is kept apart ([`Node`]).
+//! written straight into a [`QuadBvh`] (its layout and queries are in `quad_bvh.rs`). Items are
+//! referred to by their position in leaf order, which the build makes by permuting them in place.
 //!
 //! Build. Item boxes and centroids in f32; each split bins centroids into 32 bins per axis (8
-//! for nodes of at most 64 items)
-//! (binning itself in parallel for large nodes), sweeps the SAH (traversal step cost 1; leaves
-//! cost what the caller's [`Leaves`] say: one per item, or one price for a whole leaf whose
-//! items are tested together, a split's sides priced as that many full leaves), and partitions
-//! in place; the children's boxes are the unions of their bins' boxes and their centre boxes
-//! are gathered while partitioning, so a node costs two passes over its items. A node becomes a leaf when SAH prefers it and it holds at most [`Leaves::max`]
-//! items; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split
-//! at the median instead, which bounds the depth to `MEDIAN_DEPTH + 32` and the traversal stack.
+//! for nodes of at most 64 items; binning itself in parallel for large nodes), sweeps the SAH
+//! (traversal step cost 1; leaves cost what the caller's [`Leaves`] say: one per item, or one
+//! price for a whole leaf whose items are tested together, a split's sides priced as that many
+//! full leaves), and partitions in place; the children's boxes are the unions of their bins'
+//! boxes and their centre boxes are gathered while partitioning, so a node costs two passes over
+//! its items. A node becomes a leaf when SAH prefers it and it holds at most [`Leaves::max`]
+//! items; below depth [`MEDIAN_DEPTH`] (or when all centroids coincide) it is split at the median
+//! instead, which bounds the depth to `MEDIAN_DEPTH + 32` and the traversal stack.
+//!
 //! The quads are written as the splits are decided, with no binary tree in between: a quad's
 //! children are its node's two sides, the inner one of largest surface area replaced by its own
 //! two sides while there are fewer than four (the binary SAH tree collapsed two levels at a
@@ -23,19 +20,11 @@
 //! of the node array as long as its bound (`items − 1` nodes), the rest of which stays unused
 //! and costs no memory ([`QuadArray`]); smaller subtrees are packed depth first. So the build
 //! holds the items and the nodes, nothing else (a million scene objects: 28 + 56 MB).
-//!
-//! Traversal. Slab tests in f32 against the mesh's own f32 ray (the one the triangle test uses),
-//! with exits enlarged by `1 + 2γ₃` as in Woop, Benthin and Wald (2013), so that the box test
-//! never rejects a ray the watertight triangle test would hit. The nearer child is visited
-//! first; the farther one is pushed with its entry distance and skipped when popped if the
-//! closest hit found meanwhile is nearer. A mesh's single rays walk its quads collapsed into
-//! 8-wide nodes ([`super::oct`], [`SlabRay::entry8`]); packets walk the quads.
 
-use super::oct::Oct;
+use super::quad::Quad;
 use super::quad_array::QuadArray;
-use super::{max_f32, min_f32, NodeTest, Quad, SlabsFrom};
-use crate::traits::Wanted;
-use glam::{Vec3A, Vec4};
+use super::quad_bvh::{Node, QuadBvh};
+use glam::Vec3A;
 use rayon::prelude::*;
 
 /// SAH cost of a traversal step (testing a pair of child boxes) relative to one triangle test.
@@ -88,19 +77,6 @@ impl Leaves {
             None => n as f32,
         }
     }
-}
-
-/// `1 + 2γ₃` in f32 (γₙ = nε/(1 − nε), ε = 2⁻²⁴).
-pub(crate) const EXIT_PAD: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
-
-/// A node (see the module docs).
-#[derive(Clone, Copy, Debug, Default)]
-#[repr(C, align(32))]
-pub(crate) struct Node {
-    pub lo: [f32; 3],
-    pub first: u32,
-    pub hi: [f32; 3],
-    pub count: u32,
 }
 
 /// An f32 box.
@@ -216,18 +192,6 @@ impl Decided {
     }
 }
 
-/// The hierarchy; triangles are referred to by their position in leaf order. Closest-hit
-/// traversal and nearest-point queries both walk the 4-wide `quads`; `root` is the box of
-/// everything. Subtrees built in parallel leave unused, zero nodes after their own (see
-/// [`QuadArray`]); no slot refers to those.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct QuadBvh {
-    pub root: Node,
-    quads: QuadArray,
-    /// The nodes in use (the others are the parallel subtrees' unused room).
-    used: usize,
-}
-
 #[derive(Clone, Copy)]
 struct Bins<const N: usize> {
     bounds: [[Bb; N]; 3],
@@ -246,8 +210,7 @@ impl<const N: usize> Bins<N> {
     /// items are added alternately to these bins and to a second set, merged at the end (the
     /// same bins: unions and sums in any order): neighbouring items (a mesh's triangles come
     /// in surface order) fall in the same bins, and each update of a bin waited for the
-    /// previous one to be written. The level-8 bench mesh's load and build: 0.288 → 0.281 s
-    /// (medians of 9 alternating runs).
+    /// previous one to be written (see docs/performance.md).
     fn add(&mut self, tris: &[BuildItem], lo: Vec3A, scale: Vec3A) {
         if tris.len() < 4 * N {
             self.add_each(tris, lo, scale);
@@ -370,292 +333,6 @@ impl QuadBvh {
         let bvh = Self::build(&mut tris, leaves);
         let ids = tris.iter().map(|t| t.id).collect();
         (bvh, ids)
-    }
-
-    /// Every leaf reached from the root, as `(first, count)` (items `first..first + count` of
-    /// the leaf order), in leaf order: they partition the items.
-    pub fn leaves(&self) -> Vec<(usize, usize)> {
-        let mut leaves = Vec::new();
-        self.walk_slots(|_, quad, s, _| match quad.count[s] {
-            0 => true,
-            count => {
-                leaves.push((quad.child[s] as usize, usize::from(count)));
-                false
-            }
-        });
-        leaves.sort_unstable();
-        leaves
-    }
-
-    /// The boxes of the slots `levels` levels below the root (the root's own slots are level 1),
-    /// and of the leaves met above that level, `(lo, hi)` per axis: they hold every item.
-    pub fn boxes_below(&self, levels: u32) -> Vec<([f32; 3], [f32; 3])> {
-        let mut boxes = Vec::new();
-        self.walk_slots(|_, quad, s, level| {
-            let descend = quad.count[s] == 0 && level < levels;
-            if !descend {
-                boxes.push(quad.slot_bounds(s));
-            }
-            descend
-        });
-        boxes
-    }
-
-    /// The numbers `4·q + s` of the slots holding leaves (slot `s` of node `q`), each once: the
-    /// first levels' slots in order, each inner one replaced by the numbers of its subtree, the
-    /// subtrees walked in parallel (depth first). Only the nodes reached are read: the room
-    /// reserved between the parallel subtrees is never touched.
-    pub(crate) fn leaf_slot_numbers(&self) -> Vec<u32> {
-        self.leaf_slot_numbers_kept(|_, _| Wanted::Everything)
-    }
-
-    /// [`QuadBvh::leaf_slot_numbers`], in the same order, asking `wanted(node, slot)` about
-    /// each inner slot reached: below one answered [`Wanted::Nothing`] nothing is read or
-    /// returned, below one answered [`Wanted::Everything`] every leaf is returned without
-    /// asking further. Leaf slots are not asked about. Pruning a depth-first walk keeps the
-    /// order of what it still visits.
-    pub(crate) fn leaf_slot_numbers_kept(&self, wanted: impl Fn(&Quad, usize) -> Wanted + Sync) -> Vec<u32> {
-        /// Slots to split the walk into before handing out the subtrees.
-        const SUBTREES: usize = 64;
-        if self.quads.is_empty() {
-            return Vec::new();
-        }
-        // `(node, slot)` pairs of the first levels, inner slots split into their children's
-        // in place until there are enough (or only leaves)
-        let slots_of = |q: usize| (0..self.quads[q].len as usize).map(move |s| (q, s));
-        let mut top: Vec<(usize, usize)> = slots_of(0).collect();
-        let inner = |&(q, s): &(usize, usize)| self.quads[q].count[s] == 0;
-        while top.len() < SUBTREES && top.iter().any(inner) {
-            let mut split = Vec::with_capacity(4 * top.len());
-            for (q, s) in top {
-                let quad = &self.quads[q];
-                if quad.count[s] == 0 {
-                    split.extend(slots_of(quad.child[s] as usize));
-                } else {
-                    split.push((q, s));
-                }
-            }
-            top = split;
-        }
-        let parts: Vec<Vec<u32>> = top
-            .par_iter()
-            .map(|&(q, s)| {
-                let quad = &self.quads[q];
-                if quad.count[s] != 0 {
-                    return vec![(4 * q + s) as u32];
-                }
-                let asking = match wanted(quad, s) {
-                    Wanted::Nothing => return Vec::new(),
-                    Wanted::Everything => false,
-                    Wanted::Partly => true,
-                };
-                let mut numbers = Vec::new();
-                // each node with whether its inner slots are asked about
-                self.walk_slots_with(quad.child[s] as usize, asking, |q, quad, s, asking| {
-                    if quad.count[s] != 0 {
-                        numbers.push((4 * q + s) as u32);
-                        return None;
-                    }
-                    match asking.then(|| wanted(quad, s)) {
-                        Some(Wanted::Nothing) => None,
-                        Some(Wanted::Partly) => Some(true),
-                        Some(Wanted::Everything) | None => Some(false),
-                    }
-                });
-                numbers
-            })
-            .collect();
-        parts.concat()
-    }
-
-    /// Visits the slots reached from the root, each with its node's index and level (the root's
-    /// slots are level 1); `visit(q, quad, slot, level)` says whether to descend into an inner
-    /// slot's node.
-    fn walk_slots(&self, visit: impl FnMut(usize, &Quad, usize, u32) -> bool) {
-        if !self.quads.is_empty() {
-            self.walk_slots_from(0, visit);
-        }
-    }
-
-    /// [`QuadBvh::walk_slots`] below node `root` (its slots being level 1).
-    fn walk_slots_from(&self, root: usize, mut visit: impl FnMut(usize, &Quad, usize, u32) -> bool) {
-        self.walk_slots_with(root, 1, |q, quad, s, level| {
-            visit(q, quad, s, level).then_some(level + 1)
-        });
-    }
-
-    /// The slots reached from node `root`, depth first, each visited with its node's index and
-    /// the state its node was entered with (`state` for `root`'s): `visit(q, quad, slot, state)`
-    /// returns the state to enter an inner slot's node with, or `None` not to enter it.
-    fn walk_slots_with<T: Copy>(
-        &self,
-        root: usize,
-        state: T,
-        mut visit: impl FnMut(usize, &Quad, usize, T) -> Option<T>,
-    ) {
-        let mut pending = vec![(root, state)];
-        while let Some((q, state)) = pending.pop() {
-            let quad = &self.quads[q];
-            for s in 0..quad.len as usize {
-                if let Some(below) = visit(q, quad, s, state) {
-                    if quad.count[s] == 0 {
-                        pending.push((quad.child[s] as usize, below));
-                    }
-                }
-            }
-        }
-    }
-
-    /// The 4-wide nodes, root first.
-    pub fn quads(&self) -> &[Quad] {
-        &self.quads
-    }
-
-    /// Number of 4-wide nodes in use.
-    pub fn quad_count(&self) -> usize {
-        self.used
-    }
-
-    /// Bytes held by the nodes in use (the parallel subtrees' unused room is address space
-    /// only, see [`QuadArray`]).
-    pub fn memory_bytes(&self) -> usize {
-        self.used * std::mem::size_of::<Quad>() + std::mem::size_of::<Node>()
-    }
-
-    /// Depth-first visit for nearest-point queries: `lower_bound(node)` gives a lower bound
-    /// of the distance to anything in `node`'s box (or `None` to prune it), `leaf(first,
-    /// count)` visits a leaf's items. The root's box is asked first; a quad's children are
-    /// visited nearer bound first, and each is asked again when popped (the bound may have
-    /// tightened meanwhile).
-    pub fn nearest(&self, mut lower_bound: impl FnMut(&Node) -> Option<f64>, mut leaf: impl FnMut(u32, u32)) {
-        if lower_bound(&self.root).is_none() {
-            return;
-        }
-        if self.root.count > 0 {
-            leaf(self.root.first, self.root.count);
-            return;
-        }
-        let slot = |quad: &Quad, s: usize| {
-            let (lo, hi) = quad.slot_bounds(s);
-            Node {
-                lo,
-                first: quad.child[s],
-                hi,
-                count: u32::from(quad.count[s]),
-            }
-        };
-        let mut stack: Vec<(Node, f64)> = Vec::with_capacity(64);
-        let mut quad = &self.quads[0];
-        loop {
-            let mut children = [(Node::default(), 0.0); 4];
-            let mut len = 0;
-            for s in 0..quad.len as usize {
-                let node = slot(quad, s);
-                if let Some(d) = lower_bound(&node) {
-                    children[len] = (node, d);
-                    len += 1;
-                }
-            }
-            // farthest pushed first, so the nearest is popped next (a stable sort: equal bounds
-            // keep slot order)
-            children[..len].sort_by(|a, b| b.1.total_cmp(&a.1));
-            stack.extend_from_slice(&children[..len]);
-            let next = loop {
-                let Some((node, _)) = stack.pop() else { return };
-                if lower_bound(&node).is_none() {
-                    continue;
-                }
-                if node.count > 0 {
-                    leaf(node.first, node.count);
-                    continue;
-                }
-                break node.first;
-            };
-            quad = &self.quads[next as usize];
-        }
-    }
-}
-
-/// Per-ray data for the slab tests: the f32 origin and clamped reciprocal direction.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct SlabRay {
-    pub origin: Vec3A,
-    pub inv: Vec3A,
-}
-
-impl SlabRay {
-    /// From the f32 ray. Reciprocals are clamped to ±`f32::MAX`, so a zero direction component
-    /// gives `0·MAX = 0` rather than `0·∞ = NaN` on a slab plane through the origin.
-    #[inline]
-    pub fn new(origin: Vec3A, dir: Vec3A) -> Self {
-        let inv = Vec3A::ONE / dir;
-        Self {
-            origin,
-            inv: inv.clamp(Vec3A::splat(-f32::MAX), Vec3A::splat(f32::MAX)),
-        }
-    }
-
-    /// Entry distances into the four boxes of `quad` within `[t0, t1]` (per axis `(lo − o)·inv` and
-    /// `(hi − o)·inv`, nearest exit enlarged by `1 + 2γ₃`; four boxes per SSE operation).
-    #[inline(always)]
-    pub(crate) fn entry4(&self, quad: &Quad, t0: f32, t1: f32) -> (u32, [f32; 4]) {
-        let mut near = Vec4::splat(t0);
-        let mut far = Vec4::splat(f32::INFINITY);
-        for axis in 0..3 {
-            let o = Vec4::splat(self.origin[axis]);
-            let inv = Vec4::splat(self.inv[axis]);
-            let a = (Vec4::from_array(quad.lo[axis]) - o) * inv;
-            let b = (Vec4::from_array(quad.hi[axis]) - o) * inv;
-            near = near.max(a.min(b));
-            far = far.min(a.max(b));
-        }
-        let far = (far * EXIT_PAD).min(Vec4::splat(t1));
-        (near.cmple(far).bitmask(), near.to_array())
-    }
-
-    /// Whether the ray enters the box `lo..hi` within `[t0, t1]`: the arithmetic of
-    /// [`SlabRay::entry8`] for one box. Rounding is monotonic, so a ray that does not enter a
-    /// box by this test enters none of the boxes inside it by `entry4` or `entry8` (each
-    /// slab's entry can only be later and its exit earlier).
-    #[inline(always)]
-    pub(crate) fn enters(&self, lo: [f32; 3], hi: [f32; 3], t0: f32, t1: f32) -> bool {
-        let (mut n, mut f) = (t0, f32::INFINITY);
-        for axis in 0..3 {
-            let a = (lo[axis] - self.origin[axis]) * self.inv[axis];
-            let b = (hi[axis] - self.origin[axis]) * self.inv[axis];
-            n = max_f32(n, min_f32(a, b));
-            f = min_f32(f, max_f32(a, b));
-        }
-        n <= min_f32(f * EXIT_PAD, t1)
-    }
-
-    /// [`SlabRay::entry4`] for the eight boxes of `oct` (the same operations on each box), one
-    /// loop over the slots that the compiler turns into 8-wide AVX in the AVX2 copy.
-    #[inline(always)]
-    pub(crate) fn entry8(&self, oct: &Oct, t0: f32, t1: f32) -> (u32, [f32; 8]) {
-        let mut near = [t0; 8];
-        let mut inside = [0i32; 8];
-        for s in 0..8 {
-            let mut n = t0;
-            let mut f = f32::INFINITY;
-            for axis in 0..3 {
-                let a = (oct.lo[axis][s] - self.origin[axis]) * self.inv[axis];
-                let b = (oct.hi[axis][s] - self.origin[axis]) * self.inv[axis];
-                n = max_f32(n, min_f32(a, b));
-                f = min_f32(f, max_f32(a, b));
-            }
-            let f = min_f32(f * EXIT_PAD, t1);
-            near[s] = n;
-            inside[s] = -i32::from(n <= f);
-        }
-        (super::lane_mask(&inside), near)
-    }
-}
-
-impl NodeTest for SlabsFrom<'_, SlabRay> {
-    #[inline(always)]
-    fn entry4(&self, quad: &Quad, t_max: f32) -> (u32, [f32; 4]) {
-        self.ray.entry4(quad, self.t_min, t_max)
     }
 }
 

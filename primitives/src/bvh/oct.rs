@@ -3,31 +3,29 @@
 //!
 //! Why. A ray walking a mesh's quads waits at every node for the next one: on a cache-resident
 //! mesh for the slab test and the choice of child, on a mesh many times the cache for memory too
-//! (a ray entering the box of a 1.3-million-triangle mesh visits about 11 quads, about 155 ns
-//! each). Eight children a node take fewer levels: camera rays on the level-4 bench mesh visit 3.8
-//! octs where they visited 5.0 quads. The eight slab tests are one loop that the AVX2 copy of the
-//! walk ([`crate::with_fma!`]) computes 8 wide, so an oct costs about what a quad did there. (A
-//! first version tested the eight boxes as two explicit SSE halves: slower than the quads.)
+//! (see docs/performance.md). Eight children a node take fewer levels, so fewer waits. The eight
+//! slab tests are one loop that the AVX2 copy of the walk ([`crate::with_fma!`]) computes 8 wide,
+//! so an oct costs about what a quad did there (two explicit SSE halves did not).
 //!
 //! Same hits. The boxes are the quads' own child boxes moved up a level and the leaves are the
 //! quads' leaves (the same items, the same leaf order), so the walk meets the same candidates and
 //! keeps the same closest hit, the smallest `(t, leaf position)`, whatever the order of visits
-//! (see [`super::cull_bound`]).
+//! (see [`super::walk::cull_bound`]).
 //!
 //! Collapse. Each oct starts from a quad's slots; while there is room, the inner slot of largest
 //! surface area whose quad's slots fit in the room left is replaced by those slots (the greedy rule
 //! that made the quads from the binary SAH splits). Octs are laid out depth first from the root
 //! `octs[0]`.
 //!
-//! Traversal ([`Octs::traverse`]): as [`super::traverse_quads`]; the entered children are ordered
+//! Traversal ([`Octs::traverse`]): as [`super::walk::traverse_quads`]; the entered children are ordered
 //! farthest first by insertion (one or two entered children, the common case, take no loop), and
 //! the entered inner children's nodes are requested from memory as soon as they are known.
 
-use super::build::SlabRay;
-use super::{
-    cull_bound, nearer_of_two, next_inner_node, prefetch_children, worth_prefetching, LeafTest, Pending, Quad,
-    QUAD_STACK,
-};
+use super::lanes::{lane_mask, max_f32, min_f32};
+use super::prefetching::worth_prefetching;
+use super::quad::Quad;
+use super::slab::{SlabRay, EXIT_PAD};
+use super::walk::{cull_bound, nearer_of_two, next_inner_node, prefetch_children, LeafTest, Pending, QUAD_STACK};
 use std::mem::MaybeUninit;
 
 /// An 8-wide node: up to eight children's f32 boxes in SoA layout (`SlabRay::entry8` tests all
@@ -212,11 +210,8 @@ pub(crate) fn push_entered(
 /// [`OCT_STACK`] keeps beyond the deepest walk). The same pushes and the same answer.
 ///
 /// For the interleaved walks (`mesh/stream.rs`), whose random rays mispredicted those branches
-/// about twice a ray (cachegrind, 30,000 random rays entering the level-4 mesh's ball):
-/// `cast_rays` on 10⁶ random rays, medians of 9 alternating runs, level 6 31.6 → 30.7 ms,
-/// levels 4 and 8 unchanged. The single walk keeps the branches: there the extra instructions
-/// (about 200 a ray on the level-4 mesh) cost what the mispredictions did (25.0 against
-/// 24.7 ms).
+/// about twice a ray. The single walk keeps the branches: there the extra instructions cost what
+/// the mispredictions did (see docs/performance.md).
 #[inline(always)]
 pub(crate) fn push_entered_unbranched(
     o: &Oct,
@@ -320,10 +315,35 @@ fn emit(quads: &[Quad], q: usize, nodes: &mut Vec<Oct>) -> u32 {
     index as u32
 }
 
+impl SlabRay {
+    /// [`SlabRay::entry4`] for the eight boxes of `oct` (the same operations on each box), one
+    /// loop over the slots that the compiler turns into 8-wide AVX in the AVX2 copy.
+    #[inline(always)]
+    pub(crate) fn entry8(&self, oct: &Oct, t0: f32, t1: f32) -> (u32, [f32; 8]) {
+        let mut near = [t0; 8];
+        let mut inside = [0i32; 8];
+        for s in 0..8 {
+            let mut n = t0;
+            let mut f = f32::INFINITY;
+            for axis in 0..3 {
+                let a = (oct.lo[axis][s] - self.origin[axis]) * self.inv[axis];
+                let b = (oct.hi[axis][s] - self.origin[axis]) * self.inv[axis];
+                n = max_f32(n, min_f32(a, b));
+                f = min_f32(f, max_f32(a, b));
+            }
+            let f = min_f32(f * EXIT_PAD, t1);
+            near[s] = n;
+            inside[s] = -i32::from(n <= f);
+        }
+        (lane_mask(&inside), near)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::build::{Bb, BuildItem, Leaves, QuadBvh};
+    use crate::bvh::build::{Bb, BuildItem, Leaves};
+    use crate::bvh::quad_bvh::QuadBvh;
     use glam::Vec3A;
     use rand::{Rng, SeedableRng};
 

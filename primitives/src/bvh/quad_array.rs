@@ -10,7 +10,7 @@
 //! correctness). A zero [`Quad`] is a valid, empty node (`len = 0`). The address space taken is
 //! 128 bytes per item (10⁶ scene objects: 128 MB of address space for 56 MB of nodes in use).
 
-use super::Quad;
+use super::quad::Quad;
 use std::alloc::Layout;
 use std::fmt;
 use std::ptr::NonNull;

@@ -21,11 +21,14 @@
     reason = "lane loops index several per-lane arrays by the lane; the form the compiler vectorises"
 )]
 
-use super::{permuted, watertight_lanes, Candidate, Lanes, Mesh, MeshQuery};
-use crate::bvh::build::EXIT_PAD;
-use crate::bvh::{
-    cull_bound, lane_mask, lanes_of, max_f32, min_f32, traverse_quads_from, walk_packet, PacketVisitor, Quad, SlabsFrom,
-};
+use super::query::{Candidate, MeshQuery};
+use super::storage::Mesh;
+use super::watertight::{permuted, watertight_lanes, Lanes};
+use crate::bvh::lanes::{lane_mask, lanes_of, max_f32, min_f32};
+use crate::bvh::packet::{walk_packet, PacketVisitor};
+use crate::bvh::quad::Quad;
+use crate::bvh::slab::EXIT_PAD;
+use crate::bvh::walk::{cull_bound, traverse_quads_from, SlabsFrom};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::Intersect;
@@ -283,7 +286,7 @@ impl PacketQuery<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::build::SlabRay;
+    use crate::bvh::slab::SlabRay;
     use crate::mesh::Mesh;
     use glam::DVec3;
     use rand::{Rng, SeedableRng};
@@ -396,7 +399,7 @@ mod tests {
             let ray = Ray::new(aim - 3.0 * dir, dir);
             let unit = (ray.dir / ray.dir.length()).as_vec3a();
             let (origin, unit) = (ray.origin.as_vec3a(), unit);
-            let k = super::super::MeshRay::with_slab(SlabRay::new(origin, unit), origin, unit).k;
+            let k = crate::mesh::watertight::MeshRay::with_slab(SlabRay::new(origin, unit), origin, unit).k;
             let single = mesh.intersect(&ray, Interval::POSITIVE);
             let brute = mesh.intersect_brute_force(&ray);
             assert_eq!(single.map(|h| h.feature), brute.map(|b| b.0), "{ray:?}");

@@ -14,9 +14,11 @@
 //! [`crate::Intersect::origin_rounding`]): the f64 ray passes its box closer than the margin
 //! the trait asks candidates to be chosen with.
 
-use super::{v64, Candidate, Mesh, MeshQuery};
+use super::query::{Candidate, MeshQuery};
+use super::storage::{v64, Mesh};
 use crate::bounds::Aabb;
-use crate::bvh::{cull_bound, Quad};
+use crate::bvh::quad::Quad;
+use crate::bvh::walk::cull_bound;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Pieces, Wanted};
@@ -363,7 +365,7 @@ mod tests {
                         return None;
                     }
                     let distance = (origin.clamp(b.min, b.max) - origin).length();
-                    Some((*n, crate::bvh::round_down((distance - margin).max(0.0))))
+                    Some((*n, crate::bvh::rounding::round_down((distance - margin).max(0.0))))
                 })
                 .collect();
             listed.sort_by(|a, b| a.1.total_cmp(&b.1));

@@ -4,7 +4,7 @@
 //! Why. On a mesh many times the cache a single ray's walk waits on memory at almost every step:
 //! the children of a node are requested as soon as they are entered (`prefetch_children`), but
 //! the walk visits the nearest one right after and waits for it. Random rays entering the level-8
-//! bench mesh (1.3 million triangles) spent about 500 ns each, mostly in those waits. Here each
+//! bench mesh (1.3 million triangles) spent most of their time in those waits. Here each
 //! ray in flight takes one step in turn (a node opened or a leaf tested) and then requests what
 //! its next step reads (that node's four cache lines or that leaf's rows), which arrives while
 //! the other rays take theirs: the misses of several rays overlap instead of following one
@@ -13,8 +13,8 @@
 //! read). A hit's first read when finished (its file index) is requested when the candidate is
 //! found, and the hit is finished a round after the ray's last step.
 //!
-//! Measured (`cast_rays`, 10⁶ random rays, 2 threads, medians of 5 alternating runs): level 8
-//! 76 → 48 ms; level 6 39.7 → 38.5 ms (its nodes and rows fit in the L3 cache).
+//! The gain is large on the level-8 mesh and small on level 6, whose nodes and rows fit in the
+//! L3 cache (see docs/performance.md).
 //!
 //! Same answers. Each ray walks exactly as the single-ray walk does ([`super::oct::Octs::traverse`]:
 //! the same node tests, the same order of visits, the same culling at
@@ -24,27 +24,28 @@
 //!
 //! Where. Only where the nodes outgrow a core's L2 cache ([`worth_prefetching`]): in a mesh that
 //! fits there, a ray's walk does not wait on memory, and keeping its state in memory between
-//! steps (rather than in registers) only costs (the level-4 mesh walked this way: 26.8 → 30.3 ms).
+//! steps (rather than in registers) only costs (slower on the level-4 mesh, see docs/performance.md).
 //! There each ray walks alone ([`single_ray`], less the ball test already made).
 //!
 //! The ball first. Either way, a batch is judged [`BLOCK`] rays at a time by the ball test
 //! ([`Mesh::misses_ball`]) before any walk is set up, four rays at once
 //! ([`Mesh::misses_ball4`]: the one-ray test for each of four rays, which the AVX2 copy runs
 //! four wide); only the rays it keeps ([`Passing`]) are walked, the others are misses. Most
-//! of a random batch ends there: `cast_rays` on 10⁶ random rays, medians of 7 alternating runs,
-//! level 4 27.2 → 26.0 ms, level 6 34.6 → 33.1 ms, level 8 42.0 → 41.2 ms (the rays the ball
-//! turns away alone: 6.2 → 4.9 ms on level 4).
+//! of a random batch ends there (see docs/performance.md).
 
-use super::{single_ray_in_ball, Candidate, Mesh, MeshQuery};
+use super::query::{Candidate, MeshQuery};
+use super::storage::Mesh;
+use super::walk::single_ray_in_ball;
 use crate::bvh::oct::{push_entered_unbranched, Oct, OCT_STACK};
-use crate::bvh::{cull_bound, next_within, prefetch, prefetch_node, worth_prefetching, Pending};
+use crate::bvh::prefetching::{prefetch, prefetch_node, worth_prefetching};
+use crate::bvh::walk::{cull_bound, next_within, Pending};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use std::mem::MaybeUninit;
 
-/// Rays walked at once: with 8, 12 or 16 random rays on the level-8 bench mesh, `cast_rays` took
-/// the same time; with 4, 6 % longer (the other rays' steps no longer cover a miss to memory).
-pub(super) const IN_FLIGHT: usize = 8;
+/// Rays walked at once: enough that the other rays' steps cover one ray's miss to memory (fewer
+/// were slower on the level-8 bench mesh, more no faster; see docs/performance.md).
+const IN_FLIGHT: usize = 8;
 
 /// Rays of a batch judged together by [`Mesh::passing`] (at most).
 const BLOCK: usize = 256;

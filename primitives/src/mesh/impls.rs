@@ -1,0 +1,122 @@
+//! The mesh's trait implementations: [`Implicit`] (Φ, its gradient and the boxes of the
+//! hierarchy's parts) and [`Intersect`] (single rays, batches, packets and the hit's normals, as
+//! the module docs of [`crate::mesh`] state them). The work is done in the files next to this one:
+//! `walk.rs` (single rays), `stream.rs` (batches), `packet.rs` (packets), `phi.rs` (Φ).
+
+use super::packet;
+use super::storage::{v64, Mesh};
+use super::walk::single_ray;
+use crate::bounds::Aabb;
+use crate::hit::RawHit;
+use crate::ray::{Interval, Ray};
+use crate::traits::{Implicit, Intersect};
+use glam::{DVec2, DVec3};
+
+/// How many levels below the root [`Implicit::bounds_parts`] takes the boxes from.
+pub(super) const PART_LEVELS: u32 = 4;
+
+impl Implicit for Mesh {
+    /// Distance to the nearest triangle, signed by its face normal (see the module docs).
+    fn phi(&self, p: DVec3) -> f64 {
+        let (q, k) = self.nearest(p);
+        let d = (p - q).length();
+        let (n, _) = self.plane(k);
+        if n.dot(p - q) < 0.0 {
+            -d
+        } else {
+            d
+        }
+    }
+
+    fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The boxes [`PART_LEVELS`] levels below the hierarchy's root (at most `4^PART_LEVELS`; a
+    /// leaf met on the way gives its own box): together they hold every triangle.
+    fn bounds_parts(&self, parts: &mut Vec<Aabb>) {
+        if self.bvh.quads().is_empty() {
+            parts.push(self.bounds);
+            return;
+        }
+        let boxes = self.bvh.boxes_below(PART_LEVELS);
+        parts.extend(boxes.into_iter().map(|(lo, hi)| Aabb::new(v64(lo), v64(hi))));
+    }
+
+    /// `±(p − q)/|p − q|` towards `Φ > 0`, or the nearest triangle's normal on the surface.
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        let (q, k) = self.nearest(p);
+        let n = self.plane(k).0.normalize_or_zero();
+        let d = p - q;
+        let len = d.length();
+        if len <= 1e-12 * self.radius.max(f64::MIN_POSITIVE) {
+            n
+        } else if n.dot(d) < 0.0 {
+            -d / len
+        } else {
+            d / len
+        }
+    }
+}
+
+impl Intersect for Mesh {
+    /// [`single_ray`] in its AVX2+FMA copy where the CPU has them.
+    fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        crate::with_fma!(single_ray(mesh: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
+    }
+
+    /// The rays inside one AVX2+FMA copy (the CPU's features checked once for the batch), their
+    /// walks interleaved on a mesh larger than the L2 cache (`mesh/stream.rs`): the same answers
+    /// as [`Mesh::intersect`] ray by ray. A mesh has no root finder, so no answer is uncertain.
+    fn intersect_each(&self, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>], uncertain: &mut [bool]) {
+        uncertain.fill(false);
+        #[inline(always)]
+        fn each(mesh: &Mesh, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>]) {
+            mesh.intersect_stream(rays, ranges, hits);
+        }
+        crate::with_fma!(each(mesh: &Mesh = self, rays: &[Ray] = rays, ranges: &[Interval] = ranges, hits: &mut [Option<RawHit>] = hits) -> ())
+    }
+
+    /// Walks the hierarchy once for the whole packet (see `mesh/packet.rs`); the same answers
+    /// as [`Mesh::intersect`] lane by lane.
+    fn intersect_packet(&self, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) {
+        for ((rays, ranges), hits) in rays
+            .chunks(crate::PACKET)
+            .zip(ranges.chunks_mut(crate::PACKET))
+            .zip(hits.chunks_mut(crate::PACKET))
+        {
+            packet::intersect(self, rays, ranges, hits);
+        }
+    }
+
+    /// The hit triangle's geometric normal, `(b − a) × (c − a)` normalised.
+    fn normal_at(&self, _ray: &Ray, raw: &RawHit) -> DVec3 {
+        self.hit_plane(raw).map_or(DVec3::ZERO, |(n, _)| n.normalize_or_zero())
+    }
+
+    /// The hit triangle's normal from the f32 table made with the mesh (the same rounded
+    /// values as `normal_at(…).as_vec3()`); without one (a large mesh), `normal_at` rounded.
+    fn normal_at_f32(&self, _ray: &Ray, raw: &RawHit) -> glam::Vec3 {
+        self.unit_normal_f32(raw.feature, || self.hit_plane(raw).map(|(n, _)| n))
+    }
+
+    /// The barycentrics `(u, v)` of the hit (see the module docs).
+    fn uv_at(&self, _ray: &Ray, raw: &RawHit) -> Option<DVec2> {
+        Some(raw.local)
+    }
+
+    fn shading_normal_at(&self, _ray: &Ray, raw: &RawHit) -> Option<DVec3> {
+        self.shading_normal(raw)
+    }
+
+    /// The hierarchy's leaves (see `mesh/pieces.rs`).
+    fn pieces(&self) -> Option<&dyn crate::Pieces> {
+        Some(self)
+    }
+
+    /// The f32 copy of the origin is off by up to `2⁻²⁴` of each component's size: at most
+    /// `√3·2⁻²⁴·max |oᵢ| < 2⁻²³·max |oᵢ|` in all.
+    fn origin_rounding(&self, origin: DVec3) -> f64 {
+        f64::from(f32::EPSILON) * origin.abs().max_element()
+    }
+}
