@@ -5,19 +5,17 @@
 //! whether the ray starts inside (at `range.min`) and then those crossings, **lazily** and in
 //! increasing `t`, so a consumer that stops at the first interesting one pays for no more.
 //!
-//! Any primitive has them through [`Intersect::crossings`]'s default, [`repeated_intersection`]:
+//! Any primitive has them through [`crate::Intersect::crossings`]'s default, [`crate::traits::repeated_intersection`]:
 //! the first hit, then the first hit a small relative step past it, and so on. Tangential contacts
 //! (`dir · n = 0`) change nothing and are skipped. [`crate::Csg`] overrides it by merging its
 //! children's streams, so each child is walked once per ray whatever the nesting depth.
 
 use crate::hit::RawHit;
-use crate::ray::{Interval, Ray};
-use crate::traits::Intersect;
 
 /// One boundary crossing: the primitive's own raw hit and which side the ray is on after it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Crossing {
-    /// The hit, as [`Intersect::intersect`] would return it (pass it to `normal_at`, `uv_at`).
+    /// The hit, as [`crate::Intersect::intersect`] would return it (pass it to `normal_at`, `uv_at`).
     pub hit: RawHit,
     /// Whether the ray is inside (`Φ < 0`) just after the crossing.
     pub inside_after: bool,
@@ -67,48 +65,4 @@ impl Iterator for Crossings<'_> {
 #[must_use]
 pub fn step_past(t: f64) -> f64 {
     t + (t.abs().max(f64::MIN_POSITIVE.sqrt())) * (2.0f64).powi(-40)
-}
-
-/// The crossings of `primitive` found by repeated first-hit queries: the default of
-/// [`Intersect::crossings`].
-///
-/// After a hit at `t` the next search starts at [`step_past`]`(t)`. Where the primitive keeps
-/// reporting tangential contacts (`dir · n = 0`, e.g. a ray lying in a face plane, a contact
-/// segment reported at every `t_min`), the step doubles, so the segment is left in at most
-/// ~2,100 queries instead of one ulp at a time.
-pub fn repeated_intersection<'a, P: Intersect + ?Sized>(primitive: &'a P, ray: &Ray, range: Interval) -> Crossings<'a> {
-    let ray = *ray;
-    let starts_inside = primitive.phi(ray.at(range.min)) < 0.0;
-    let mut from = range.min;
-    let mut step = 0.0f64;
-    let mut done = false;
-    let rest = std::iter::from_fn(move || loop {
-        if done {
-            return None;
-        }
-        let Some(hit) = primitive.intersect(&ray, Interval::new(from, range.max)) else {
-            done = true;
-            return None;
-        };
-        let facing = ray.dir.dot(primitive.normal_at(&ray, &hit));
-        let mut after = step_past(hit.t);
-        if facing == 0.0 {
-            step = (2.0 * step).max(after - hit.t);
-            after = hit.t + step;
-        } else {
-            step = 0.0;
-        }
-        if after.is_finite() && after > hit.t && after <= range.max {
-            from = after;
-        } else {
-            done = true;
-        }
-        if facing != 0.0 {
-            return Some(Crossing {
-                hit,
-                inside_after: facing < 0.0,
-            });
-        }
-    });
-    Crossings::new(starts_inside, rest)
 }

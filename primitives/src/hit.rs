@@ -2,7 +2,7 @@
 //!
 //! Intersection runs in two stages ("cheap first, full once"):
 //!
-//! 1. [`Intersect::intersect`] finds the smallest `t` in the query
+//! 1. [`crate::Intersect::intersect`] finds the smallest `t` in the query
 //!    interval and returns a [`RawHit`]: `t` plus whatever the primitive needs to finish later (a
 //!    face index, barycentric coordinates).
 //! 2. For the closest hit only, [`SurfaceHit::complete`] computes the point and, if asked for in a
@@ -15,8 +15,6 @@
 //!   viewer-facing one.
 //! - `entered_from_outside` is `dir · n < 0`: the ray crossed from the `Φ > 0` side.
 
-use crate::ray::Ray;
-use crate::traits::Intersect;
 use glam::{DVec2, DVec3};
 
 /// What an intersector returns: the ray parameter and primitive-private data for finishing.
@@ -95,30 +93,13 @@ pub struct SurfaceHit {
     /// Primitive-defined part index (see [`RawHit::feature`]).
     pub feature: u32,
     /// Bound on the distance between `point` and the exact surface
-    /// ([`Intersect::hit_error`]); pass it to [`crate::offset::offset_origin`] to start
+    /// ([`crate::Intersect::hit_error`]); pass it to [`crate::offset::offset_origin`] to start
     /// secondary rays. `+∞` (a valid but useless bound) where the request did not ask for it
     /// ([`HitRequest::error`]): no secondary ray may start from such a record.
     pub error: f64,
 }
 
 impl SurfaceHit {
-    /// Builds the record for `raw`, found on `surface` along `ray`, computing what `request` asks.
-    #[must_use]
-    pub fn complete<S: Intersect + ?Sized>(surface: &S, ray: &Ray, raw: &RawHit, request: HitRequest) -> Self {
-        Self {
-            t: raw.t,
-            point: ray.at(raw.t),
-            normal: request.normal.then(|| surface.normal_at(ray, raw)),
-            uv: if request.uv { surface.uv_at(ray, raw) } else { None },
-            feature: raw.feature,
-            error: if request.error {
-                surface.hit_error(ray, raw)
-            } else {
-                f64::INFINITY
-            },
-        }
-    }
-
     /// Whether the ray arrived from the `Φ > 0` side (`dir · n < 0`); `None` without a normal.
     #[must_use]
     pub fn entered_from_outside(&self, dir: DVec3) -> Option<bool> {

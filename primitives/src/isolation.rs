@@ -27,11 +27,11 @@
 //! is never lost between two pieces).
 
 use crate::expr::Jet;
+use crate::finder::{note_uncertain_on_thread, refine_bracket, RootOptions, RootReport};
 use crate::hit::RawHit;
+use crate::implicit::Implicit;
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
-use crate::root::{refine_bracket, RootOptions, RootReport};
-use crate::traits::Implicit;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 static TANGENT: AtomicU64 = AtomicU64::new(0);
@@ -251,17 +251,17 @@ pub(crate) fn count_outcome(hit: Option<(f64, bool)>, exhausted: bool, undefined
     let mut uncertain = false;
     if exhausted {
         EXHAUSTED.fetch_add(1, Ordering::Relaxed);
-        crate::root::note_uncertain_on_thread();
+        note_uncertain_on_thread();
         uncertain = true;
     }
     if let Some((_, true)) = hit {
         TANGENT.fetch_add(1, Ordering::Relaxed);
-        crate::root::note_uncertain_on_thread();
+        note_uncertain_on_thread();
         uncertain = true;
     }
     if undefined_seen {
         UNDEFINED.fetch_add(1, Ordering::Relaxed);
-        crate::root::note_uncertain_on_thread();
+        note_uncertain_on_thread();
     }
     uncertain
 }

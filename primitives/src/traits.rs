@@ -9,88 +9,16 @@
 //! sampling / Lipschitz march.
 
 use crate::bounds::Aabb;
-use crate::crossings::{self, Crossings};
+use crate::crossings::{step_past, Crossing, Crossings};
 use crate::expr::Jet;
 use crate::hit::RawHit;
-use crate::math::central_difference;
+use crate::hit::{HitRequest, SurfaceHit};
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::root::{self, RootOptions};
 use glam::{DVec2, DVec3, Vec3};
 
-/// A surface given as the zero set of a scalar function Φ.
-///
-/// Sign convention: **Φ < 0 inside, Φ = 0 on the surface, Φ > 0 outside.** For open surfaces
-/// (plane, disk, polygon, triangle) "outside" is the front side, the one the normal points to.
-pub trait Implicit {
-    /// Φ at `p` (same space as the primitive's parameters).
-    fn phi(&self, p: DVec3) -> f64;
-
-    /// A box containing every point of the surface (may be infinite for unbounded surfaces).
-    fn bounds(&self) -> Aabb;
-
-    /// Boxes whose union contains every point of the surface, appended to `parts`: [`bounds`]
-    /// alone by default. A mesh gives the boxes of its hierarchy's upper nodes, which follow its
-    /// shape more closely (a renderer skips the pixels that can see none of them).
-    ///
-    /// [`bounds`]: Implicit::bounds
-    fn bounds_parts(&self, parts: &mut Vec<Aabb>) {
-        parts.push(self.bounds());
-    }
-
-    /// ∇Φ at `p`. The default is a central difference with step `6·10⁻⁶ ×` the bounds' diagonal
-    /// (≈ ∛ε, the optimal step for an O(h²) formula in f64), or `6·10⁻⁶·max(1, |p|)` for unbounded
-    /// surfaces. Built-ins override it with the analytic gradient.
-    fn gradient(&self, p: DVec3) -> DVec3 {
-        let scale = self.bounds().diagonal_length();
-        let scale = if scale.is_finite() && scale > 0.0 {
-            scale
-        } else {
-            p.length().max(1.0)
-        };
-        central_difference(|q| self.phi(q), p, 6e-6 * scale)
-    }
-
-    /// A bound `L` with `|Φ(a) − Φ(b)| ≤ L·|a − b|` everywhere in the bounds, if the type knows one.
-    ///
-    /// With a bound, the generic root finder steps by `|Φ|/L` and cannot step over a surface; a
-    /// bound that is too small is detected where it is violated along a ray, counted (see
-    /// [`root::lipschitz_violations`]) and the march continues with the larger observed slope.
-    /// Without one, the finder samples the ray uniformly ([`RootOptions::samples`]) and can miss
-    /// features thinner than one sample spacing.
-    fn lipschitz(&self) -> Option<f64> {
-        None
-    }
-
-    /// Enclosures of `g(t) = Φ(ray.at(t))` (`value`) and of `g′(t) = ∇Φ·dir` (`slope`) valid for
-    /// every `t` in `segment`, if the type can bound Φ by interval arithmetic (see
-    /// [`crate::math::enclosure`]; [`crate::expr::Expr::enclose_along`] does it for an
-    /// expression). A type that returns `Some` gets the guaranteed first root of
-    /// [`crate::isolation`] from the generic intersector, without a Lipschitz bound. The default
-    /// is `None` (the sampling / sphere-tracing finder of [`crate::root`]).
-    ///
-    /// The enclosures must be **sound**: a value or slope outside them is a bug that can lose
-    /// roots.
-    fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> {
-        let _ = (ray, segment);
-        None
-    }
-
-    /// The `value` part of [`Implicit::enclose_along`] alone. The interval root finder asks for it
-    /// first on every piece, and for the slope only where the value cannot exclude 0, so a type
-    /// that can enclose the value more cheaply than value and slope together overrides this.
-    fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> {
-        self.enclose_along(ray, segment).map(|jet| jet.value)
-    }
-
-    /// Whether a point of Φ's zero set belongs to the surface. Open surfaces whose Φ describes
-    /// their supporting surface (a polygon's plane, a disk's plane, an open cylinder's infinite
-    /// tube) restrict it here; the default keeps the whole zero set.
-    fn within_boundary(&self, p: DVec3) -> bool {
-        let _ = p;
-        true
-    }
-}
+pub use crate::implicit::Implicit;
 
 /// The rectangle `u ∈ [u.0, u.1]`, `v ∈ [v.0, v.1]` a parametric form is defined on.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -223,11 +151,11 @@ pub trait Intersect: Implicit {
 
     /// Whether the ray starts inside at `range.min`, then every boundary crossing in `range`,
     /// lazily in increasing `t` (see [`crate::crossings`]). The default,
-    /// [`crossings::repeated_intersection`], asks [`Intersect::intersect`] again a small step past
+    /// [`repeated_intersection`], asks [`Intersect::intersect`] again a small step past
     /// each hit; combinators ([`crate::Csg`]) and wrappers ([`crate::Transformed`]) override it so
     /// nested trees are walked once per ray.
     fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> {
-        crossings::repeated_intersection(self, ray, range)
+        repeated_intersection(self, ray, range)
     }
 
     /// How far from the exact ray `origin + t·dir` a hit this type reports may lie because of
@@ -370,3 +298,67 @@ macro_rules! forward_through_pointer {
 
 forward_through_pointer!(std::sync::Arc);
 forward_through_pointer!(Box);
+
+/// The crossings of `primitive` found by repeated first-hit queries: the default of
+/// [`Intersect::crossings`].
+///
+/// After a hit at `t` the next search starts at [`step_past`]`(t)`. Where the primitive keeps
+/// reporting tangential contacts (`dir · n = 0`, e.g. a ray lying in a face plane, a contact
+/// segment reported at every `t_min`), the step doubles, so the segment is left in at most
+/// ~2,100 queries instead of one ulp at a time.
+pub fn repeated_intersection<'a, P: Intersect + ?Sized>(primitive: &'a P, ray: &Ray, range: Interval) -> Crossings<'a> {
+    let ray = *ray;
+    let starts_inside = primitive.phi(ray.at(range.min)) < 0.0;
+    let mut from = range.min;
+    let mut step = 0.0f64;
+    let mut done = false;
+    let rest = std::iter::from_fn(move || loop {
+        if done {
+            return None;
+        }
+        let Some(hit) = primitive.intersect(&ray, Interval::new(from, range.max)) else {
+            done = true;
+            return None;
+        };
+        let facing = ray.dir.dot(primitive.normal_at(&ray, &hit));
+        let mut after = step_past(hit.t);
+        if facing == 0.0 {
+            step = (2.0 * step).max(after - hit.t);
+            after = hit.t + step;
+        } else {
+            step = 0.0;
+        }
+        if after.is_finite() && after > hit.t && after <= range.max {
+            from = after;
+        } else {
+            done = true;
+        }
+        if facing != 0.0 {
+            return Some(Crossing {
+                hit,
+                inside_after: facing < 0.0,
+            });
+        }
+    });
+    Crossings::new(starts_inside, rest)
+}
+
+/// The second stage of a hit, written here beside [`Intersect`] (whose methods it calls).
+impl SurfaceHit {
+    /// Builds the record for `raw`, found on `surface` along `ray`, computing what `request` asks.
+    #[must_use]
+    pub fn complete<S: Intersect + ?Sized>(surface: &S, ray: &Ray, raw: &RawHit, request: HitRequest) -> Self {
+        Self {
+            t: raw.t,
+            point: ray.at(raw.t),
+            normal: request.normal.then(|| surface.normal_at(ray, raw)),
+            uv: if request.uv { surface.uv_at(ray, raw) } else { None },
+            feature: raw.feature,
+            error: if request.error {
+                surface.hit_error(ray, raw)
+            } else {
+                f64::INFINITY
+            },
+        }
+    }
+}

@@ -1,7 +1,7 @@
 //! An octree of a box that knows, cell by cell, whether Φ may vanish there, and with which
 //! pruned tape: built once, shared by every ray (and point query) that crosses the box.
 //!
-//! **Built** by interval evaluation ([`Tape::eval_choices`]) over each cell grown by a margin
+//! **Built** by interval evaluation (`Tape::eval_choices`) over each cell grown by a margin
 //! `m` on every side: a cell whose enclosure of Φ excludes 0 (and is defined) holds no point of
 //! the zero set and is marked **empty** (Φ > 0 all over it, or Φ < 0 all over it); otherwise it
 //! is split in eight, each child evaluated with the tape pruned over its parent (Keeter 2020,

@@ -9,9 +9,9 @@
 //! tape's values, enclosures and derivatives equal the tree's, bit for bit (tested).
 //!
 //! **Pruning** (the technique of libfive and fidget). An interval evaluation over a region
-//! ([`Tape::eval_choices`]) records, for each `min` / `max`, whether one argument is certainly
+//! (`Tape::eval_choices`) records, for each `min` / `max`, whether one argument is certainly
 //! smaller (or larger) than the other everywhere in the region, and for each `abs` whether its
-//! argument is certainly positive or negative. [`Tape::pruned`] then drops the branches that
+//! argument is certainly positive or negative. `Tape::pruned` then drops the branches that
 //! cannot be chosen and turns `abs` into the identity or a negation. Inside the region the pruned
 //! tape computes the **same** values: the interval enclosures contain the f64 point values (each
 //! directed-rounded operation encloses the nearest-rounded one), so a strict order of the
