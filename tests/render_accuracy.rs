@@ -724,7 +724,7 @@ fn transformed_triangle_matches_closed_form() {
 
 #[test]
 fn builtin_primitives_are_registered() {
-    let names = zeroset::registry::registered_names();
+    let names = zeroset::scene::registry::registered_names();
     for builtin in ["Box", "Cone", "Cylinder", "Ellipsoid", "Plane", "Sphere", "Triangle"] {
         assert!(names.iter().any(|n| n == builtin), "{builtin} missing from {names:?}");
     }

@@ -1,4 +1,4 @@
-//! Outputs written while the frame is traced (`zeroset::stream`): the streamed EXR is byte for
+//! Outputs written while the frame is traced (`zeroset::render::stream`): the streamed EXR is byte for
 //! byte the file the whole-frame writer makes, for every codec, and holds the in-memory frame's
 //! samples in every channel, misses included; the streamed previews have the whole-frame
 //! previews' pixels; sinks get every band once, in order, whatever the thread count; a sink
@@ -13,9 +13,9 @@ use zeroset::output::exr::{write_exr_with, ExrCompression, ExrHeader};
 use zeroset::output::exr_stream::ExrStream;
 use zeroset::output::png::{write_previews, PREVIEWS};
 use zeroset::output::png_stream::PreviewStream;
+use zeroset::render::stream::{render_view_to, BandSink};
 use zeroset::render::{render_view, Frame, FrameLayout, RenderOptions, Window};
 use zeroset::scene::Scene;
-use zeroset::stream::{render_view_to, BandSink};
 
 /// Sky above two objects (misses), a plane at grazing angles; `extra` goes into the scene
 /// (such as a `sampling`). The height is not a multiple of any band or block height.

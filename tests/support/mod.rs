@@ -4,6 +4,8 @@
 //! Each test file uses a part of it, so unused items are allowed here.
 #![allow(dead_code)]
 
+pub mod layers;
+
 use exr::meta::MetaData;
 use exr::prelude::*;
 use std::collections::BTreeSet;

@@ -9,7 +9,7 @@
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
-use zeroset::registry::{BuildContext, SceneShape};
+use zeroset::scene::registry::{BuildContext, SceneShape};
 use zeroset_primitives::{Aabb, Implicit, Intersect, Primitive, PrimitiveError};
 
 /// A gyroid sheet of `thickness` at spatial frequency `frequency`, clipped to the cube of

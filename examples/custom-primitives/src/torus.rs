@@ -6,7 +6,7 @@
 use glam::{DVec2, DVec3};
 use serde::Deserialize;
 use std::sync::Arc;
-use zeroset::registry::{BuildContext, SceneShape};
+use zeroset::scene::registry::{BuildContext, SceneShape};
 use zeroset_primitives::{Aabb, Implicit, Intersect, Interval, Primitive, PrimitiveError, RawHit, Ray};
 
 fn validate(major: f64, minor: f64, name: &'static str) -> Result<(), PrimitiveError> {

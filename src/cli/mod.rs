@@ -1,8 +1,11 @@
 //! The `zeroset` command line. [`main`] is public so a user's own binary can register its
 //! primitive types and then run the same CLI (see `docs/adding-a-primitive.md`).
 
+pub mod resources;
+
 use crate::aov::Aov;
 use crate::camera::Camera;
+use crate::cli::resources::{capped_threads, check_memory, process_cpu_seconds, render_memory_estimate};
 use crate::diagnostics::{uncertain_message, uncertain_since};
 use crate::output::atomic::{check_destination, write_atomically, AtomicFile, WritebackFile};
 use crate::output::cameras_json::{cameras_json, exr_camera_attributes, transforms_json};
@@ -11,15 +14,14 @@ use crate::output::exr_stream::ExrStream;
 use crate::output::merge::merge_crops;
 use crate::output::png::{write_previews, PREVIEWS};
 use crate::output::png_stream::PreviewStream;
+use crate::query::rays::{scene_magnitude, RangeConvention, RaySetup};
 use crate::query::{
     run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS,
 };
-use crate::query_rays::{scene_magnitude, RangeConvention, RaySetup};
+use crate::render::stream::{render_view_to, BandSink};
+use crate::render::views::{render_views, view_files};
 use crate::render::{Frame, FrameLayout, RenderOptions, Window};
-use crate::resources::{capped_threads, check_memory, process_cpu_seconds, render_memory_estimate};
 use crate::scene::Scene;
-use crate::stream::{render_view_to, BandSink};
-use crate::views::{render_views, view_files};
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use rayon::iter::{IntoParallelIterator, ParallelIterator};
@@ -212,7 +214,7 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Primitives => {
-            for name in crate::registry::registered_names() {
+            for name in crate::scene::registry::registered_names() {
                 println!("{name}");
             }
             Ok(())
@@ -408,7 +410,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let exhausted_before = budget_exhaustions();
     let function_before = zeroset_primitives::uncertain_counts();
     let (trace_seconds, rays) = if cameras.len() == 1 {
-        // one view: its files are written while it is traced (crate::stream)
+        // one view: its files are written while it is traced (crate::render::stream)
         let index = selected[0];
         let (camera, file) = (views[index].0, &views[index].1);
         let layout = FrameLayout::new(camera, &options);
@@ -626,7 +628,7 @@ fn query_command(args: &QueryArgs) -> Result<()> {
                 BatchFormat::Npy => Box::new(NpyRays::with_setup(input, &rays_name, setup)?),
             }
         }
-        (None, Some(pixels)) => Box::new(VecRays::new(crate::pixels::pixel_rays_from_files(
+        (None, Some(pixels)) => Box::new(VecRays::new(crate::query::pixels::pixel_rays_from_files(
             &scene,
             args.camera.as_deref(),
             pixels,
