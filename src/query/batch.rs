@@ -91,7 +91,7 @@ pub(super) fn completed(
 }
 
 /// Room reused from batch to batch by [`trace_many_for`]: the rays of a batch, pushed one by one
-/// ([`TraceWork::push`]), then traced together ([`TraceWork::trace`]).
+/// (`TraceWork::push`), then traced together (`TraceWork::trace`).
 #[derive(Debug, Default)]
 pub struct TraceWork {
     rays: Vec<Ray>,

@@ -199,7 +199,7 @@ pub const NPY_HIT_COLUMNS: usize = 11;
 pub(super) const NPY_PREAMBLE_LEN: usize = 128;
 
 /// The `.npy` (version 1.0) preamble of an `f8` array of shape `(rows, columns)`, padded with
-/// spaces to [`NPY_PREAMBLE_LEN`] bytes.
+/// spaces to `NPY_PREAMBLE_LEN` bytes.
 #[must_use]
 pub fn npy_preamble(rows: u64, columns: usize) -> Vec<u8> {
     let dict = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({rows}, {columns}), }}");

@@ -28,7 +28,7 @@
 //! ([`Scene::intersect_packet`]: the scene's hierarchy and each mesh's walked once per packet, the
 //! rays in SIMD lanes), each ray getting exactly the hit it gets alone. The loop knows nothing
 //! about any particular primitive: it calls [`Scene::intersect_packet`], [`Scene::intersect`] (or
-//! [`Scene::intersect_at`]) and [`SurfaceHit::complete`].
+//! [`Scene::intersect_at`]) and [`zeroset_primitives::SurfaceHit::complete`].
 
 pub mod cull;
 mod pixel;

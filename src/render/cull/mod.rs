@@ -1,6 +1,6 @@
 //! Culling before tracing: which pixels can see anything ([`footprint`]: a box's image
 //! rectangle under a camera, and the [`footprint::Coverage`] of a scene), and which pieces each
-//! pixel can see ([`piece_bins`]). Both only ever leave out rays or pieces that cannot be hit, so
+//! pixel can see (`piece_bins`). Both only ever leave out rays or pieces that cannot be hit, so
 //! a culled render is bit for bit the render without culling.
 
 pub mod footprint;
