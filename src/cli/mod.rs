@@ -9,21 +9,12 @@ use query::query_command;
 use render::render_command;
 
 use crate::cli::resources::capped_threads;
-use crate::diagnostics::{uncertain_message, uncertain_since};
-use crate::output::atomic::{check_destination, AtomicFile, WritebackFile};
 use crate::output::exr::ExrCompression;
 use crate::output::merge::merge_crops;
-use crate::query::rays::{scene_magnitude, RangeConvention, RaySetup};
-use crate::query::{
-    run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS,
-};
-use crate::scene::Scene;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
 
 /// zeroset: a ray caster for implicit surfaces with exact depth and normal AOVs.
 #[derive(Debug, Parser)]

@@ -1,7 +1,17 @@
 //! `zeroset query`: batches of rays from a file (or image positions), their first hits written
 //! as CSV or NPY ([`crate::query`]).
 
-use super::*;
+use super::{uncertain_warning, BatchFormat, QueryArgs};
+use crate::diagnostics::{uncertain_message, uncertain_since};
+use crate::output::atomic::{check_destination, AtomicFile, WritebackFile};
+use crate::query::rays::{scene_magnitude, RangeConvention, RaySetup};
+use crate::query::{
+    run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS,
+};
+use crate::scene::Scene;
+use anyhow::{bail, Context, Result};
+use std::io::{BufReader, BufWriter};
+use std::time::Instant;
 
 pub(super) fn query_command(args: &QueryArgs) -> Result<()> {
     let wall = Instant::now();
