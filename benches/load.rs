@@ -14,7 +14,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
-use zeroset::registry::BuildContext;
+use zeroset::scene::registry::BuildContext;
 use zeroset::scene::{parse_scene_desc, Scene};
 
 /// The system allocator, counting the bytes currently allocated (the loaded scene's exact heap
@@ -81,10 +81,10 @@ fn main() {
             // re-register the built-in leaf primitives as a user would: parsed through
             // `erased-serde` as before the typed path, for a same-binary comparison
             "--erased" => {
-                use zeroset::shapes::*;
-                zeroset::registry::register::<SphereDesc>("Sphere");
-                zeroset::registry::register::<BoxDesc>("Box");
-                zeroset::registry::register::<PlaneDesc>("Plane");
+                use zeroset::scene::shapes::*;
+                zeroset::scene::registry::register::<SphereDesc>("Sphere");
+                zeroset::scene::registry::register::<BoxDesc>("Box");
+                zeroset::scene::registry::register::<PlaneDesc>("Plane");
             }
             other => path = Some(std::path::PathBuf::from(other)),
         }

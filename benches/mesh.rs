@@ -13,8 +13,8 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
-use zeroset::mesh_io::read_mesh;
 use zeroset::render::{render, RenderOptions};
+use zeroset::scene::mesh_io::read_mesh;
 use zeroset::scene::Scene;
 use zeroset_primitives::{Interval, Mesh, Ray};
 

@@ -9,6 +9,9 @@ use zeroset::aov::Aov;
 use zeroset::camera::Model;
 use zeroset::render::{render, RenderOptions};
 use zeroset::scene::Scene;
+
+mod support;
+use support::scene_from_ron;
 use zeroset_primitives::Interval;
 
 /// Objects all around the eye (a closed room sphere of radius 30 centred near it, so every ray of
@@ -25,7 +28,7 @@ fn scene(camera: &str) -> Scene {
     let text = format!(
         "Scene(camera: (eye: (0.3, 1.1, -6.5), look_at: (0.1, 0.5, 0.4), up: (0.08, 1, 0), {camera}), {OBJECTS})"
     );
-    Scene::from_ron(&text, "inline.ron").unwrap_or_else(|e| panic!("{e}"))
+    scene_from_ron(&text, "inline.ron")
 }
 
 /// Projects the hit point of every pixel's ray back through the camera; returns the number of

@@ -146,7 +146,7 @@ fn render_aov_flag_selects_channels() {
 
 /// `--crop x0,y0,x1,y1` as documented in `zeroset render --help`.
 ///
-/// Fails at the time of writing: `#[arg(long, value_delimiter = ',', num_args = 4)]` (src/cli.rs)
+/// Fails at the time of writing: `#[arg(long, value_delimiter = ',', num_args = 4)]` (src/cli/mod.rs)
 /// makes clap demand four separate arguments (`--crop 10 3 50 30`) and reject `--crop 10,3,50,30`.
 #[test]
 fn render_crop_flag_sets_data_window() {

@@ -15,23 +15,14 @@ use zeroset::output::merge::merge_crops;
 use zeroset::render::{render, Frame, RenderOptions, Window};
 use zeroset::scene::Scene;
 
+mod support;
+use support::{aovs_except, bits, frame_channel, scene_from_ron};
+
 const W: u32 = 64;
 const H: u32 = 36;
 const EYE: DVec3 = DVec3::new(0.5, 1.8, -6.0);
 const LOOK_AT: DVec3 = DVec3::new(-0.3, 0.4, 0.8);
 const VFOV_DEG: f64 = 42.0;
-
-const ALL_AOVS: [Aov; 9] = [
-    Aov::Beauty,
-    Aov::Alpha,
-    Aov::Depth,
-    Aov::Distance,
-    Aov::Normal,
-    Aov::Position,
-    Aov::CameraNormal,
-    Aov::PrimitiveId,
-    Aov::Uv,
-];
 
 /// The channel names documented in `src/aov.rs`, all AOVs.
 const ALL_CHANNELS: [&str; 18] = [
@@ -53,7 +44,7 @@ fn scene() -> Scene {
          lights: [Directional(direction: (-0.4, -1.0, 0.6))])",
         EYE.x, EYE.y, EYE.z, LOOK_AT.x, LOOK_AT.y, LOOK_AT.z
     );
-    Scene::from_ron(&text, "exr_test.ron").unwrap()
+    scene_from_ron(&text, "exr_test.ron")
 }
 
 fn header(scene: &Scene, depth_miss: f32) -> ExrHeader {
@@ -70,7 +61,7 @@ fn render_with(scene: &Scene, crop: Option<Window>) -> Frame {
     render(
         scene,
         &RenderOptions {
-            aovs: ALL_AOVS.to_vec(),
+            aovs: aovs_except(&[Aov::ShadingNormal, Aov::Uncertain]),
             crop,
             ..RenderOptions::default()
         },
@@ -81,20 +72,6 @@ fn write(frame: &Frame, header: &ExrHeader, dir: &Path, name: &str) -> std::path
     let path = dir.join(name);
     write_exr(frame, &path, header).expect("write_exr");
     path
-}
-
-/// The frame's value of channel `name` as a planar vector over the window.
-fn frame_channel(frame: &Frame, name: &str) -> Vec<f32> {
-    for aov in &frame.aovs {
-        if let Some(k) = aov.channels().iter().position(|c| *c == name) {
-            return frame.planar_channel(*aov, k);
-        }
-    }
-    panic!("channel {name} not in the frame");
-}
-
-fn bits(v: &[f32]) -> Vec<u32> {
-    v.iter().map(|x| x.to_bits()).collect()
 }
 
 /// Applies an Imath (row-vector, row-major) 4×4 matrix to a point: `[x y z 1]·M`.

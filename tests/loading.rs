@@ -3,7 +3,7 @@
 //! reports the same errors), and an error keeps its line and column.
 
 use std::sync::Arc;
-use zeroset::registry::BuildContext;
+use zeroset::scene::registry::BuildContext;
 use zeroset::scene::{parse_scene_desc, ron_options, Scene, SceneDesc};
 
 /// A scene of `n` objects of several kinds, with names, materials, comments and strings holding

@@ -4,14 +4,16 @@
 
 use glam::DVec3;
 use zeroset::scene::Scene;
+
+mod support;
+use support::scene_from_ron;
 use zeroset_primitives::{HitRequest, Interval, Ray, SurfaceHit};
 
 fn scene(objects: &str) -> Scene {
-    Scene::from_ron(
+    scene_from_ron(
         &format!("Scene(camera: (eye: (0, 0, -10), look_at: (0, 0, 0)), objects: [{objects}])"),
         "magnitudes.ron",
     )
-    .unwrap_or_else(|e| panic!("{e}"))
 }
 
 #[test]

@@ -4,16 +4,16 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use zeroset::aov::Aov;
-use zeroset::mesh_io::{load_mesh, read_mesh, read_ply_generic, MeshDesc};
-use zeroset::registry::{BuildContext, SceneShape};
 use zeroset::render::{render, RenderOptions};
+use zeroset::scene::mesh_io::{load_mesh, read_mesh, read_ply_generic, MeshDesc};
+use zeroset::scene::registry::{BuildContext, SceneShape};
 use zeroset::scene::Scene;
 
 fn scenes() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
 }
 
-fn corners(data: &zeroset::mesh_io::MeshData, t: usize) -> [[f32; 3]; 3] {
+fn corners(data: &zeroset::scene::mesh_io::MeshData, t: usize) -> [[f32; 3]; 3] {
     data.indices[t].map(|i| data.vertices[i as usize])
 }
 
@@ -195,7 +195,7 @@ fn binary_ply_decoder_matches_the_ply_rs_path() {
 }
 
 /// Writes `contents` to a temporary `name` and reads it with both PLY readers.
-fn read_both(name: &str, contents: &[u8]) -> (zeroset::mesh_io::MeshData, zeroset::mesh_io::MeshData) {
+fn read_both(name: &str, contents: &[u8]) -> (zeroset::scene::mesh_io::MeshData, zeroset::scene::mesh_io::MeshData) {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join(name);
     std::fs::write(&path, contents).unwrap();

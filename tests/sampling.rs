@@ -16,35 +16,22 @@ use zeroset::render::{render, Frame, RenderOptions};
 use zeroset::sampling::pixel_samples;
 use zeroset::scene::Scene;
 
-const ALL_AOVS: [Aov; 10] = [
-    Aov::Beauty,
-    Aov::Alpha,
-    Aov::Depth,
-    Aov::Distance,
-    Aov::Normal,
-    Aov::Position,
-    Aov::CameraNormal,
-    Aov::PrimitiveId,
-    Aov::Uv,
-    Aov::ShadingNormal,
-];
+mod support;
+use support::{aovs_except, frame_bits, scene_from_ron};
 
+/// The scene of RON `text`.
 fn scene(text: &str) -> Scene {
-    Scene::from_ron(text, "test.ron").unwrap_or_else(|e| panic!("{e}"))
+    scene_from_ron(text, "test.ron")
 }
 
 fn render_all(scene: &Scene) -> Frame {
     render(
         scene,
         &RenderOptions {
-            aovs: ALL_AOVS.to_vec(),
+            aovs: aovs_except(&[Aov::Uncertain]),
             ..RenderOptions::default()
         },
     )
-}
-
-fn bits(frame: &Frame) -> Vec<u32> {
-    frame.samples.iter().map(|v| v.to_bits()).collect()
 }
 
 /// A small scene with shadows, a transformed box and a sphere; `camera_extra`, `sphere_extra`
@@ -65,22 +52,22 @@ fn base_scene(camera_extra: &str, sphere_extra: &str, top_extra: &str) -> String
 
 #[test]
 fn pinhole_equivalence_at_aperture_zero_zero_motion_and_spp_one() {
-    let reference = bits(&render_all(&scene(&base_scene("", "", ""))));
+    let reference = frame_bits(&render_all(&scene(&base_scene("", "", ""))));
     let explicit = scene(&base_scene(
         ", aperture: 0, focus_distance: 3, shutter: (open: 0.2, close: 0.9)",
         ", transform_close: (translate: (0.3, 0.5, 0.2))",
         ", sampling: (spp: 1, filter: Gaussian(sigma: 0.5), seed: 9)",
     ));
     assert!(!explicit.has_motion(), "a motion to the same placement is static");
-    assert_eq!(bits(&render_all(&explicit)), reference);
+    assert_eq!(frame_bits(&render_all(&explicit)), reference);
 
     // at spp 16 a static scene ignores the shutter and a zero motion, bit for bit
-    let sampled = bits(&render_all(&scene(&base_scene(
+    let sampled = frame_bits(&render_all(&scene(&base_scene(
         "",
         "",
         ", sampling: (spp: 16, seed: 4)",
     ))));
-    let shuttered = bits(&render_all(&scene(&base_scene(
+    let shuttered = frame_bits(&render_all(&scene(&base_scene(
         ", shutter: (open: 0.3, close: 0.35)",
         ", transform_close: (translate: (0.3, 0.5, 0.2))",
         ", sampling: (spp: 16, seed: 4)",
@@ -336,11 +323,11 @@ fn sampled_images_are_bit_identical_on_any_thread_count() {
     assert!(s.has_motion());
     let on = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| bits(&render_all(&s)))
+        pool.install(|| frame_bits(&render_all(&s)))
     };
     let one = on(1);
     assert_eq!(one, on(2));
     assert_eq!(one, on(3));
     let other_seed = scene(&text.replace("seed: 77", "seed: 78"));
-    assert_ne!(one, bits(&render_all(&other_seed)));
+    assert_ne!(one, frame_bits(&render_all(&other_seed)));
 }

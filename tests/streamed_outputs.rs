@@ -1,4 +1,4 @@
-//! Outputs written while the frame is traced (`zeroset::stream`): the streamed EXR is byte for
+//! Outputs written while the frame is traced (`zeroset::render::stream`): the streamed EXR is byte for
 //! byte the file the whole-frame writer makes, for every codec, and holds the in-memory frame's
 //! samples in every channel, misses included; the streamed previews have the whole-frame
 //! previews' pixels; sinks get every band once, in order, whatever the thread count; a sink
@@ -13,9 +13,12 @@ use zeroset::output::exr::{write_exr_with, ExrCompression, ExrHeader};
 use zeroset::output::exr_stream::ExrStream;
 use zeroset::output::png::{write_previews, PREVIEWS};
 use zeroset::output::png_stream::PreviewStream;
+use zeroset::render::stream::{render_view_to, BandSink};
 use zeroset::render::{render_view, Frame, FrameLayout, RenderOptions, Window};
 use zeroset::scene::Scene;
-use zeroset::stream::{render_view_to, BandSink};
+
+mod support;
+use support::{bits, frame_channel, scene_from_ron};
 
 /// Sky above two objects (misses), a plane at grazing angles; `extra` goes into the scene
 /// (such as a `sampling`). The height is not a multiple of any band or block height.
@@ -27,7 +30,7 @@ fn scene(extra: &str) -> Scene {
                    (shape: Plane(normal: (0, 1, 0), offset: -0.5))], \
          lights: [Directional(direction: (-0.4, -1.0, 0.6))]{extra})"
     );
-    Scene::from_ron(&text, "streamed.ron").unwrap()
+    scene_from_ron(&text, "streamed.ron")
 }
 
 fn header(scene: &Scene, depth_miss: f32) -> ExrHeader {
@@ -63,19 +66,6 @@ fn windows() -> [Option<Window>; 2] {
 }
 
 /// The samples of channel `name` of a frame, planar.
-fn frame_channel(frame: &Frame, name: &str) -> Vec<f32> {
-    for aov in &frame.aovs {
-        if let Some(k) = aov.channels().iter().position(|c| *c == name) {
-            return frame.planar_channel(*aov, k);
-        }
-    }
-    panic!("channel {name} not in the frame");
-}
-
-fn bits(v: &[f32]) -> Vec<u32> {
-    v.iter().map(|x| x.to_bits()).collect()
-}
-
 #[test]
 fn streamed_exr_is_the_whole_frame_file_byte_for_byte_for_every_codec() {
     let dir = tempfile::tempdir().unwrap();

@@ -59,7 +59,7 @@ def ratio(a, b):
 # ---------------------------------------------------------------------------------------------
 
 # `rendered 1280x720 at 1 spp (6 objects) on 2 threads: trace 0.296 s (3.11 Mrays/s), wall 0.441 s
-# (load+BVH 0.000 s, write 0.086 s; CPU 0.13 s)` (src/cli.rs)
+# (load+BVH 0.000 s, write 0.086 s; CPU 0.13 s)` (src/cli/render.rs)
 RENDER_RE = re.compile(
     r"rendered (?P<w>\d+)x(?P<h>\d+) at (?P<spp>\d+) spp .*? on (?P<threads>\d+) threads: "
     r"trace (?P<trace_s>[0-9.]+) s \((?P<mrays>[0-9.]+) Mrays/s\), wall (?P<wall_s>[0-9.]+) s "

@@ -13,13 +13,13 @@
 //! (`t`, `point`, `normal`, `uv`) are f64, or f32 ([`Real`]): the f64 values rounded to nearest,
 //! half the bytes to write and keep (the dtype Open3D's `cast_rays` returns).
 //!
-//! [`trace_columns`]: zeroset::query_rays::trace_columns
+//! [`trace_columns`]: zeroset::query::rays::trace_columns
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use zeroset::primitives::{HitRequest, SurfaceHit};
-use zeroset::query_rays::{ChunkAnswers, COLUMN_CHUNK};
+use zeroset::query::rays::{ChunkAnswers, COLUMN_CHUNK};
 
 use crate::pages::uninit_array;
 

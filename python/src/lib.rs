@@ -27,8 +27,8 @@ use zeroset::output::exr::{write_exr as write_frame, ExrHeader};
 use zeroset::primitives::offset::PointPrecision;
 use zeroset::primitives::{Mesh, Primitive, Ray, Transformed};
 use zeroset::query::{trace_batch, QueryRay};
-use zeroset::query_rays::{scene_magnitude, trace_columns, RangeConvention, RayColumns, RaySetup};
-use zeroset::registry::BuildContext;
+use zeroset::query::rays::{scene_magnitude, trace_columns, RangeConvention, RayColumns, RaySetup};
+use zeroset::scene::registry::BuildContext;
 use zeroset::render::{render_view_into, Frame, FrameLayout, RenderOptions, Window};
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
 
@@ -253,7 +253,7 @@ fn bad_ray((index, message): (usize, String)) -> PyErr {
 }
 
 /// Every ray of the columns (range convention alone), built in parallel without the GIL, each by
-/// `zeroset query`'s own [`zeroset::query_rays::ray_from_fields`].
+/// `zeroset query`'s own [`zeroset::query::rays::ray_from_fields`].
 fn query_rays(py: Python<'_>, columns: &Columns<'_>, closed: bool) -> PyResult<Vec<QueryRay>> {
     let view = columns.view()?;
     py.detach(|| view.rays(&ray_setup(closed, None, 0.0))).map_err(bad_ray)

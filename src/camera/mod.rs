@@ -41,7 +41,6 @@
 pub mod desc;
 pub mod equirectangular;
 pub mod fisheye;
-pub mod footprint;
 pub mod lens;
 pub mod opencv;
 pub mod orthographic;

@@ -145,7 +145,7 @@ pub fn start_writeback(file: &File, offset: u64, len: u64) {
 /// Bytes between two [`start_writeback`] calls of a [`WritebackFile`].
 const WRITEBACK_STEP: u64 = 8 << 20;
 
-/// A file written through [`start_writeback`]: every [`WRITEBACK_STEP`] bytes written, the new
+/// A file written through [`start_writeback`]: every `WRITEBACK_STEP` bytes written, the new
 /// bytes are sent on their way to disk, so that the `fsync` of [`AtomicFile::commit`] finds
 /// little left to do (`zeroset query` writing 88 MB of `.npy`: that `fsync` took 0.14 s after the
 /// last chunk). Seeking (to patch a header) is passed through.

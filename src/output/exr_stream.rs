@@ -1,4 +1,4 @@
-//! The EXR file of a render written while it is traced ([`crate::stream`]): the same file
+//! The EXR file of a render written while it is traced ([`crate::render::stream`]): the same file
 //! [`crate::output::exr::write_exr_with`] writes from a whole [`crate::render::Frame`], byte for
 //! byte, made from bands of rows.
 //!
@@ -27,8 +27,8 @@ const WRITEBACK_BYTES: u64 = 16 << 20;
 /// The output buffer's size: bands of at least this many bytes are written without it.
 const DIRECT_WRITE_BYTES: usize = 64 << 10;
 use crate::output::exr::{flat_image, frame_channels, sort_header_attributes, ExrCompression, ExrHeader};
+use crate::render::stream::BandSink;
 use crate::render::FrameLayout;
-use crate::stream::BandSink;
 use anyhow::{bail, Context, Result};
 use exr::block::{BlockIndex, UncompressedBlock};
 use exr::meta::header::Header;

@@ -1,4 +1,4 @@
-//! The PNG previews of a render made while it is traced ([`crate::stream`]): the same pixels as
+//! The PNG previews of a render made while it is traced ([`crate::render::stream`]): the same pixels as
 //! [`crate::output::png::write_previews`] makes from a whole frame.
 //!
 //! The beauty and normal previews are streamed: each band's 8-bit rows are made by the thread
@@ -13,8 +13,8 @@
 use crate::aov::Aov;
 use crate::output::atomic::AtomicFile;
 use crate::output::png::{beauty_pixel, depth_pixel_of_log, depth_scale_of, normal_pixel, save, SrgbTable};
+use crate::render::stream::BandSink;
 use crate::render::FrameLayout;
-use crate::stream::BandSink;
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 use std::fs::File;

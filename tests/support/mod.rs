@@ -4,11 +4,16 @@
 //! Each test file uses a part of it, so unused items are allowed here.
 #![allow(dead_code)]
 
+pub mod layers;
+
 use exr::meta::MetaData;
 use exr::prelude::*;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use zeroset::aov::Aov;
+use zeroset::render::Frame;
+use zeroset::scene::Scene;
 
 /// The `zeroset` binary, run from the repository root (so `scenes/…` paths resolve).
 pub fn bin() -> Command {
@@ -114,4 +119,35 @@ pub fn read_channel(path: &Path, name: &str) -> Vec<f32> {
         .find(|c| c.name.to_string() == name)
         .unwrap_or_else(|| panic!("{}: no channel {name}", path.display()));
     channel.sample_data.values_as_f32().collect()
+}
+
+/// A scene from RON `text`, named `name` in its errors; panics with the error and the text.
+pub fn scene_from_ron(text: &str, name: &str) -> Scene {
+    Scene::from_ron(text, name).unwrap_or_else(|e| panic!("scene should load: {e}\n{text}"))
+}
+
+/// The bit patterns of `values`: equal exactly where the values are bit-identical (NaNs and
+/// signed zeros included, which `==` on floats would not tell apart).
+pub fn bits(values: &[f32]) -> Vec<u32> {
+    values.iter().map(|x| x.to_bits()).collect()
+}
+
+/// [`bits`] of every sample of `frame`.
+pub fn frame_bits(frame: &Frame) -> Vec<u32> {
+    bits(&frame.samples)
+}
+
+/// The frame's value of channel `name` as a planar vector over the window.
+pub fn frame_channel(frame: &Frame, name: &str) -> Vec<f32> {
+    for aov in &frame.aovs {
+        if let Some(k) = aov.channels().iter().position(|c| *c == name) {
+            return frame.planar_channel(*aov, k);
+        }
+    }
+    panic!("channel {name} not in the frame");
+}
+
+/// Every AOV of [`Aov::ALL`] but `excluded`, in [`Aov::ALL`]'s order.
+pub fn aovs_except(excluded: &[Aov]) -> Vec<Aov> {
+    Aov::ALL.into_iter().filter(|a| !excluded.contains(a)).collect()
 }

@@ -11,7 +11,7 @@
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
-use zeroset::registry::{BuildContext, SceneShape};
+use zeroset::scene::registry::{BuildContext, SceneShape};
 use zeroset_primitives::expr::Scalar;
 use zeroset_primitives::{Aabb, FieldSurface, Primitive, PrimitiveError, ScalarField};
 

@@ -25,8 +25,8 @@ pub use torus::{QuarticTorus, Torus};
 
 /// Registers every type of this crate under its RON name.
 pub fn register_all() {
-    zeroset::registry::register::<Torus>("Torus");
-    zeroset::registry::register::<QuarticTorus>("QuarticTorus");
-    zeroset::registry::register::<Superellipsoid>("Superellipsoid");
-    zeroset::registry::register::<Gyroid>("Gyroid");
+    zeroset::scene::registry::register::<Torus>("Torus");
+    zeroset::scene::registry::register::<QuarticTorus>("QuarticTorus");
+    zeroset::scene::registry::register::<Superellipsoid>("Superellipsoid");
+    zeroset::scene::registry::register::<Gyroid>("Gyroid");
 }

@@ -8,7 +8,7 @@
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
-use zeroset::registry::{BuildContext, SceneShape};
+use zeroset::scene::registry::{BuildContext, SceneShape};
 use zeroset_primitives::{Aabb, Implicit, Intersect, Primitive, PrimitiveError};
 
 /// A superellipsoid with radii `radii` and shape exponents `e1` (north–south, along y) and `e2`

@@ -10,7 +10,7 @@
 use glam::{DVec2, DVec3};
 use serde::Deserialize;
 use std::sync::Arc;
-use zeroset::registry::{BuildContext, SceneShape};
+use zeroset::scene::registry::{BuildContext, SceneShape};
 use zeroset_primitives::expr::Scalar;
 use zeroset_primitives::{
     Aabb, FieldSurface, Implicit, Intersect, Interval, Primitive, PrimitiveError, RawHit, Ray, ScalarField,

@@ -1,6 +1,6 @@
 //! Loading a large `objects` list as a stream: the file is read in blocks, the list's elements
-//! are found by the lexer of [`crate::parallel_parse`], parsed in batches on worker threads and
-//! built into [`Object`](crate::objects::Object)s on the calling thread in file order, each batch
+//! are found by the lexer of [`crate::scene::parallel_parse`], parsed in batches on worker threads and
+//! built into [`Object`](crate::scene::objects::Object)s on the calling thread in file order, each batch
 //! of descriptions dropped once built.
 //!
 //! Memory is thus the built objects plus a few blocks and batches in flight, not the file text
@@ -13,12 +13,12 @@
 //! top-level `objects` list, inner attributes (`#![enable(...)]`), a batch or the rest of the scene
 //! that does not parse, an object that does not build, text that is not UTF-8, a read error.
 
-use crate::desc::Material;
-use crate::desc::{ron_options, ObjectDesc, SceneDesc, PARSE_STACK_BYTES};
-use crate::fast_sphere::{parse_plain_sphere, PlainSphere};
-use crate::objects::{BuiltObjects, ObjectBuilder};
-use crate::parallel_parse::{objects_list_start, scan_elements, ListScan, PARALLEL_OBJECTS};
-use crate::shape_desc::BuildContext;
+use crate::scene::desc::Material;
+use crate::scene::desc::{ron_options, ObjectDesc, SceneDesc, PARSE_STACK_BYTES};
+use crate::scene::fast_sphere::{parse_plain_sphere, PlainSphere};
+use crate::scene::objects::{BuiltObjects, ObjectBuilder};
+use crate::scene::parallel_parse::{objects_list_start, scan_elements, ListScan, PARALLEL_OBJECTS};
+use crate::scene::shape_desc::BuildContext;
 use std::collections::BTreeMap;
 use std::io::Read;
 use std::ops::Range;
@@ -98,7 +98,7 @@ fn stream(source: impl Read, context: &BuildContext, block_bytes: usize) -> Opti
     let mut pending = buf.split_off(list_start);
     let prefix = buf;
     let workers = rayon::current_num_threads().clamp(1, 64);
-    let sphere_is_builtin = crate::registry::is_builtin("Sphere");
+    let sphere_is_builtin = crate::scene::registry::is_builtin("Sphere");
     let (jobs, job_queue) = mpsc::sync_channel::<Job>(workers * AHEAD_PER_WORKER);
     let job_queue = Mutex::new(job_queue);
     std::thread::scope(|scope| {

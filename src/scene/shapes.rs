@@ -4,8 +4,8 @@
 //! [`SceneShape::build`] calls the primitive's validating constructor. Defaults are stated per
 //! field; see `scenes/README.md` for one example per primitive.
 
-use crate::desc::RotationDesc;
-use crate::shape_desc::{BuildContext, ObjectPrimitive, SceneShape};
+use crate::scene::desc::RotationDesc;
+use crate::scene::shape_desc::{BuildContext, ObjectPrimitive, SceneShape};
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;

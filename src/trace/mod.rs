@@ -3,59 +3,18 @@
 
 use glam::Vec3;
 use zeroset_primitives::root::uncertain_while;
-use zeroset_primitives::{Aabb, Bvh, Interval, RawHit, Ray};
+use zeroset_primitives::{Aabb, Interval, RawHit, Ray};
 
-use crate::camera::footprint::Coverage;
-use crate::camera::Camera;
-use crate::scene::{Object, Scene};
+use crate::scene::Scene;
+
+pub mod packet;
+
+use packet::{coherent, PACKET_COS};
 
 /// Direction magnitudes (largest component) traced as given; beyond, [`Scene::intersect`] scales
 /// the direction by a power of two first.
 const DIR_SCALE_MIN: f64 = 1.0 / (1u64 << 60) as f64;
 const DIR_SCALE_MAX: f64 = (1u64 << 60) as f64;
-
-/// The objects' acceleration structure: a BVH over the bounded ones, plus the objects tested on
-/// every ray (those with infinite bounds, and a lone bounded object).
-#[derive(Debug, Default)]
-pub(crate) struct Hierarchy {
-    unbounded: Vec<u32>,
-    bvh: Bvh,
-}
-
-impl Hierarchy {
-    /// Builds the hierarchy over `objects`' world bounds (a moving object's over its motion).
-    pub(crate) fn build(objects: &[Object]) -> Self {
-        let bounds = |o: &Object| match &o.motion {
-            None => o.primitive.bounds(),
-            Some(m) => m.bounds(),
-        };
-        let mut unbounded = Vec::new();
-        let (mut bounded, mut last_bounded) = (0usize, 0u32);
-        for (i, o) in objects.iter().enumerate() {
-            if bounds(o).is_finite() {
-                bounded += 1;
-                last_bounded = i as u32;
-            } else {
-                unbounded.push(i as u32);
-            }
-        }
-        // a lone bounded object is tested directly: a scene of one primitive pays nothing for the BVH
-        if bounded == 1 {
-            unbounded.push(last_bounded);
-            return Self {
-                unbounded,
-                bvh: Bvh::default(),
-            };
-        }
-        // the boxes are computed again as the builder takes them, not held in a list meanwhile
-        let boxes = objects.iter().enumerate().filter_map(|(i, o)| {
-            let b = bounds(o);
-            b.is_finite().then_some((b, i as u32))
-        });
-        let bvh = Bvh::build_from(boxes);
-        Self { unbounded, bvh }
-    }
-}
 
 impl Scene {
     /// A box around every object (a moving one's over its motion): infinite if an object is
@@ -162,14 +121,6 @@ impl Scene {
             .iter()
             .map(|o| o.primitive.origin_rounding(origin))
             .fold(0.0, f64::max)
-    }
-
-    /// The pixels of `camera` whose rays can meet an object: [`Camera::coverage`] of
-    /// [`Scene::bounds_parts`], allowing for [`Scene::origin_rounding`] at the eye; `None` where
-    /// the camera cannot say. A render skips the others.
-    #[must_use]
-    pub fn coverage(&self, camera: &Camera) -> Option<Coverage> {
-        camera.coverage(&self.bounds_parts(), self.origin_rounding(camera.eye))
     }
 
     /// The scene's one object, if it has exactly one (what every ray is tested against).
@@ -356,7 +307,7 @@ impl Scene {
         const N: usize = zeroset_primitives::PACKET;
         for ((rays, given), out) in rays.chunks(N).zip(ranges.chunks(N)).zip(out.chunks_mut(N)) {
             let plain = rays.iter().all(|ray| scaled_direction_size(ray).is_none());
-            if !plain || !coherent(rays) {
+            if !plain || !coherent(rays, PACKET_COS) {
                 for ((ray, range), out) in rays.iter().zip(given).zip(out.iter_mut()) {
                     *out = self.intersect(ray, *range);
                 }
@@ -484,22 +435,4 @@ fn scaled_direction_size(ray: &Ray) -> Option<f64> {
 #[inline(always)]
 fn settles_tie(holder: Option<u32>, id: u32, t: f64, range: Interval) -> bool {
     t < range.max || holder.is_none_or(|holder| id < holder)
-}
-
-/// Largest angle between a packet's directions for tracing it together: `cos` of about 3.6°.
-/// Beyond, the rays part after a few nodes and each walks alone faster (random query rays,
-/// even sorted; a camera's neighbouring pixels are a small fraction of a degree apart).
-const PACKET_COS: f64 = 0.998;
-
-/// Whether `rays` point closely enough alike to walk the hierarchies together.
-#[inline]
-fn coherent(rays: &[Ray]) -> bool {
-    let Some(first) = rays.first() else { return false };
-    let (d0, len0) = (first.dir, first.dir.length_squared());
-    // cos θ ≥ c ⇔ d·d₀ ≥ 0 and (d·d₀)² ≥ c²·|d|²·|d₀|² (no square root; the plain scale of the
-    // directions keeps the squares finite)
-    rays[1..].iter().all(|r| {
-        let dot = r.dir.dot(d0);
-        dot >= 0.0 && dot * dot >= PACKET_COS * PACKET_COS * r.dir.length_squared() * len0
-    })
 }

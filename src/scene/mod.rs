@@ -8,24 +8,36 @@
 use crate::camera::desc::ModelDesc;
 use crate::camera::pose::build_views;
 use crate::camera::{Camera, CameraError, Model};
-use crate::desc::PARSE_STACK_BYTES;
-use crate::objects::{BuiltObjects, ObjectBuilder};
-use crate::registry::BuildContext;
 use crate::sampling::Sampling;
-use crate::tracing::Hierarchy;
+use crate::scene::desc::PARSE_STACK_BYTES;
+use crate::scene::objects::{BuiltObjects, ObjectBuilder};
+use crate::scene::registry::BuildContext;
+use hierarchy::Hierarchy;
+
+pub mod combinators;
+pub mod desc;
+mod fast_sphere;
+pub(crate) mod hierarchy;
+mod load_stream;
+pub mod mesh_io;
+pub mod objects;
+mod parallel_parse;
+pub mod registry;
+pub mod shape_desc;
+pub mod shapes;
 use glam::DVec3;
 use ron::extensions::Extensions;
 use std::path::{Path, PathBuf};
 use zeroset_primitives::Primitive;
 
-// The scene file's types are defined with the other descriptions (`crate::desc`) and the built
-// objects with their builder (`crate::objects`); they are re-exported here, where they were first
+// The scene file's types are defined with the other descriptions (`crate::scene::desc`) and the built
+// objects with their builder (`crate::scene::objects`); they are re-exported here, where they were first
 // defined.
-pub use crate::desc::{
+pub use crate::scene::desc::{
     affine_from_rows, ron_options, CameraDesc, Light, Material, ObjectDesc, Outputs, RotationDesc, SceneDesc,
     ShutterDesc, TransformDesc, RON_NESTING_LIMIT,
 };
-pub use crate::objects::Object;
+pub use crate::scene::objects::Object;
 
 /// Why a scene could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -99,7 +111,7 @@ pub struct Scene {
     /// triangles left out, a `Function` that may be undefined in parts of its box, …); the CLI
     /// prints them.
     pub warnings: Vec<String>,
-    /// What the traversal walks over the objects ([`crate::tracing`]).
+    /// What the traversal walks over the objects ([`crate::trace`]).
     pub(crate) hierarchy: Hierarchy,
 }
 
@@ -111,10 +123,13 @@ pub fn parse_scene_desc(text: &str) -> Result<SceneDesc, ron::error::SpannedErro
         let parser = std::thread::Builder::new()
             .name("scene parser".into())
             .stack_size(PARSE_STACK_BYTES)
-            .spawn_scoped(scope, || match crate::parallel_parse::parse_objects_in_parallel(text) {
-                Some(desc) => Ok(desc),
-                None => ron_options().from_str::<SceneDesc>(text),
-            });
+            .spawn_scoped(
+                scope,
+                || match crate::scene::parallel_parse::parse_objects_in_parallel(text) {
+                    Some(desc) => Ok(desc),
+                    None => ron_options().from_str::<SceneDesc>(text),
+                },
+            );
         match parser {
             Ok(handle) => handle.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
             // no thread to be had: parse here, within RON's default limit for the caller's stack
@@ -178,7 +193,7 @@ fn check_finite(location: &str, field: &str, v: DVec3) -> Result<(), (String, St
 impl Scene {
     /// Reads, parses and validates a scene file.
     ///
-    /// A large `objects` list is streamed (`crate::load_stream`): read in blocks, parsed on worker
+    /// A large `objects` list is streamed (`crate::scene::load_stream`): read in blocks, parsed on worker
     /// threads and built in file order, so that neither the text nor the list of descriptions is
     /// ever held whole. Anything unusual (an error above all) loads the whole text in one piece
     /// instead, so messages keep their exact line and column.
@@ -195,7 +210,7 @@ impl Scene {
         };
         let name = path.display().to_string();
         let context = BuildContext::new(path.parent().map(Path::to_path_buf).unwrap_or_default());
-        let streamed = crate::load_stream::load_streamed(std::fs::File::open(path).map_err(io)?, &context);
+        let streamed = crate::scene::load_stream::load_streamed(std::fs::File::open(path).map_err(io)?, &context);
         let (mut scene, timing) = match streamed {
             Some(built) => Self::from_built(built, &context, start).map_err(|e| invalid(&name, e))?,
             None => {
@@ -217,7 +232,7 @@ impl Scene {
     /// Parses and validates scene text, building primitives in `context` (a large `objects` list
     /// streamed as by [`Scene::load`]).
     pub fn from_ron_in(text: &str, path: &str, context: &BuildContext) -> Result<Self, SceneError> {
-        if let Some(built) = crate::load_stream::load_streamed(text.as_bytes(), context) {
+        if let Some(built) = crate::scene::load_stream::load_streamed(text.as_bytes(), context) {
             return Self::from_built(built, context, std::time::Instant::now())
                 .map(|(scene, _)| scene)
                 .map_err(|e| invalid(path, e));

@@ -1,15 +1,15 @@
 //! Scene objects built from their descriptions: an [`ObjectDesc`] (primitive description,
 //! transform, motion, material) becomes an [`Object`], the placed primitive the tracer tests.
 //!
-//! [`ObjectBuilder`] builds them one at a time in file order, so that the whole description list
+//! `ObjectBuilder` builds them one at a time in file order, so that the whole description list
 //! never has to exist at once (a streamed load builds each parsed batch and drops it), while the
 //! messages stay those of a build over the whole list: every error names the object by its index
 //! in `objects`, its name and its primitive, then the field.
 
-use crate::desc::{Material, ObjectDesc, SceneDesc, TransformDesc};
 use crate::motion::{Moving, Placement};
-use crate::shape_desc::BuildContext;
-pub use crate::shape_desc::ObjectPrimitive;
+use crate::scene::desc::{Material, ObjectDesc, SceneDesc, TransformDesc};
+use crate::scene::shape_desc::BuildContext;
+pub use crate::scene::shape_desc::ObjectPrimitive;
 use glam::DQuat;
 use std::collections::hash_map::{Entry, HashMap};
 use std::sync::Arc;

@@ -9,7 +9,7 @@
 //! parse — returns `None`, and the caller parses the whole text as usual, so errors keep their
 //! exact line and column and a successful parse always gives the same descriptions.
 
-use crate::desc::{ron_options, ObjectDesc, SceneDesc, PARSE_STACK_BYTES};
+use crate::scene::desc::{ron_options, ObjectDesc, SceneDesc, PARSE_STACK_BYTES};
 use std::ops::Range;
 
 /// Lists shorter than this are parsed in one piece.

@@ -14,7 +14,7 @@
 
 mod ply_binary;
 
-use crate::shape_desc::{BuildContext, SceneShape};
+use crate::scene::shape_desc::{BuildContext, SceneShape};
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::{Encoding, Header, Property, PropertyAccess};
 use serde::Deserialize;

@@ -26,9 +26,9 @@
 //! are not validated here: a negative radius parses, and the object build refuses it as it
 //! refuses one parsed by RON.
 
-use crate::desc::{Material, ObjectDesc};
-use crate::shape_desc::ShapeDesc;
-use crate::shapes::SphereDesc;
+use crate::scene::desc::{Material, ObjectDesc};
+use crate::scene::shape_desc::ShapeDesc;
+use crate::scene::shapes::SphereDesc;
 use glam::DVec3;
 
 /// A plain sphere element as [`parse_plain_sphere`] reads it: its name, sphere and material
@@ -273,7 +273,7 @@ impl<'a> Cursor<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::desc::ron_options;
+    use crate::scene::desc::ron_options;
 
     /// The element's description by the fast path.
     fn parse_sphere_object(text: &str, sphere_is_builtin: bool) -> Option<ObjectDesc> {

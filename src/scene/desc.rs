@@ -3,14 +3,14 @@
 //!
 //! These are the descriptions layer of the crate (see the crate docs): besides the foundations
 //! (AOV names, camera models and poses, sampling), this imports only [`ShapeDesc`], the parsed
-//! description of a primitive ([`crate::shape_desc`]). The format is documented with one example
+//! description of a primitive ([`crate::scene::shape_desc`]). The format is documented with one example
 //! per primitive in `scenes/README.md`.
 
 use crate::aov::Aov;
 use crate::camera::desc::ModelDesc;
 use crate::camera::pose::ViewDesc;
 use crate::sampling::Sampling;
-use crate::shape_desc::ShapeDesc;
+use crate::scene::shape_desc::ShapeDesc;
 use glam::{DAffine3, DQuat, DVec3};
 use ron::extensions::Extensions;
 use serde::Deserialize;

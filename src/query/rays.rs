@@ -23,7 +23,7 @@
 //! records only ever exist for the chunks in flight (cache-sized), and the caller writes the
 //! answers straight into its own output buffers.
 
-use crate::query::{QueryRay, TraceWork};
+use super::batch::{QueryRay, TraceWork};
 use crate::scene::Scene;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -410,6 +410,13 @@ pub fn trace_columns<O: ChunkAnswers>(
         Some(error) => Err(error),
         None => Ok(()),
     }
+}
+
+/// The checks every ray passes, whatever its format, and its construction as `setup` says
+/// ([`crate::query::rays::ray_from_fields`]: range convention, spawned origins).
+pub(crate) fn query_ray_from_fields(v: &[f64], setup: &RaySetup) -> Result<QueryRay, String> {
+    let (ray, range) = ray_from_fields(v, setup)?;
+    Ok(QueryRay { ray, range })
 }
 
 #[cfg(test)]

@@ -11,8 +11,8 @@
 //! Function(phi: "x^2 + y^2 + z^2 - 1", min: (-1, -1, -1), max: (1, 1, 1), tolerance: 1e-7)
 //! ```
 
-use crate::desc::TransformDesc;
-use crate::shape_desc::{BuildContext, SceneShape, ShapeDesc};
+use crate::scene::desc::TransformDesc;
+use crate::scene::shape_desc::{BuildContext, SceneShape, ShapeDesc};
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;

@@ -5,7 +5,7 @@
 //!
 //! For a pinhole camera and a scene of one static object that has [`Pieces`] (a mesh: its
 //! hierarchy's leaves, a few triangles each), every piece's box is projected
-//! ([`crate::camera::footprint::BoxProjector`]: the box enlarged by `10⁻⁴` of its size and
+//! ([`crate::render::cull::footprint::BoxProjector`]: the box enlarged by `10⁻⁴` of its size and
 //! distance and a hundred times the origin's rounding, a hundred times or more the margin the
 //! trait asks for, the rectangle widened by [`TIGHT_WIDENING`]). A pixel whose centre lies
 //! outside a piece's rectangle has an exact ray that passes the box by more than that margin,
@@ -13,13 +13,13 @@
 //! [`Scene::intersect`]'s, bit for bit.
 //!
 //! A scene of several objects has its objects as pieces, each object's world box projected the
-//! same way ([`crate::camera::footprint::BoxProjector::footprint_clipped`]: a box reaching behind
+//! same way ([`crate::render::cull::footprint::BoxProjector::footprint_clipped`]: a box reaching behind
 //! the eye plane, a ground polygon, is cut there first), or, for an object that knows a ball
 //! around it in front of the eye (a sphere, [`zeroset_primitives::Intersect::bounding_ball`]),
 //! that ball's exact image rectangle
-//! ([`crate::camera::footprint::BoxProjector::ball_footprint`], about half a sphere's box's).
+//! ([`crate::render::cull::footprint::BoxProjector::ball_footprint`], about half a sphere's box's).
 //! A lone mesh's leaves are projected four at a time
-//! ([`crate::camera::footprint::BoxProjector::pinhole_footprints`]); for a crop of the image (a
+//! ([`crate::render::cull::footprint::BoxProjector::pinhole_footprints`]); for a crop of the image (a
 //! Dask tile, a band of the Python render) only those under the hierarchy's nodes whose grown
 //! footprints reach the crop ([`Pieces::piece_numbers_kept`], [`wanted_in`]): the same bins,
 //! the others' footprints holding none of its pixels. The level-8 bench mesh at 3840×2160 in
@@ -41,8 +41,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use zeroset_primitives::{Aabb, Interval, Pieces, RawHit, Ray, Wanted};
 
-use crate::camera::footprint::{BoxProjector, ImageRect, TIGHT_WIDENING};
 use crate::camera::{Camera, Model};
+use crate::render::cull::footprint::{BoxProjector, ImageRect, TIGHT_WIDENING};
 use crate::render::Window;
 use crate::scene::Scene;
 

@@ -9,7 +9,7 @@
 //! ```
 //! use serde::Deserialize;
 //! use std::sync::Arc;
-//! use zeroset::registry::{register, BuildContext, SceneShape};
+//! use zeroset::scene::registry::{register, BuildContext, SceneShape};
 //! use zeroset_primitives::{Primitive, PrimitiveError, Sphere};
 //!
 //! /// A unit sphere with only a centre parameter.
@@ -25,14 +25,14 @@
 //! }
 //!
 //! register::<UnitBall>("UnitBall");
-//! assert!(zeroset::registry::registered_names().contains(&"UnitBall".to_string()));
+//! assert!(zeroset::scene::registry::registered_names().contains(&"UnitBall".to_string()));
 //! ```
 
-use crate::combinators::{
+use crate::scene::combinators::{
     DifferenceDesc, FunctionDesc, IntersectionDesc, OffsetDesc, SmoothUnionDesc, TransformedDesc, UnionDesc,
 };
-use crate::mesh_io::MeshDesc;
-use crate::shapes::{
+use crate::scene::mesh_io::MeshDesc;
+use crate::scene::shapes::{
     BoxDesc, ConeDesc, CylinderDesc, DiskDesc, EllipsoidDesc, PlaneDesc, PolygonDesc, SphereDesc, TriangleDesc,
 };
 use serde::de::{DeserializeOwned, DeserializeSeed, EnumAccess, Error as _, VariantAccess, Visitor};
@@ -41,7 +41,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::{LazyLock, RwLock};
 
-pub use crate::shape_desc::{BuildContext, SceneShape, ShapeDesc};
+pub use crate::scene::shape_desc::{BuildContext, SceneShape, ShapeDesc};
 
 type ShapeParserFn =
     for<'a, 'de> fn(&'a mut dyn erased_serde::Deserializer<'de>) -> Result<Box<dyn SceneShape>, erased_serde::Error>;

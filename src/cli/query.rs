@@ -1,0 +1,92 @@
+//! `zeroset query`: batches of rays from a file (or image positions), their first hits written
+//! as CSV or NPY ([`crate::query`]).
+
+use super::{uncertain_warning, BatchFormat, QueryArgs};
+use crate::diagnostics::{uncertain_message, uncertain_since};
+use crate::output::atomic::{check_destination, AtomicFile, WritebackFile};
+use crate::query::rays::{scene_magnitude, RangeConvention, RaySetup};
+use crate::query::{
+    run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS,
+};
+use crate::scene::Scene;
+use anyhow::{bail, Context, Result};
+use std::io::{BufReader, BufWriter};
+use std::time::Instant;
+
+pub(super) fn query_command(args: &QueryArgs) -> Result<()> {
+    let wall = Instant::now();
+    let scene = Scene::load(&args.scene)?;
+    crate::diagnostics::print_load_warnings(&scene);
+    let setup = RaySetup {
+        range: RangeConvention::closed_if(args.closed_range),
+        origin_precision: args.origin_precision,
+        magnitude: scene_magnitude(&scene),
+    };
+    let function_before = zeroset_primitives::uncertain_counts();
+    let mut source: Box<dyn RaySource + Send> = match (&args.rays, &args.pixels) {
+        (Some(rays), _) => {
+            let rays_name = rays.display().to_string();
+            // `Stdin`, not its lock: the rays are read on whichever thread of the pool is free
+            let input: Box<dyn std::io::Read + Send> = if rays.as_os_str() == "-" {
+                Box::new(std::io::stdin())
+            } else {
+                Box::new(std::fs::File::open(rays).with_context(|| format!("reading {rays_name}"))?)
+            };
+            let input = BufReader::with_capacity(1 << 20, input);
+            match args.rays_format.unwrap_or_else(|| BatchFormat::of(rays)) {
+                BatchFormat::Csv => Box::new(CsvRays::with_setup(input, &rays_name, setup)),
+                BatchFormat::Npy => Box::new(NpyRays::with_setup(input, &rays_name, setup)?),
+            }
+        }
+        (None, Some(pixels)) => Box::new(VecRays::new(crate::query::pixels::pixel_rays_from_files(
+            &scene,
+            args.camera.as_deref(),
+            pixels,
+        )?)),
+        (None, None) => bail!("give --rays or --pixels"),
+    };
+    let to_stdout = args.output.as_os_str() == "-";
+    let format = args.format.unwrap_or_else(|| BatchFormat::of(&args.output));
+    let counts = if to_stdout {
+        // `Stdout`, not its lock: the rows are written on whichever thread of the pool is free
+        let stdout = BufWriter::with_capacity(1 << 20, std::io::stdout());
+        let mut sink: Box<dyn HitSink + Send> = match format {
+            BatchFormat::Csv => Box::new(CsvHits::new(stdout, args.uncertain)),
+            BatchFormat::Npy => {
+                let Some(rows) = source.len_hint() else {
+                    bail!("writing .npy to stdout needs .npy rays (the row count goes first); use -o FILE.npy");
+                };
+                Box::new(NpyStream(NpyHits::with_rows(stdout, rows, args.uncertain)))
+            }
+        };
+        run_batch_in(&scene, source.as_mut(), sink.as_mut(), args.ray_order)?
+    } else {
+        check_destination(&crate::output::atomic::parent_dir(&args.output), 0)?;
+        let mut file = AtomicFile::create(&args.output)?;
+        let counts = {
+            let writer = BufWriter::with_capacity(1 << 20, WritebackFile::new(file.file()));
+            let mut sink: Box<dyn HitSink + Send> = match format {
+                BatchFormat::Csv => Box::new(CsvHits::new(writer, args.uncertain)),
+                BatchFormat::Npy => Box::new(NpyHits::seekable(writer, args.uncertain)),
+            };
+            run_batch_in(&scene, source.as_mut(), sink.as_mut(), args.ray_order)
+                .with_context(|| format!("writing {}", args.output.display()))?
+        };
+        file.commit()?;
+        counts
+    };
+    let elapsed = wall.elapsed().as_secs_f64();
+    if counts.uncertain > 0 {
+        eprintln!("{}", uncertain_warning(counts.uncertain, "rays", "--uncertain"));
+    }
+    if let Some(message) = uncertain_message(uncertain_since(function_before)) {
+        eprintln!("{message}");
+    }
+    eprintln!(
+        "{} rays, {} hits in {elapsed:.3} s end to end ({:.2} Mrays/s; chunks of {CHUNK_RAYS})",
+        counts.rays,
+        counts.hits,
+        counts.rays as f64 / elapsed.max(1e-12) / 1e6
+    );
+    Ok(())
+}
