@@ -63,8 +63,8 @@ fn add_directed<const DOWN: bool>(a: f64, b: f64) -> f64 {
 #[inline]
 fn product_error(a: f64, b: f64, p: f64) -> Option<f64> {
     const SPLITTER: f64 = 134_217_729.0; // 2^27 + 1
-    const BIG: f64 = 6.696_928_794_914_171e299; // 2^996
-    const SMALL: f64 = 2.004_168_360_008_972_8e-292; // 2^-969
+    const BIG: f64 = f64::from_bits((1023 + 996) << 52); // 2^996
+    const SMALL: f64 = f64::from_bits((1023 - 969) << 52); // 2^-969
     if !(a.abs() < BIG && b.abs() < BIG && p.abs() < BIG && p.abs() > SMALL) {
         return None;
     }
