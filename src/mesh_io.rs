@@ -11,6 +11,9 @@
 //! through ply-rs-bw's per-property reader ([`read_ply_generic`]). Both give the same data.
 //!
 //! Every error names the file, and the element, line or face where the format gives one.
+//!
+//! STL (binary, ASCII), OFF and glTF / GLB are read by the `stl`, `off` and `gltf` submodules,
+//! chosen in `formats` ([`read_mesh_report`]); see `docs/mesh-formats.md`.
 
 mod formats;
 mod gltf;
@@ -339,7 +342,8 @@ fn no_surface(data: &MeshData) -> Option<Triangle> {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields, rename = "Mesh")]
 pub struct MeshDesc {
-    /// The mesh file (`.obj` or `.ply`), relative to the scene file's directory.
+    /// The mesh file (`.obj`, `.ply`, `.stl`, `.off`, `.gltf`, `.glb`), relative to the scene
+    /// file's directory.
     pub path: PathBuf,
     /// Use the file's per-vertex normals as shading normals (the `ShadingNormal` AOV); default
     /// true. The `Normal` AOV is always the geometric normal.

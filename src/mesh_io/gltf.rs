@@ -258,9 +258,8 @@ fn accessor_bytes<'b>(a: &Accessor, buffers: &'b [Vec<u8>], what: &str) -> Resul
         return Err(format!("{place}: count is 0"));
     }
     let need = (a.offset() as u64)
-        .checked_add((count - 1).checked_mul(stride).unwrap_or(u64::MAX))
-        .and_then(|x| x.checked_add(elem))
-        .unwrap_or(u64::MAX);
+        .saturating_add((count - 1).saturating_mul(stride))
+        .saturating_add(elem);
     if need > view_len {
         return Err(format!(
             "{place}: {count} elements of {elem} bytes (stride {stride}, offset {}) need {need} bytes, \
@@ -454,7 +453,7 @@ pub(super) fn read_gltf(path: &Path, node: Option<&str>) -> Result<Gltf, String>
             stack.push((c.index(), world * local(&c)));
         }
         let Some(mesh) = n.mesh() else { continue };
-        let linear = DMat3::from(world.matrix3);
+        let linear = world.matrix3;
         let det = linear.determinant();
         let identity = world == DAffine3::IDENTITY;
         let normal_map = if det != 0.0 {
