@@ -783,3 +783,31 @@ fn each_example_format_scene_loads_with_its_notes() {
         assert_eq!((d.indices.len(), d.vertices.len()), (320, 162), "{name}");
     }
 }
+
+#[test]
+fn degenerate_stl_and_off_triangles_are_counted_and_skipped_as_for_ply() {
+    let ply = icosphere();
+    let dir = tempfile::tempdir().unwrap();
+    let mut indices = ply.indices.clone();
+    // a triangle with two equal corners (welded into one vertex) and a collinear one
+    indices.push([0, 0, 5]);
+    indices.push([0, 0, 0]);
+    writers::write(
+        &dir.path().join("d.stl"),
+        &writers::binary_stl(&ply.vertices, &indices, b""),
+    );
+    writers::write(&dir.path().join("d.off"), &writers::off(&ply.vertices, &indices));
+    for name in ["d.stl", "d.off"] {
+        let text = format!("Scene(camera: (), objects: [(shape: Mesh(path: {name:?}))])");
+        let context = BuildContext::new(dir.path());
+        let scene = Scene::from_ron_in(&text, "d.ron", &context).unwrap();
+        assert!(
+            scene
+                .warnings
+                .iter()
+                .any(|w| w.contains("2 of 322 triangles are degenerate")),
+            "{name}: {:?}",
+            scene.warnings
+        );
+    }
+}
