@@ -96,7 +96,7 @@ fn malformed_files_give_errors_naming_the_file() {
         &binary[..binary.len() - 1000],
         &["element `face`", "end of file"],
     );
-    expect_error("not_a_mesh.stl", b"solid", &["unknown mesh format"]);
+    expect_error("not_a_mesh.xyz", b"solid", &["unknown mesh format"]);
     for missing in ["missing.ply", "missing.obj"] {
         let path = Path::new("/nonexistent/dir").join(missing);
         let message = load_mesh(&path, true).unwrap_err().to_string();
@@ -134,6 +134,7 @@ fn instanced_mesh_scene_renders_and_shares_one_mesh() {
     let desc = MeshDesc {
         path: "meshes/icosphere2.ply".into(),
         normals: true,
+        node: None,
     };
     assert!(Arc::ptr_eq(
         &desc.build(&context).unwrap(),

@@ -11,8 +11,19 @@
 //! through ply-rs-bw's per-property reader ([`read_ply_generic`]). Both give the same data.
 //!
 //! Every error names the file, and the element, line or face where the format gives one.
+//!
+//! STL (binary, ASCII), OFF and glTF / GLB are read by the `stl`, `off` and `gltf` submodules,
+//! chosen in `formats` ([`read_mesh_report`]); see `docs/mesh-formats.md`.
 
+mod formats;
+mod gltf;
+mod off;
 mod ply_binary;
+mod shared;
+mod stl;
+
+pub use formats::{read_mesh_report, MeshReport};
+pub use shared::{MAX_LINE_BYTES, MAX_MESH_FILE_BYTES};
 
 use crate::scene::shape_desc::{BuildContext, SceneShape};
 use ply_rs_bw::parser::Parser;
@@ -60,17 +71,10 @@ impl MeshData {
     }
 }
 
-/// Reads `path` by its extension (`.obj` or `.ply`, any case).
+/// Reads `path` by its content or extension (`.obj`, `.ply`, `.stl`, `.off`, `.gltf`, `.glb`,
+/// any case; see [`read_mesh_report`]).
 pub fn read_mesh(path: &Path) -> Result<MeshData, MeshIoError> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    match ext.as_str() {
-        "obj" => read_obj(path),
-        "ply" => read_ply(path),
-        _ => Err(error(path, "unknown mesh format (expected a .obj or .ply file)")),
-    }
+    read_mesh_report(path, None).map(|r| r.data)
 }
 
 /// Reads and builds a mesh file (see [`read_mesh`], [`MeshData::into_mesh`]).
@@ -338,27 +342,40 @@ fn no_surface(data: &MeshData) -> Option<Triangle> {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields, rename = "Mesh")]
 pub struct MeshDesc {
-    /// The mesh file (`.obj` or `.ply`), relative to the scene file's directory.
+    /// The mesh file (`.obj`, `.ply`, `.stl`, `.off`, `.gltf`, `.glb`), relative to the scene
+    /// file's directory.
     pub path: PathBuf,
     /// Use the file's per-vertex normals as shading normals (the `ShadingNormal` AOV); default
     /// true. The `Normal` AOV is always the geometric normal.
     #[serde(default = "yes")]
     pub normals: bool,
+    /// glTF only: the nodes of this name (and their children), placed by their parents'
+    /// transforms; default the whole scene.
+    #[serde(default)]
+    pub node: Option<String>,
 }
 
 impl SceneShape for MeshDesc {
     fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
         let path = context.resolve(&self.path);
-        let key = if self.normals {
+        let mut key = if self.normals {
             path.clone()
         } else {
             PathBuf::from(format!("{}#no-normals", path.display()))
         };
+        if let Some(node) = &self.node {
+            key = PathBuf::from(format!("{}#node={node}", key.display()));
+        }
         let mut loaded = context.loaded.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(mesh) = loaded.get(&key) {
             return Ok(Arc::clone(mesh));
         }
-        let data = read_mesh(&path).map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?;
+        let report = read_mesh_report(&path, self.node.as_deref())
+            .map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?;
+        for note in &report.notes {
+            context.warn(format!("{}: {note}", path.display()));
+        }
+        let data = report.data;
         if let Some(stand_in) = no_surface(&data) {
             context.warn(format!(
                 "{}: all {} triangles are degenerate (zero area): the mesh has no surface and is never hit",
