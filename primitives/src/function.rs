@@ -143,13 +143,12 @@ impl AlongRay for LeafAlong<'_> {
 }
 
 impl Compiled {
-    /// The octree, built on first use (in parallel unless called from a thread of a parallel
-    /// loop, where a nested parallel build could take up work that waits on this very build).
+    /// The octree, built on first use, on the calling thread alone: other threads asking for it
+    /// meanwhile wait, and a build that handed work to a thread pool could find the pool's
+    /// threads all waiting here.
     fn cells(&self) -> &CellTree {
-        self.cells.get_or_init(|| {
-            let parallel = rayon::current_thread_index().is_none();
-            CellTree::new(&self.tape, self.bounds.min, self.bounds.max, parallel)
-        })
+        self.cells
+            .get_or_init(|| CellTree::new(&self.tape, self.bounds.min, self.bounds.max, false))
     }
 
     /// The first root along `ray` in `segment` (clipped to the grown bounds), walking the
