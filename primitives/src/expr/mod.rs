@@ -162,36 +162,8 @@ fn walk<T: Scalar>(node: &Node, vars: &[T; 3]) -> T {
         Node::Mul(a, b, _) => walk(a, vars) * walk(b, vars),
         Node::Div(a, b, _) => walk(a, vars) / walk(b, vars),
         Node::PowI(a, n, _) => walk(a, vars).powi(*n),
-        Node::Call1(f, a, _) => {
-            let a = walk(a, vars);
-            match f {
-                Func1::Sqrt => a.sqrt(),
-                Func1::Exp => a.exp(),
-                Func1::Ln => a.ln(),
-                Func1::Sin => a.sin(),
-                Func1::Cos => a.cos(),
-                Func1::Tan => a.tan(),
-                Func1::Atan => a.atan(),
-                Func1::Tanh => a.tanh(),
-                Func1::Asin => a.asin(),
-                Func1::Acos => a.acos(),
-                Func1::Sinh => a.sinh(),
-                Func1::Cosh => a.cosh(),
-                Func1::Log10 => a.log10(),
-                Func1::Log2 => a.log2(),
-                Func1::Cbrt => a.cbrt(),
-                Func1::Abs => a.abs(),
-                Func1::Square => a.powi(2),
-            }
-        }
-        Node::Call2(f, a, b, _) => {
-            let (a, b) = (walk(a, vars), walk(b, vars));
-            match f {
-                Func2::Min => a.min(b),
-                Func2::Max => a.max(b),
-                Func2::Pow => a.pow(b),
-            }
-        }
+        Node::Call1(f, a, _) => tape::call1(*f, walk(a, vars)),
+        Node::Call2(f, a, b, _) => tape::call2(*f, walk(a, vars), walk(b, vars)),
     }
 }
 
@@ -230,7 +202,7 @@ fn checked(node: &Node, p: &[f64; 3]) -> Result<f64, DomainError> {
                     return fail(*column, "asin/acos of a number outside [−1, 1]")
                 }
                 Func1::Tan if a.cos() == 0.0 => return fail(*column, "tan at a pole"),
-                _ => walk(&Node::Call1(*f, Box::new(Node::Const(a)), *column), &[0.0; 3]),
+                _ => tape::call1(*f, a),
             }
         }
         Node::Call2(f, a, b, column) => {

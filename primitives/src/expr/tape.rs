@@ -106,9 +106,10 @@ pub struct Tape {
     branches: bool,
 }
 
-/// Applies a one-argument function in any scalar type (the tree walk's dispatch).
+/// Applies a one-argument function in any scalar type (the dispatch of the tree walk and of the
+/// tape alike).
 #[inline(always)]
-fn call1<T: Scalar>(f: Func1, a: T) -> T {
+pub(crate) fn call1<T: Scalar>(f: Func1, a: T) -> T {
     match f {
         Func1::Sqrt => a.sqrt(),
         Func1::Exp => a.exp(),
@@ -130,8 +131,9 @@ fn call1<T: Scalar>(f: Func1, a: T) -> T {
     }
 }
 
+/// Applies a two-argument function in any scalar type.
 #[inline(always)]
-fn call2<T: Scalar>(f: Func2, a: T, b: T) -> T {
+pub(crate) fn call2<T: Scalar>(f: Func2, a: T, b: T) -> T {
     match f {
         Func2::Min => a.min(b),
         Func2::Max => a.max(b),
