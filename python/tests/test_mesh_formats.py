@@ -1,4 +1,4 @@
-"""Mesh files of every format through the RON path route (`Scene.from_ron` / `Scene.add_object`
+"""Mesh files of every format through the RON path route (`Scene.from_ron` / `Scene.add`
 with `Mesh(path: ...)`, relative to `base_dir`): the STL, ASCII STL, OFF and GLB twins of
 scenes/meshes/icosphere2.ply give the PLY's hits exactly; a malformed file's error names it."""
 
@@ -33,12 +33,12 @@ def test_each_format_gives_the_plys_hits(repo, name):
     np.testing.assert_array_equal(got["t"], want["t"])
 
 
-def test_add_object_loads_a_glb_node_and_a_bad_stl_names_its_file(repo, tmp_path):
+def test_add_loads_a_glb_node_and_a_bad_stl_names_its_file(repo, tmp_path):
     scene = zeroset.Scene.from_ron("Scene(camera: (), objects: [])")
     base = str(repo / "scenes" / "meshes")
-    scene.add_object('(shape: Mesh(path: "icosphere2.glb", node: "root"))', base_dir=base)
-    assert scene.object_count() == 1
+    scene.add('Mesh(path: "icosphere2.glb", node: "root")', base_dir=base)
+    assert scene.object_count == 1
     bad = tmp_path / "short.stl"
     bad.write_bytes(b"\0" * 84 + b"\1\0\0")
     with pytest.raises(Exception, match="short.stl.*84-byte header|short.stl.*binary STL"):
-        scene.add_object('(shape: Mesh(path: "short.stl"))', base_dir=str(tmp_path))
+        scene.add('Mesh(path: "short.stl")', base_dir=str(tmp_path))
