@@ -44,7 +44,7 @@
 //! through [`Scalar::constant`]) for the guarantee to hold.
 
 use crate::bounds::Aabb;
-use crate::expr::{coordinates_along, Jet, Scalar};
+use crate::expr::{coordinates_along, jets_along, Jet, Scalar};
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::root::RootOptions;
@@ -109,11 +109,7 @@ impl<F: ScalarField> Implicit for FieldSurface<F> {
     fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> {
         let bounds = self.field.bounds();
         Some(match coordinates_along(ray, segment, bounds.min, bounds.max) {
-            Some(c) => self.field.phi([
-                Jet::new(c[0], Enclosure::point(ray.dir.x)),
-                Jet::new(c[1], Enclosure::point(ray.dir.y)),
-                Jet::new(c[2], Enclosure::point(ray.dir.z)),
-            ]),
+            Some(c) => self.field.phi(jets_along(c, ray.dir)),
             None => Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE),
         })
     }

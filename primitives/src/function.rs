@@ -20,7 +20,7 @@ use crate::bounds::Aabb;
 use crate::error::PrimitiveError;
 use crate::expr::cells::CellTree;
 use crate::expr::tape::Tape;
-use crate::expr::{coordinates_along, Expr, Jet};
+use crate::expr::{coordinates_along, jets_along, Expr, Jet};
 use crate::hit::RawHit;
 use crate::isolation::{count_outcome, isolate_in, AlongRay, Isolated};
 use crate::math::enclosure::Enclosure;
@@ -114,14 +114,8 @@ impl AlongRay for LeafAlong<'_> {
     fn jet(&mut self, piece: Interval) -> Jet<Enclosure> {
         match coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) {
             Some(c) => {
-                let d = self.ray.dir;
-                let vars = [
-                    Jet::new(c[0], Enclosure::point(d.x)),
-                    Jet::new(c[1], Enclosure::point(d.y)),
-                    Jet::new(c[2], Enclosure::point(d.z)),
-                ];
                 let tape = self.tape_for(&c);
-                tape.eval(vars, &mut self.scratch.jets)
+                tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets)
             }
             None => Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE),
         }
@@ -399,14 +393,7 @@ impl Implicit for Function {
             // outside the box there is no surface: a piece that misses it is root-free
             Phi::Expression(e) => Some(
                 match coordinates_along(ray, segment, self.bounds.min, self.bounds.max) {
-                    Some(c) => {
-                        let vars = [
-                            Jet::new(c[0], Enclosure::point(ray.dir.x)),
-                            Jet::new(c[1], Enclosure::point(ray.dir.y)),
-                            Jet::new(c[2], Enclosure::point(ray.dir.z)),
-                        ];
-                        with_scratch(|s| e.tape.eval(vars, &mut s.jets))
-                    }
+                    Some(c) => with_scratch(|s| e.tape.eval(jets_along(c, ray.dir), &mut s.jets)),
                     None => Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE),
                 },
             ),

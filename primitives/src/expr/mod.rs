@@ -232,6 +232,17 @@ pub(crate) fn coordinates_along(ray: &Ray, segment: Interval, lo: DVec3, hi: DVe
     Some(out)
 }
 
+/// The jets of the coordinates `c` (enclosures along a ray, from [`coordinates_along`]): each
+/// moves with the direction's component per unit of `t`, what an enclosure of `g′(t) = ∇Φ·d`
+/// is evaluated from.
+pub(crate) fn jets_along(c: [Enclosure; 3], dir: DVec3) -> [Jet<Enclosure>; 3] {
+    [
+        Jet::new(c[0], Enclosure::point(dir.x)),
+        Jet::new(c[1], Enclosure::point(dir.y)),
+        Jet::new(c[2], Enclosure::point(dir.z)),
+    ]
+}
+
 impl Expr {
     /// Parses standard notation (see the module docs); errors carry the column.
     pub fn parse(text: &str) -> Result<Self, ParseError> {
@@ -293,11 +304,7 @@ impl Expr {
     #[must_use]
     pub fn enclose_along_in(&self, ray: &Ray, segment: Interval, lo: DVec3, hi: DVec3) -> Option<Jet<Enclosure>> {
         let c = coordinates_along(ray, segment, lo, hi)?;
-        Some(self.eval_in([
-            Jet::new(c[0], Enclosure::point(ray.dir.x)),
-            Jet::new(c[1], Enclosure::point(ray.dir.y)),
-            Jet::new(c[2], Enclosure::point(ray.dir.z)),
-        ]))
+        Some(self.eval_in(jets_along(c, ray.dir)))
     }
 
     /// An enclosure of `g(t) = Φ(origin + t·dir)` for all `t` in `segment` (the value part of
