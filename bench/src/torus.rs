@@ -12,8 +12,10 @@ use crate::measure::{measure, Measured, Ref};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use zeroset_custom_primitives::{solve_quartic, QuarticTorus, Torus};
+use zeroset_primitives::expr::Scalar;
+use zeroset_primitives::root::uncertain_while;
 use zeroset_primitives::{
-    first_root, Aabb, Expr, FieldSurface, Function, Implicit, Intersect, Interval, Ray, RootOptions,
+    first_root, Aabb, Expr, FieldSurface, Function, Implicit, Intersect, Interval, Ray, RootOptions, ScalarField,
 };
 
 const MAJOR: f64 = 1.0;
@@ -35,6 +37,25 @@ impl Implicit for Declared {
     }
     fn lipschitz(&self) -> Option<f64> {
         Some(self.lipschitz)
+    }
+}
+
+/// The example crate's generic torus with a root-finder tolerance of its own.
+#[derive(Debug)]
+struct ScalarTolerance {
+    torus: Torus,
+    tolerance: f64,
+}
+
+impl ScalarField for ScalarTolerance {
+    fn phi<T: Scalar>(&self, p: [T; 3]) -> T {
+        self.torus.phi(p)
+    }
+    fn bounds(&self) -> Aabb {
+        self.torus.bounds()
+    }
+    fn root_options(&self) -> RootOptions {
+        RootOptions::with_tolerance(self.tolerance)
     }
 }
 
@@ -235,24 +256,21 @@ pub fn run(n: usize, passes: usize, seed: u64) -> TorusResult {
     generic(0.25, 1e-6, "generic Torus, L = 0.25 (wrong)");
 
     // interval isolation of the same Φ as an expression: no Lipschitz bound
-    // Φ written once (generic over the number type): interval isolation and exact normals
-    let field = FieldSurface::new(Torus {
-        major: MAJOR,
-        minor: MINOR,
-    });
-    for tolerance in [1e-3, 1e-5, 1e-7] {
-        let options = RootOptions::with_tolerance(tolerance);
+    // interval isolation without a Lipschitz bound: the answers, holes and uncertain flags are
+    // those of the `intersect` that is timed
+    let mut interval = |label: &str, surface: &dyn Intersect, tolerance: f64| {
         let m = measure(&rays, &refs, passes, false, |r: &Ray| {
-            first_root(&field, r, range, &options)
-                .hit
-                .map(|h| (h.t, field.normal_at(r, &h)))
+            surface.intersect(r, range).map(|h| (h.t, surface.normal_at(r, &h)))
         });
-        let reports: Vec<_> = rays.iter().map(|r| first_root(&field, r, range, &options)).collect();
-        let answers: Vec<Option<f64>> = reports.iter().map(|x| x.hit.map(|h| h.t)).collect();
-        let uncertain = reports.iter().filter(|x| x.uncertain).count();
+        let traced: Vec<_> = rays
+            .iter()
+            .map(|r| uncertain_while(|| surface.intersect(r, range)))
+            .collect();
+        let answers: Vec<Option<f64>> = traced.iter().map(|(hit, _)| hit.map(|h| h.t)).collect();
+        let uncertain = traced.iter().filter(|(_, flagged)| *flagged).count();
         let (max_abs_t, holes) = abs_errors(&answers, tolerance);
         rows.push(TorusRow {
-            method: format!("generic ScalarField Torus, no bound, tol {tolerance:.0e}"),
+            method: format!("{label}, no bound, tol {tolerance:.0e}"),
             tolerance: Some(tolerance),
             declared_lipschitz: None,
             m,
@@ -260,30 +278,24 @@ pub fn run(n: usize, passes: usize, seed: u64) -> TorusResult {
             holes,
             violations: uncertain,
         });
+    };
+    // Φ written once (generic over the number type): exact normals
+    let torus = Torus {
+        major: MAJOR,
+        minor: MINOR,
+    };
+    for tolerance in [1e-3, 1e-5, 1e-7] {
+        let field = FieldSurface::new(ScalarTolerance { torus, tolerance });
+        interval("generic ScalarField Torus", &field, tolerance);
     }
-
-    let torus_box = field.bounds();
+    // the same Φ as a `Function` expression (compiled tape, pruned octree)
+    let torus_box = FieldSurface::new(torus).bounds();
     for tolerance in [1e-3, 1e-5, 1e-7] {
         let expr = Expr::parse(&format!("sqrt((sqrt(x^2 + z^2) - {MAJOR})^2 + y^2) - {MINOR}"))
             .expect("the torus expression parses");
         let options = RootOptions::with_tolerance(tolerance);
         let surface = Function::from_expr(expr, torus_box, options).expect("a valid function");
-        let m = measure(&rays, &refs, passes, false, |r: &Ray| {
-            surface.intersect(r, range).map(|h| (h.t, surface.normal_at(r, &h)))
-        });
-        let reports: Vec<_> = rays.iter().map(|r| first_root(&surface, r, range, &options)).collect();
-        let answers: Vec<Option<f64>> = reports.iter().map(|x| x.hit.map(|h| h.t)).collect();
-        let uncertain = reports.iter().filter(|x| x.uncertain).count();
-        let (max_abs_t, holes) = abs_errors(&answers, tolerance);
-        rows.push(TorusRow {
-            method: format!("interval Function expression, no bound, tol {tolerance:.0e}"),
-            tolerance: Some(tolerance),
-            declared_lipschitz: None,
-            m,
-            max_abs_t,
-            holes,
-            violations: uncertain,
-        });
+        interval("interval Function expression", &surface, tolerance);
     }
     TorusResult { rays: n, rows }
 }
