@@ -22,7 +22,7 @@ use crate::expr::cells::CellTree;
 use crate::expr::tape::Tape;
 use crate::expr::{coordinates_along, jets_along, Expr, Jet};
 use crate::hit::RawHit;
-use crate::isolation::{count_outcome, isolate_in, AlongRay, Isolated};
+use crate::isolation::{count_outcome, isolate_in, monotone_root, AlongRay, Isolated};
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::root::{RootOptions, RootReport};
@@ -136,6 +136,15 @@ impl AlongRay for LeafAlong<'_> {
     }
 }
 
+/// Whether `dΦ/dt = ∇Φ·d` along direction `d` is certainly non-zero (of one strict sign) where
+/// the partial derivatives lie in `gradient` (a leaf's enclosures over its grown cell).
+fn monotone_along(gradient: &[Enclosure; 3], dir: DVec3) -> bool {
+    let slope = (0..3).fold(Enclosure::point(0.0), |sum, a| {
+        sum + gradient[a] * Enclosure::point(dir[a])
+    });
+    !slope.undefined() && !slope.contains_zero()
+}
+
 impl Compiled {
     /// The octree, built on first use, on the calling thread alone: other threads asking for it
     /// meanwhile wait, and a build that handed work to a thread pool could find the pool's
@@ -174,6 +183,13 @@ impl Compiled {
                         bounds,
                         scratch: &mut *scratch,
                     };
+                    if cells.leaf_gradient(number).is_some_and(|g| monotone_along(g, ray.dir)) {
+                        // g is strictly monotone over the whole leaf: its end values decide
+                        found_in = number;
+                        let t = monotone_root(&mut along, ta, tb, options.tolerance, &mut evaluations);
+                        outcome.hit = t.map(|t| (t, false));
+                        return outcome.hit.is_some();
+                    }
                     let piece = isolate_in(
                         &mut along,
                         Interval::new(ta, tb),
@@ -290,7 +306,7 @@ impl Function {
     pub fn from_expr(expr: Expr, bounds: Aabb, options: RootOptions) -> Result<Self, PrimitiveError> {
         check_bounds(&bounds)?;
         check_options(&options)?;
-        let may_be_undefined = expr.enclose(bounds.min, bounds.max).undefined;
+        let may_be_undefined = expr.enclose(bounds.min, bounds.max).undefined();
         if may_be_undefined {
             let n = DOMAIN_GRID - 1;
             for i in 0..=n {

@@ -150,12 +150,12 @@ pub(crate) fn isolate_in<P: AlongRay>(
         *evaluations += 1;
         let piece = Interval::new(a, b);
         let value = along.value(piece);
-        if !value.undefined && !value.contains_zero() {
+        if !value.undefined() && !value.contains_zero() {
             continue; // 1. root-free
         }
         let enclosure = along.jet(piece);
         let value = enclosure.value;
-        let defined = !value.undefined;
+        let defined = !value.undefined();
         if defined && !value.contains_zero() {
             continue; // 1. root-free
         }
@@ -163,18 +163,9 @@ pub(crate) fn isolate_in<P: AlongRay>(
         let splittable = b - a > tolerance && mid > a && mid < b;
         let (t, uncertain) = if defined && !enclosure.slope.contains_zero() {
             // 2. strictly monotone: a root iff the end values differ in sign
-            let (ga, gb) = (point(along, a, evaluations), point(along, b, evaluations));
-            if differ(ga, gb) {
-                let t = if ga == 0.0 {
-                    a
-                } else if gb == 0.0 {
-                    b
-                } else {
-                    refine_bracket(|t| point(along, t, evaluations), (a, ga), (b, gb), tolerance)
-                };
-                (t, false)
-            } else {
-                continue;
+            match monotone_root(along, a, b, tolerance, evaluations) {
+                Some(t) => (t, false),
+                None => continue,
             }
         } else if splittable {
             // 3. subdivide, front half on top
@@ -201,6 +192,37 @@ pub(crate) fn isolate_in<P: AlongRay>(
         }
     }
     out
+}
+
+/// The root of `g` on `[a, b]` where `g` is known to be strictly monotone there: a root iff
+/// the end values differ in sign, refined by regula falsi / bisection to `tolerance` (step 2
+/// of the module docs). Point values are counted in `evaluations`.
+pub(crate) fn monotone_root<P: AlongRay>(
+    along: &mut P,
+    a: f64,
+    b: f64,
+    tolerance: f64,
+    evaluations: &mut u32,
+) -> Option<f64> {
+    let mut point = |t: f64| {
+        *evaluations = evaluations.saturating_add(1);
+        along.point(t)
+    };
+    let (ga, gb) = (point(a), point(b));
+    if !differ(ga, gb) {
+        None
+    } else if ga == 0.0 {
+        Some(a)
+    } else if gb == 0.0 {
+        Some(b)
+    } else {
+        Some(refine_bracket(
+            point,
+            (a, ga),
+            (b, gb),
+            tolerance.max(f64::MIN_POSITIVE),
+        ))
+    }
 }
 
 /// A stack of pieces kept in place for the usual depths (a piece list grows by one per halving

@@ -6,7 +6,10 @@
 //! the zero set and is marked **empty** (Φ > 0 all over it, or Φ < 0 all over it); otherwise it
 //! is split in eight, each child evaluated with the tape pruned over its parent (Keeter 2020,
 //! "Massively parallel rendering of complex closed-form implicit surfaces"; libfive), down to
-//! [`MAX_DEPTH`] levels, where a **leaf** keeps the tape pruned over itself. A pruned tape gives
+//! [`MIN_LEAF_DEPTH`] levels (or [`MAX_DEPTH`] where the cell's gradients point in too wide a
+//! cone), where a **leaf** keeps the tape pruned over itself and enclosures of
+//! the partial derivatives of Φ over its grown cell ([`CellTree::leaf_gradient`]: a ray whose
+//! slope `∇Φ·d` they prove non-zero is monotone across the whole leaf). A pruned tape gives
 //! the full tape's values bit for bit inside its grown cell ([`crate::expr::tape`]).
 //!
 //! **Walked** front to back along a ray ([`CellTree::walk`]): the ray's parameter range is cut
@@ -17,12 +20,18 @@
 //! rely on it (an origin far beyond the box's scale) evaluates the full tape instead.
 
 use super::tape::{Choice, Tape};
+use super::Jet;
 use crate::math::enclosure::Enclosure;
 use glam::DVec3;
 use std::sync::Arc;
 
 /// Levels of the octree below its root (a leaf is `1/2^MAX_DEPTH` of the box on each axis).
-pub const MAX_DEPTH: u32 = 5;
+pub const MAX_DEPTH: u32 = 7;
+
+/// Levels below which a cell is always split: from here on a cell whose gradients lie in a
+/// narrow cone ([`narrow_cone`]) is a leaf already (rays crossing it are monotone there, except
+/// for nearly tangent ones).
+pub const MIN_LEAF_DEPTH: u32 = 6;
 
 /// Margin added on every side of a cell before its interval evaluation, relative to the box's
 /// diagonal.
@@ -51,18 +60,20 @@ pub struct CellTree {
     leaves: Vec<Leaf>,
 }
 
-/// A leaf: its cell grown by the margin, and its tape's index.
+/// A leaf: its cell grown by the margin, its tape's index, and enclosures of the partial
+/// derivatives `∂Φ/∂x, ∂Φ/∂y, ∂Φ/∂z` over the grown cell.
 #[derive(Clone, Copy, Debug)]
 struct Leaf {
     lo: DVec3,
     hi: DVec3,
     tape: u32,
+    gradient: [Enclosure; 3],
 }
 
 /// A cell as built, before the tables are laid out.
 enum Built {
     Empty,
-    Leaf(Arc<Tape>, DVec3, DVec3),
+    Leaf(Arc<Tape>, DVec3, DVec3, [Enclosure; 3]),
     Inner(Box<[Built; 8]>),
 }
 
@@ -80,6 +91,31 @@ fn child_box(lo: DVec3, hi: DVec3, bits: usize) -> (DVec3, DVec3) {
 struct Scratch {
     slots: Vec<Enclosure>,
     choices: Vec<Choice>,
+    jets: Vec<Jet<Enclosure>>,
+}
+
+/// Whether the gradients enclosed by `gradient` lie in a cone of half-angle below 30° around
+/// the enclosures' midpoint (the radius vector shorter than half the midpoint vector): then
+/// `∇Φ·d` has one strict sign for every direction `d` more than 60° from the surface's tangent
+/// plane, and subdividing the cell would help only nearly tangent rays.
+fn narrow_cone(gradient: &[Enclosure; 3]) -> bool {
+    if gradient
+        .iter()
+        .any(|g| g.undefined() || !g.lo.is_finite() || !g.hi.is_finite())
+    {
+        return false;
+    }
+    let mid = DVec3::from_array(std::array::from_fn(|a| 0.5 * (gradient[a].lo + gradient[a].hi)));
+    let radius = DVec3::from_array(std::array::from_fn(|a| 0.5 * (gradient[a].hi - gradient[a].lo)));
+    radius.length() < 0.5 * mid.length()
+}
+
+/// Enclosures of `∂Φ/∂x, ∂Φ/∂y, ∂Φ/∂z` over the box `vars` (forward mode, one axis at a time).
+fn enclose_gradient(tape: &Tape, vars: [Enclosure; 3], slots: &mut Vec<Jet<Enclosure>>) -> [Enclosure; 3] {
+    std::array::from_fn(|axis| {
+        let seed = |a: usize| Jet::new(vars[a], Enclosure::point(if a == axis { 1.0 } else { 0.0 }));
+        tape.eval([seed(0), seed(1), seed(2)], slots).slope
+    })
 }
 
 fn build(
@@ -97,15 +133,18 @@ fn build(
         Enclosure::new(lo.z - margin, hi.z + margin),
     ];
     let value = tape.eval_choices(vars, &mut scratch.slots, &mut scratch.choices);
-    if !value.undefined && !value.contains_zero() {
+    if !value.undefined() && !value.contains_zero() {
         return Built::Empty;
     }
     let pruned = match tape.pruned(&scratch.choices) {
         Some(shorter) => Arc::new(shorter),
         None => Arc::clone(tape),
     };
-    if depth == MAX_DEPTH {
-        return Built::Leaf(pruned, lo, hi);
+    if depth >= MIN_LEAF_DEPTH {
+        let gradient = enclose_gradient(&pruned, vars, &mut scratch.jets);
+        if depth == MAX_DEPTH || narrow_cone(&gradient) {
+            return Built::Leaf(pruned, lo, hi, gradient);
+        }
     }
     let child = |bits: usize, scratch: &mut Scratch| {
         let (l, h) = child_box(lo, hi, bits);
@@ -162,7 +201,7 @@ impl CellTree {
     fn lay_out(&mut self, built: Built, seen: &mut std::collections::HashMap<*const Tape, u32>) -> Cell {
         match built {
             Built::Empty => Cell::Empty,
-            Built::Leaf(tape, lo, hi) => {
+            Built::Leaf(tape, lo, hi, gradient) => {
                 let key = Arc::as_ptr(&tape);
                 let index = *seen.entry(key).or_insert_with(|| {
                     self.tapes.push(Arc::clone(&tape));
@@ -173,6 +212,7 @@ impl CellTree {
                     lo: lo - m,
                     hi: hi + m,
                     tape: index,
+                    gradient,
                 });
                 Cell::Leaf((self.leaves.len() - 1) as u32)
             }
@@ -212,6 +252,13 @@ impl CellTree {
         (p.cmpge(leaf.lo) & p.cmple(leaf.hi))
             .all()
             .then(|| &*self.tapes[leaf.tape as usize])
+    }
+
+    /// Enclosures of `∂Φ/∂x, ∂Φ/∂y, ∂Φ/∂z` over the grown cell of leaf `leaf` (a number handed
+    /// to [`CellTree::walk`]'s visitor), from its pruned tape; `None` for no such leaf.
+    #[must_use]
+    pub fn leaf_gradient(&self, leaf: u32) -> Option<&[Enclosure; 3]> {
+        self.leaves.get(leaf as usize).map(|l| &l.gradient)
     }
 
     /// Number of leaves' distinct tapes and of inner nodes (for reports and tests).

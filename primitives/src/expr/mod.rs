@@ -454,7 +454,7 @@ mod tests {
         assert_eq!(e.domain_error(DVec3::new(-1.0, 1.0, 0.0)).unwrap_err().column, 5);
         assert_eq!(e.domain_error(DVec3::new(1.0, 0.0, 0.0)).unwrap_err().column, 16);
         assert_eq!(e.domain_error(DVec3::new(4.0, 2.0, 0.0)), Ok(3.5));
-        assert!(e.enclose(DVec3::splat(-1.0), DVec3::splat(1.0)).undefined);
-        assert!(!e.enclose(DVec3::splat(1.0), DVec3::splat(2.0)).undefined);
+        assert!(e.enclose(DVec3::splat(-1.0), DVec3::splat(1.0)).undefined());
+        assert!(!e.enclose(DVec3::splat(1.0), DVec3::splat(2.0)).undefined());
     }
 }

@@ -61,57 +61,75 @@ pub trait Scalar:
 }
 
 impl Scalar for f64 {
+    #[inline]
     fn constant(c: f64) -> Self {
         c
     }
+    #[inline]
     fn sqrt(self) -> Self {
         f64::sqrt(self)
     }
+    #[inline]
     fn exp(self) -> Self {
         f64::exp(self)
     }
+    #[inline]
     fn ln(self) -> Self {
         f64::ln(self)
     }
+    #[inline]
     fn sin(self) -> Self {
         f64::sin(self)
     }
+    #[inline]
     fn cos(self) -> Self {
         f64::cos(self)
     }
+    #[inline]
     fn tan(self) -> Self {
         f64::tan(self)
     }
+    #[inline]
     fn atan(self) -> Self {
         f64::atan(self)
     }
+    #[inline]
     fn tanh(self) -> Self {
         f64::tanh(self)
     }
+    #[inline]
     fn asin(self) -> Self {
         f64::asin(self)
     }
+    #[inline]
     fn acos(self) -> Self {
         f64::acos(self)
     }
+    #[inline]
     fn sinh(self) -> Self {
         f64::sinh(self)
     }
+    #[inline]
     fn cosh(self) -> Self {
         f64::cosh(self)
     }
+    #[inline]
     fn log10(self) -> Self {
         f64::log10(self)
     }
+    #[inline]
     fn log2(self) -> Self {
         f64::log2(self)
     }
+    #[inline]
     fn cbrt(self) -> Self {
         f64::cbrt(self)
     }
+    #[inline]
     fn abs(self) -> Self {
         f64::abs(self)
     }
+    #[inline]
     fn sign(self) -> Self {
         if self > 0.0 {
             1.0
@@ -121,15 +139,18 @@ impl Scalar for f64 {
             0.0
         }
     }
+    #[inline]
     fn powi(self, n: i32) -> Self {
         // small powers inline (a runtime exponent would otherwise be a library call)
         match n {
             1 => self,
             2 => self * self,
             3 => self * self * self,
+            n if n > 0 => crate::math::enclosure::power(self, n),
             _ => f64::powi(self, n),
         }
     }
+    #[inline]
     fn pow(self, y: Self) -> Self {
         if self > 0.0 {
             f64::powf(self, y)
@@ -137,87 +158,114 @@ impl Scalar for f64 {
             f64::NAN
         }
     }
+    #[inline]
     fn min(self, y: Self) -> Self {
         f64::min(self, y)
     }
+    #[inline]
     fn max(self, y: Self) -> Self {
         f64::max(self, y)
     }
+    #[inline]
     fn certain_order(self, y: Self) -> Option<Ordering> {
         self.partial_cmp(&y)
     }
+    #[inline]
     fn either(self, _: Self) -> Self {
         self
     }
 }
 
 impl Scalar for Enclosure {
+    #[inline]
     fn constant(c: f64) -> Self {
         Enclosure::point(c)
     }
+    #[inline]
     fn sqrt(self) -> Self {
         Enclosure::sqrt(self)
     }
+    #[inline]
     fn exp(self) -> Self {
         Enclosure::exp(self)
     }
+    #[inline]
     fn ln(self) -> Self {
         Enclosure::ln(self)
     }
+    #[inline]
     fn sin(self) -> Self {
         Enclosure::sin(self)
     }
+    #[inline]
     fn cos(self) -> Self {
         Enclosure::cos(self)
     }
+    #[inline]
     fn tan(self) -> Self {
         Enclosure::tan(self)
     }
+    #[inline]
     fn atan(self) -> Self {
         Enclosure::atan(self)
     }
+    #[inline]
     fn tanh(self) -> Self {
         Enclosure::tanh(self)
     }
+    #[inline]
     fn asin(self) -> Self {
         Enclosure::asin(self)
     }
+    #[inline]
     fn acos(self) -> Self {
         Enclosure::acos(self)
     }
+    #[inline]
     fn sinh(self) -> Self {
         Enclosure::sinh(self)
     }
+    #[inline]
     fn cosh(self) -> Self {
         Enclosure::cosh(self)
     }
+    #[inline]
     fn log10(self) -> Self {
         Enclosure::log10(self)
     }
+    #[inline]
     fn log2(self) -> Self {
         Enclosure::log2(self)
     }
+    #[inline]
     fn cbrt(self) -> Self {
         Enclosure::cbrt(self)
     }
+    #[inline]
     fn abs(self) -> Self {
         Enclosure::abs(self)
     }
+    #[inline]
     fn sign(self) -> Self {
         Enclosure::sign(self)
     }
+    #[inline]
     fn powi(self, n: i32) -> Self {
         Enclosure::powi(self, n)
     }
+    #[inline]
     fn pow(self, y: Self) -> Self {
         Enclosure::pow(self, y)
     }
+    #[inline]
     fn min(self, y: Self) -> Self {
         Enclosure::min(self, y)
     }
+    #[inline]
     fn max(self, y: Self) -> Self {
         Enclosure::max(self, y)
     }
+    #[inline]
     fn certain_order(self, y: Self) -> Option<Ordering> {
         if self.hi < y.lo {
             Some(Ordering::Less)
@@ -227,6 +275,7 @@ impl Scalar for Enclosure {
             None
         }
     }
+    #[inline]
     fn either(self, y: Self) -> Self {
         self.hull(y)
     }
@@ -243,10 +292,12 @@ pub struct Jet<T> {
 
 impl<T: Scalar> Jet<T> {
     /// A variable with value `value` whose derivative along the direction is `slope`.
+    #[inline]
     pub fn new(value: T, slope: T) -> Self {
         Self { value, slope }
     }
 
+    #[inline]
     fn chain(self, value: T, derivative: T) -> Self {
         Self {
             value,
@@ -257,6 +308,7 @@ impl<T: Scalar> Jet<T> {
 
 impl<T: Scalar> Add for Jet<T> {
     type Output = Self;
+    #[inline]
     fn add(self, o: Self) -> Self {
         Self::new(self.value + o.value, self.slope + o.slope)
     }
@@ -264,6 +316,7 @@ impl<T: Scalar> Add for Jet<T> {
 
 impl<T: Scalar> Sub for Jet<T> {
     type Output = Self;
+    #[inline]
     fn sub(self, o: Self) -> Self {
         Self::new(self.value - o.value, self.slope - o.slope)
     }
@@ -271,6 +324,7 @@ impl<T: Scalar> Sub for Jet<T> {
 
 impl<T: Scalar> Mul for Jet<T> {
     type Output = Self;
+    #[inline]
     fn mul(self, o: Self) -> Self {
         Self::new(self.value * o.value, self.slope * o.value + self.value * o.slope)
     }
@@ -278,6 +332,7 @@ impl<T: Scalar> Mul for Jet<T> {
 
 impl<T: Scalar> Div for Jet<T> {
     type Output = Self;
+    #[inline]
     fn div(self, o: Self) -> Self {
         let q = self.value / o.value;
         Self::new(q, (self.slope - q * o.slope) / o.value)
@@ -286,76 +341,96 @@ impl<T: Scalar> Div for Jet<T> {
 
 impl<T: Scalar> Neg for Jet<T> {
     type Output = Self;
+    #[inline]
     fn neg(self) -> Self {
         Self::new(-self.value, -self.slope)
     }
 }
 
 impl<T: Scalar> Scalar for Jet<T> {
+    #[inline]
     fn constant(c: f64) -> Self {
         Self::new(T::constant(c), T::constant(0.0))
     }
+    #[inline]
     fn sqrt(self) -> Self {
         let s = self.value.sqrt();
         self.chain(s, T::constant(0.5) / s)
     }
+    #[inline]
     fn exp(self) -> Self {
         let e = self.value.exp();
         self.chain(e, e)
     }
+    #[inline]
     fn ln(self) -> Self {
         self.chain(self.value.ln(), T::constant(1.0) / self.value)
     }
+    #[inline]
     fn sin(self) -> Self {
         self.chain(self.value.sin(), self.value.cos())
     }
+    #[inline]
     fn cos(self) -> Self {
         self.chain(self.value.cos(), -self.value.sin())
     }
+    #[inline]
     fn tan(self) -> Self {
         let t = self.value.tan();
         self.chain(t, T::constant(1.0) + t.powi(2))
     }
+    #[inline]
     fn atan(self) -> Self {
         self.chain(
             self.value.atan(),
             T::constant(1.0) / (T::constant(1.0) + self.value.powi(2)),
         )
     }
+    #[inline]
     fn tanh(self) -> Self {
         let t = self.value.tanh();
         self.chain(t, T::constant(1.0) - t.powi(2))
     }
+    #[inline]
     fn asin(self) -> Self {
         let one = T::constant(1.0);
         self.chain(self.value.asin(), one / (one - self.value.powi(2)).sqrt())
     }
+    #[inline]
     fn acos(self) -> Self {
         let one = T::constant(1.0);
         self.chain(self.value.acos(), -(one / (one - self.value.powi(2)).sqrt()))
     }
+    #[inline]
     fn sinh(self) -> Self {
         self.chain(self.value.sinh(), self.value.cosh())
     }
+    #[inline]
     fn cosh(self) -> Self {
         self.chain(self.value.cosh(), self.value.sinh())
     }
+    #[inline]
     fn log10(self) -> Self {
         self.chain(self.value.log10(), T::constant(std::f64::consts::LOG10_E) / self.value)
     }
+    #[inline]
     fn log2(self) -> Self {
         self.chain(self.value.log2(), T::constant(std::f64::consts::LOG2_E) / self.value)
     }
+    #[inline]
     fn cbrt(self) -> Self {
         let c = self.value.cbrt();
         self.chain(c, T::constant(1.0) / (T::constant(3.0) * c.powi(2)))
     }
+    #[inline]
     fn abs(self) -> Self {
         self.chain(self.value.abs(), self.value.sign())
     }
+    #[inline]
     fn sign(self) -> Self {
         Self::new(self.value.sign(), T::constant(0.0))
     }
+    #[inline]
     fn powi(self, n: i32) -> Self {
         let derivative = match n {
             1 => T::constant(1.0),
@@ -364,10 +439,12 @@ impl<T: Scalar> Scalar for Jet<T> {
         };
         self.chain(self.value.powi(n), derivative)
     }
+    #[inline]
     fn pow(self, y: Self) -> Self {
         let r = self.value.pow(y.value);
         Self::new(r, r * (y.slope * self.value.ln() + y.value * self.slope / self.value))
     }
+    #[inline]
     fn min(self, y: Self) -> Self {
         let value = self.value.min(y.value);
         let slope = match self.value.certain_order(y.value) {
@@ -378,6 +455,7 @@ impl<T: Scalar> Scalar for Jet<T> {
         };
         Self::new(value, slope)
     }
+    #[inline]
     fn max(self, y: Self) -> Self {
         let value = self.value.max(y.value);
         let slope = match self.value.certain_order(y.value) {
@@ -387,9 +465,11 @@ impl<T: Scalar> Scalar for Jet<T> {
         };
         Self::new(value, slope)
     }
+    #[inline]
     fn certain_order(self, y: Self) -> Option<Ordering> {
         self.value.certain_order(y.value)
     }
+    #[inline]
     fn either(self, y: Self) -> Self {
         Self::new(self.value.either(y.value), self.slope.either(y.slope))
     }

@@ -183,7 +183,7 @@ impl Compiler {
             let point = step::<f64>(&local, &[a, b], &[0.0; 3]);
             let (ea, eb) = (Enclosure::point(a), Enclosure::point(b));
             let enclosure = step::<Enclosure>(&local, &[ea, eb], &[Enclosure::point(0.0); 3]);
-            if point.is_finite() && !enclosure.undefined && enclosure.lo == point && enclosure.hi == point {
+            if point.is_finite() && !enclosure.undefined() && enclosure.lo == point && enclosure.hi == point {
                 return self.push(Op::Const(point));
             }
         }
@@ -346,13 +346,13 @@ impl Tape {
                     choices[i] = match (f, order) {
                         (Func2::Min, Some(std::cmp::Ordering::Less))
                         | (Func2::Max, Some(std::cmp::Ordering::Greater))
-                            if !y.undefined =>
+                            if !y.undefined() =>
                         {
                             Choice::First
                         }
                         (Func2::Min, Some(std::cmp::Ordering::Greater))
                         | (Func2::Max, Some(std::cmp::Ordering::Less))
-                            if !x.undefined =>
+                            if !x.undefined() =>
                         {
                             Choice::Second
                         }
