@@ -29,7 +29,7 @@ use std::sync::Arc;
 pub const MAX_DEPTH: u32 = 7;
 
 /// Levels below which a cell is always split: from here on a cell whose gradients lie in a
-/// narrow cone ([`narrow_cone`]) is a leaf already (rays crossing it are monotone there, except
+/// narrow cone is a leaf already (rays crossing it are monotone there, except
 /// for nearly tangent ones).
 pub const MIN_LEAF_DEPTH: u32 = 6;
 
