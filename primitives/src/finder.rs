@@ -84,7 +84,9 @@ pub struct RootReport {
 }
 
 /// Refines a bracket `[a, b]` with `g(a)`, `g(b)` of opposite signs to a width `tolerance` by the
-/// Illinois variant of regula falsi, bisecting whenever a step fails to halve the bracket; also
+/// Illinois variant of regula falsi: each trial point is kept at least `tolerance / 2` inside the
+/// bracket (so that once the estimate is within that of an end, the next value closes the
+/// bracket), and the bracket is bisected after two steps in a row that failed to halve it; also
 /// stops where no f64 lies strictly between `a` and `b`. Returns the end with the smaller `|g|`
 /// (or a point where `g` is exactly 0).
 pub(crate) fn refine_bracket(
@@ -95,9 +97,19 @@ pub(crate) fn refine_bracket(
 ) -> f64 {
     let mut side = 0i8;
     let mut width = b - a;
+    let mut slow_steps = 0;
+    let step = 0.5 * tolerance;
     while b - a > tolerance && 0.5 * (a + b) > a && 0.5 * (a + b) < b {
-        // secant point, kept strictly inside
+        // secant point, kept strictly inside and half a tolerance from either end
         let mut t = (a * gb - b * ga) / (gb - ga);
+        if !(t > a && t < b) {
+            t = 0.5 * (a + b);
+        }
+        if t - a < step {
+            t = a + step;
+        } else if b - t < step {
+            t = b - step;
+        }
         if !(t > a && t < b) {
             t = 0.5 * (a + b);
         }
@@ -120,8 +132,13 @@ pub(crate) fn refine_bracket(
             }
             side = 1;
         }
-        // bisect if the secant made poor progress
+        // bisect if the secant made poor progress twice in a row
         if b - a > 0.5 * width {
+            slow_steps += 1;
+        } else {
+            slow_steps = 0;
+        }
+        if slow_steps >= 2 && b - a > tolerance {
             let m = 0.5 * (a + b);
             let gm = g(m);
             if gm == 0.0 {
@@ -135,6 +152,7 @@ pub(crate) fn refine_bracket(
                 gb = gm;
             }
             side = 0;
+            slow_steps = 0;
         }
         width = b - a;
     }

@@ -87,6 +87,9 @@ struct LeafAlong<'a> {
     cell_hi: DVec3,
     bounds: &'a Aabb,
     scratch: &'a mut Scratch,
+    /// The last point value `(t, g(t))` along the ray, kept across leaves (a leaf's exit is the
+    /// next one's entry; every tape gives the same value there).
+    last: &'a mut (f64, f64),
 }
 
 impl<'a> LeafAlong<'a> {
@@ -122,13 +125,18 @@ impl AlongRay for LeafAlong<'_> {
     }
 
     fn point(&mut self, t: f64) -> f64 {
+        if t == self.last.0 {
+            return self.last.1;
+        }
         let p = self.ray.at(t);
         let tape = if (p.cmpge(self.cell_lo) & p.cmple(self.cell_hi)).all() {
             self.leaf
         } else {
             self.full
         };
-        finite_or_outside(tape.eval_f64(p.to_array(), &mut self.scratch.points))
+        let g = finite_or_outside(tape.eval_f64(p.to_array(), &mut self.scratch.points));
+        *self.last = (t, g);
+        g
     }
 
     fn within_boundary(&mut self, _t: f64) -> bool {
@@ -167,6 +175,7 @@ impl Compiled {
         let mut evaluations = 0u32;
         let mut outcome = Isolated::default();
         let mut found_in = 0u32;
+        let mut last = (f64::NAN, 0.0);
         with_scratch(|scratch| {
             cells.walk(
                 ray.origin,
@@ -182,6 +191,7 @@ impl Compiled {
                         cell_hi: hi,
                         bounds,
                         scratch: &mut *scratch,
+                        last: &mut last,
                     };
                     if cells.leaf_gradient(number).is_some_and(|g| monotone_along(g, ray.dir)) {
                         // g is strictly monotone over the whole leaf: its end values decide
