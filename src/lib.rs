@@ -16,7 +16,9 @@
 //! test `tests/layers.rs` checks both, and that no source file is over 800 lines):
 //!
 //! 1. **Foundations**, used by every layer: [`motion`], [`sampling`], [`camera`] (camera
-//!    models only), [`aov`] (the output channels).
+//!    models only), [`aov`] (the output channels), [`resources`] (the one guarded entry for
+//!    what a user's numbers size: memory estimates against the room the process has, fallible
+//!    reservations, thread caps and bounded reads of input files).
 //! 2. **Scene**: [`scene`], the RON descriptions ([`scene::desc`], [`scene::shape_desc`]), the
 //!    built-in shapes ([`scene::shapes`], [`scene::combinators`], [`scene::mesh_io`]), the
 //!    [`scene::registry`] of parsers, the built [`scene::objects`], loading and the
@@ -29,7 +31,7 @@
 //!    from pixels).
 //! 5. **Output**: [`output`], EXR, PNG and camera files.
 //! 6. **Command line**: [`cli`], with the command's up-front checks of memory, disk and
-//!    threads ([`cli::resources`]).
+//!    threads (through [`resources`]).
 
 pub mod aov;
 pub mod camera;
@@ -39,6 +41,7 @@ pub mod motion;
 pub mod output;
 pub mod query;
 pub mod render;
+pub mod resources;
 pub mod sampling;
 pub mod scene;
 pub mod trace;

@@ -9,7 +9,7 @@ use support::layers::{check_layers, code_only, crate_references, cycles, files_l
 
 /// The layers of `src/`, bottom first, as `src/lib.rs` states them.
 const SRC_LAYERS: &[&[&str]] = &[
-    &["motion", "sampling", "camera", "aov"],
+    &["motion", "sampling", "camera", "aov", "resources"],
     &["scene"],
     &["trace", "diagnostics"],
     &["render", "query"],

@@ -79,18 +79,28 @@ pub struct HitChunk<'a, F> {
     uncertain: Option<&'a mut [bool]>,
 }
 
-/// Uninitialised `(n,)` array, when `wanted` (in memory of its own when large: [`crate::pages`]).
-fn vector<'py, T: numpy::Element>(py: Python<'py>, n: usize, wanted: bool) -> Option<Bound<'py, PyArray1<T>>> {
+/// Uninitialised `(n,)` array, when `wanted` (in memory of its own when large: [`crate::pages`]);
+/// `MemoryError` where it cannot be allocated.
+fn vector<'py, T: numpy::Element>(
+    py: Python<'py>,
+    n: usize,
+    wanted: bool,
+) -> PyResult<Option<Bound<'py, PyArray1<T>>>> {
     // SAFETY: every element is written (by `HitChunk::misses`, all of its chunk's rows) before
     // the array reaches Python (the chunks cover all rows); on an error the array is dropped
     // unread
-    wanted.then(|| unsafe { uninit_array(py, [n]) })
+    wanted.then(|| unsafe { uninit_array(py, [n]) }).transpose()
 }
 
 /// Uninitialised `(n, width)` array, when `wanted`.
-fn rows<'py, F: Real>(py: Python<'py>, n: usize, width: usize, wanted: bool) -> Option<Bound<'py, PyArray2<F>>> {
+fn rows<'py, F: Real>(
+    py: Python<'py>,
+    n: usize,
+    width: usize,
+    wanted: bool,
+) -> PyResult<Option<Bound<'py, PyArray2<F>>>> {
     // SAFETY: as in `vector`
-    wanted.then(|| unsafe { uninit_array(py, [n, width]) })
+    wanted.then(|| unsafe { uninit_array(py, [n, width]) }).transpose()
 }
 
 /// The data of a new array as one mutable slice.
@@ -117,30 +127,59 @@ fn pieces<T>(data: Option<&mut [T]>, per_ray: usize, count: usize) -> std::vec::
     pieces.into_iter()
 }
 
+/// Whether `field` is among `wanted` (all are when `None`), after every name was checked.
+fn checked_wants(wanted: Option<&[String]>) -> PyResult<impl Fn(&str) -> bool + '_> {
+    if let Some(names) = wanted {
+        if let Some(unknown) = names.iter().find(|name| !FIELDS.contains(&name.as_str())) {
+            return Err(crate::error(format!(
+                "outputs: unknown field `{unknown}`; expected some of {}",
+                FIELDS.join(", ")
+            )));
+        }
+    }
+    Ok(move |field: &str| wanted.is_none_or(|names| names.iter().any(|name| name == field)))
+}
+
 impl<'py, F: Real> HitArrays<'py, F> {
-    /// The arrays of `n` rays for the fields named in `wanted` (all of them when `None`).
+    /// Bytes a ray of the fields named in `wanted` (all of them when `None`).
     ///
     /// # Errors
     /// An unknown field name.
+    pub fn bytes_per_ray(wanted: Option<&[String]>) -> PyResult<usize> {
+        let wants = checked_wants(wanted)?;
+        let real = std::mem::size_of::<F>();
+        let sizes = [
+            ("t", real),
+            ("hit", 1),
+            ("point", 3 * real),
+            ("normal", 3 * real),
+            ("object_id", 4),
+            ("uv", 2 * real),
+            ("primitive_id", 8),
+            ("uncertain", 1),
+        ];
+        Ok(sizes
+            .iter()
+            .filter(|(name, _)| wants(name))
+            .map(|(_, bytes)| bytes)
+            .sum())
+    }
+
+    /// The arrays of `n` rays for the fields named in `wanted` (all of them when `None`).
+    ///
+    /// # Errors
+    /// An unknown field name; `MemoryError` where an array cannot be allocated.
     pub fn new(py: Python<'py>, n: usize, wanted: Option<&[String]>) -> PyResult<Self> {
-        if let Some(names) = wanted {
-            if let Some(unknown) = names.iter().find(|name| !FIELDS.contains(&name.as_str())) {
-                return Err(crate::error(format!(
-                    "outputs: unknown field `{unknown}`; expected some of {}",
-                    FIELDS.join(", ")
-                )));
-            }
-        }
-        let wants = |field: &str| wanted.is_none_or(|names| names.iter().any(|name| name == field));
+        let wants = checked_wants(wanted)?;
         Ok(Self {
-            t: vector(py, n, wants("t")),
-            hit: vector(py, n, wants("hit")),
-            point: rows(py, n, 3, wants("point")),
-            normal: rows(py, n, 3, wants("normal")),
-            object_id: vector(py, n, wants("object_id")),
-            uv: rows(py, n, 2, wants("uv")),
-            primitive_id: vector(py, n, wants("primitive_id")),
-            uncertain: vector(py, n, wants("uncertain")),
+            t: vector(py, n, wants("t"))?,
+            hit: vector(py, n, wants("hit"))?,
+            point: rows(py, n, 3, wants("point"))?,
+            normal: rows(py, n, 3, wants("normal"))?,
+            object_id: vector(py, n, wants("object_id"))?,
+            uv: rows(py, n, 2, wants("uv"))?,
+            primitive_id: vector(py, n, wants("primitive_id"))?,
+            uncertain: vector(py, n, wants("uncertain"))?,
         })
     }
 

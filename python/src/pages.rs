@@ -15,11 +15,14 @@
 //! read as zero). A batch of the same size as the last one, the usual loop, then writes into
 //! memory that is already mapped, without a page fault or a zeroing.
 //!
-//! Elsewhere, below [`MIN_BYTES`], or where the mapping fails, the array is numpy's own.
+//! Elsewhere, below [`MIN_BYTES`], or where the mapping fails, the array is numpy's own, made
+//! fallibly: memory that cannot be had is a `MemoryError`, never an abort.
 
 use numpy::ndarray::{ArrayView, Dimension, IntoDimension};
 use numpy::{Element, PyArray};
 use pyo3::prelude::*;
+
+use crate::guards::{try_new_array, try_vec};
 
 /// Arrays smaller than this are numpy's own (a huge page would mostly be unused).
 pub const MIN_BYTES: usize = 4 << 20;
@@ -148,26 +151,32 @@ impl MappedBuffer {
 /// A new C-ordered array of `shape` whose elements are still to be written: in its own aligned
 /// mapping when it holds at least [`MIN_BYTES`] (see the module docs), else numpy's.
 ///
+/// # Errors
+/// `MemoryError` where neither a mapping nor numpy's allocator has the memory.
+///
 /// # Safety
 /// Every element must be written before the array's values reach Python (until then they are
 /// zero, uninitialised, or left from an earlier batch's array).
 pub unsafe fn uninit_array<'py, T: Element, D: Dimension>(
     py: Python<'py>,
     shape: impl IntoDimension<Dim = D>,
-) -> Bound<'py, PyArray<T, D>> {
+) -> PyResult<Bound<'py, PyArray<T, D>>> {
     let shape = shape.into_dimension();
-    let bytes = shape.size().saturating_mul(std::mem::size_of::<T>());
-    if bytes >= MIN_BYTES {
+    // a shape whose size overflows goes to numpy, which refuses it
+    let bytes = shape
+        .size_checked()
+        .and_then(|n| n.checked_mul(std::mem::size_of::<T>()));
+    if let Some(bytes) = bytes.filter(|&b| b >= MIN_BYTES) {
         if let Some((buffer, data)) = MappedBuffer::new(bytes) {
             // SAFETY: `data` points to `bytes` writable bytes aligned for any `T`, which the
             // caller writes before they are read
             if let Ok(array) = unsafe { mapped_array(py, buffer, data.cast::<T>(), shape.clone()) } {
-                return array;
+                return Ok(array);
             }
         }
     }
     // SAFETY: as the caller promises
-    unsafe { PyArray::new(py, shape, false) }
+    unsafe { try_new_array(py, shape) }
 }
 
 /// The array of `shape` over the memory at `data` that `buffer` owns, `buffer` becoming the
@@ -208,20 +217,20 @@ pub enum Plane {
 unsafe impl Send for Plane {}
 
 impl Plane {
-    /// A plane of `len` floats (their values unspecified until written).
-    #[must_use]
-    pub fn new(len: usize) -> Self {
+    /// A plane of `len` floats (their values unspecified until written), `what` in the message
+    /// of a `MemoryError` where it cannot be allocated.
+    pub fn try_new(len: usize, what: &str) -> PyResult<Self> {
         let bytes = len.saturating_mul(std::mem::size_of::<f32>());
         if bytes >= MIN_BYTES {
             if let Some((buffer, data)) = MappedBuffer::new(bytes) {
-                return Self::Mapped {
+                return Ok(Self::Mapped {
                     buffer,
                     data: data.cast(),
                     len,
-                };
+                });
             }
         }
-        Self::Owned(vec![0.0; len])
+        try_vec(len, 0.0, what).map(Self::Owned)
     }
 
     /// The plane's values, to write.

@@ -3,6 +3,7 @@
 
 import math
 import pickle
+import re
 import subprocess
 
 import numpy as np
@@ -250,6 +251,23 @@ def test_pickle_rebuilds_identically():
     b = copy.render(aovs=["Depth", "PrimitiveId"])
     for k in a:
         np.testing.assert_array_equal(a[k], b[k])
+
+
+def test_add_mesh_refuses_float_indices_that_are_not_integers():
+    vertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+    scene = zeroset.Scene.empty()
+    for bad, shown in [([[0, 1.7, 2.9]], "1.7 at (0, 1)"), ([[0, 1, np.nan]], "nan at (0, 2)"),
+                       ([[0.0, 1.0, 2.5]], "2.5 at (0, 2)")]:
+        expected = re.escape("add_mesh: triangle indices must be integers, got " + shown)
+        with pytest.raises(zeroset.ZerosetError, match=expected):
+            scene.add_mesh(vertices, bad)
+    with pytest.raises(zeroset.ZerosetError, match="must be integers, got dtype bool"):
+        scene.add_mesh(vertices, np.array([[True, False, True]]))
+    assert scene.object_count == 0
+    # floats with integer values are indices
+    assert scene.add_mesh(vertices, np.array([[0.0, 1.0, 2.0]])) == 0
+    hits = scene.cast_rays([[0.2, 0.2, -1.0]], [[0.0, 0.0, 1.0]])
+    assert hits["hit"][0] and hits["t"][0] == pytest.approx(1.0)
 
 
 @pytest.mark.parametrize(

@@ -202,10 +202,17 @@ class Scene:
 
     def add_mesh(self, vertices: Any, triangles: Any, transform: Any = None, name: Optional[str] = None) -> int:
         """Adds a triangle mesh from ``(N, 3)`` vertices (stored as float32) and ``(M, 3)`` vertex
-        indices (counter-clockwise seen from outside); returns its object id. The arrays are
-        converted without a per-element Python loop."""
+        indices (counter-clockwise seen from outside; integers, or floats with integer values);
+        returns its object id. The arrays are converted without a per-element Python loop."""
         v = np.ascontiguousarray(vertices, dtype=np.float32)
         t = np.asarray(triangles)
+        if t.dtype.kind == "f":
+            bad = ~np.isfinite(t) | (t != np.trunc(t))
+            if bad.any():
+                at = tuple(int(i) for i in np.argwhere(bad)[0])
+                raise ZerosetError(f"add_mesh: triangle indices must be integers, got {float(t[at])} at {at}")
+        elif t.size and t.dtype.kind not in "iu":
+            raise ZerosetError(f"add_mesh: triangle indices must be integers, got dtype {t.dtype}")
         if t.size and (t.min() < 0 or t.max() >= len(v)):
             raise ZerosetError(f"add_mesh: triangle indices must lie in [0, {len(v)}), got [{t.min()}, {t.max()}]")
         t = np.ascontiguousarray(t, dtype=np.uint32)

@@ -17,6 +17,7 @@
 //! changes (the `camera`'s own pose is not rendered when `views` is given).
 
 use super::Camera;
+use crate::resources::{ensure_memory, read_input_to_string, NotEnoughMemory};
 use glam::{DMat3, DVec3};
 use serde::Deserialize;
 use std::path::Path;
@@ -152,7 +153,23 @@ pub fn build_views(views: &[ViewDesc], base: &Camera, scene_dir: &Path) -> Resul
             ViewDesc::File(file) => {
                 let path = scene_dir.join(file);
                 let shown = path.display().to_string();
-                let text = std::fs::read_to_string(&path).map_err(|e| (location.clone(), format!("{shown}: {e}")))?;
+                let text = read_input_to_string(&path, "pose file")
+                    .map_err(|e| (location.clone(), format!("{shown}: {e}")))?;
+                // at most a pose a line, parsed and then a camera each: guarded before either
+                let lines = text.lines().count();
+                let per_pose = std::mem::size_of::<(DVec3, DVec3, DVec3)>() + std::mem::size_of::<Camera>();
+                ensure_memory(
+                    &format!("{shown}: {lines} lines of poses"),
+                    (lines as u64).saturating_mul(per_pose as u64),
+                )
+                .and_then(|()| {
+                    cameras.try_reserve(lines).map_err(|_| NotEnoughMemory {
+                        what: format!("{shown}: {lines} lines of poses"),
+                        needed: (lines as u64).saturating_mul(per_pose as u64),
+                        room: None,
+                    })
+                })
+                .map_err(|e| (location.clone(), e.to_string()))?;
                 for (eye, direction, up) in parse_pose_file(&text, &shown).map_err(|m| (location.clone(), m))? {
                     cameras.push(
                         base.with_pose(eye, direction, up)

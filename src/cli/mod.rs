@@ -3,14 +3,13 @@
 
 mod query;
 mod render;
-pub mod resources;
 
 use query::query_command;
 use render::render_command;
 
-use crate::cli::resources::capped_threads;
 use crate::output::exr::ExrCompression;
 use crate::output::merge::merge_crops;
+use crate::resources::capped_threads;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -226,9 +225,9 @@ pub fn error_message(error: &anyhow::Error) -> String {
 
 fn with_threads(threads: Option<usize>, f: impl FnOnce() -> Result<()> + Send) -> Result<()> {
     let threads = threads.map(|requested| {
-        let (n, warning) = capped_threads(requested);
+        let (n, warning) = capped_threads(requested, "--threads");
         if let Some(w) = warning {
-            eprintln!("{w}");
+            eprintln!("warning: {w}");
         }
         n
     });

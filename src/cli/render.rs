@@ -2,7 +2,6 @@
 //! the views traced and written (one view streamed band by band as it is traced, several each
 //! written from its frame), and a summary line.
 
-use super::resources::{check_memory, process_cpu_seconds, render_memory_estimate};
 use super::{uncertain_warning, RenderArgs};
 use crate::aov::Aov;
 use crate::camera::Camera;
@@ -16,6 +15,7 @@ use crate::output::png_stream::PreviewStream;
 use crate::render::stream::{render_view_to, BandSink};
 use crate::render::views::{render_views, view_files};
 use crate::render::{Frame, FrameLayout, RenderOptions, Window};
+use crate::resources::{process_cpu_seconds, RenderMemory};
 use crate::scene::Scene;
 use anyhow::{bail, Context, Result};
 use rayon::iter::{IntoParallelIterator, ParallelIterator};
@@ -40,10 +40,9 @@ pub(super) fn render_command(args: &RenderArgs) -> Result<()> {
     };
     let (dir, stem) = output_location(&args.output, &args.scene)?;
     let previews = scene.outputs.previews && !args.no_previews;
-    check_resources(&scene, &aovs, crop, previews, &dir)?;
-
     let views = view_files(&scene, &stem);
     let selected = selected_views(args, &scene, views.len())?;
+    check_resources(&scene, &aovs, crop, previews, selected.len(), &dir)?;
     write_camera_files(&views, &dir, &stem, args.transforms)?;
     let options = RenderOptions {
         aovs,
@@ -123,9 +122,18 @@ fn apply_overrides(scene: &mut Scene, args: &RenderArgs) -> Result<Option<Window
     Ok(crop)
 }
 
-/// The resources a render needs, checked before any tracing: memory for its buffers, and a
-/// writable directory `dir` with room for the EXR and the previews.
-fn check_resources(scene: &Scene, aovs: &[Aov], crop: Option<Window>, previews: bool, dir: &Path) -> Result<()> {
+/// The resources a render of `views` views needs, checked before any tracing: memory for its
+/// buffers (several views are rendered a batch of one per thread at a time, each holding its
+/// frame and the EXR writer's copies), and a writable directory `dir` with room for the EXR and
+/// the previews.
+fn check_resources(
+    scene: &Scene,
+    aovs: &[Aov],
+    crop: Option<Window>,
+    previews: bool,
+    views: usize,
+    dir: &Path,
+) -> Result<()> {
     let window = crop.unwrap_or(Window {
         x0: 0,
         y0: 0,
@@ -145,24 +153,21 @@ fn check_resources(scene: &Scene, aovs: &[Aov], crop: Option<Window>, previews: 
     } else {
         0
     };
-    let memory = render_memory_estimate(
-        pixels,
+    let threads = rayon::current_num_threads();
+    let in_flight = views.clamp(1, threads.max(1)) as u64;
+    RenderMemory {
+        width: window.width(),
+        height: window.height(),
         channels,
-        preview_count,
-        u64::from(scene.sampling.spp),
-        rayon::current_num_threads() as u64,
-    );
-    check_memory(
-        &format!(
-            "rendering {}x{} with {channels} channels at {} spp",
-            window.width(),
-            window.height(),
-            scene.sampling.spp
-        ),
-        memory,
-    )?;
+        frames: 3 * in_flight,
+        band_pixels: 0,
+        previews: preview_count * in_flight,
+        spp: scene.sampling.spp,
+        threads,
+    }
+    .ensure()?;
     let disk = size_estimate(pixels, channels, u64::from(window.height())) + pixels * 3 * preview_count;
-    check_destination(dir, disk)
+    check_destination(dir, disk.saturating_mul(views.max(1) as u64))
 }
 
 /// The indices of the views to render among `count`: all, or the one `--view` names.

@@ -11,6 +11,7 @@
 //! be creatable and must accept a new file, and its file system must have room for the estimated
 //! output.
 
+use crate::resources::human_bytes;
 use anyhow::{bail, Context, Result};
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -258,19 +259,6 @@ pub fn check_destination(dir: &Path, estimated_bytes: u64) -> Result<()> {
     Ok(())
 }
 
-/// `1234567` → `"1.2 MB"` (decimal units).
-#[must_use]
-pub fn human_bytes(bytes: u64) -> String {
-    let b = bytes as f64;
-    match bytes {
-        0..1_000 => format!("{bytes} B"),
-        1_000..1_000_000 => format!("{:.1} kB", b / 1e3),
-        1_000_000..1_000_000_000 => format!("{:.1} MB", b / 1e6),
-        1_000_000_000..1_000_000_000_000 => format!("{:.1} GB", b / 1e9),
-        _ => format!("{:.1} TB", b / 1e12),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -320,12 +308,5 @@ mod tests {
         check_destination(dir.path(), 1).unwrap();
         let err = check_destination(dir.path(), u64::MAX).unwrap_err().to_string();
         assert!(err.contains("free") && err.contains("TB"), "{err}");
-    }
-
-    #[test]
-    fn human_bytes_units() {
-        assert_eq!(human_bytes(999), "999 B");
-        assert_eq!(human_bytes(1_500_000), "1.5 MB");
-        assert_eq!(human_bytes(40_000_000_000), "40.0 GB");
     }
 }

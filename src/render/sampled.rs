@@ -140,3 +140,22 @@ pub(super) fn render_row_sampled(scene: &Scene, context: &RowContext, x0: u32, y
         flag_uncertain(pixel, context, exhausted_before);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::mem::size_of;
+
+    #[test]
+    fn a_sample_fits_the_memory_estimate() {
+        // what a thread holds per sample of a pixel: its position, its stratification scratch
+        // (two u32), its hit and, at worst, a count entry of its own, all but the scratch in
+        // vectors grown by doubling (up to twice their length)
+        let bytes = 2 * (size_of::<PixelSample>() + size_of::<SampleHit>() + size_of::<(u32, u32, f64)>())
+            + 2 * size_of::<u32>();
+        assert!(
+            bytes as u64 <= crate::resources::BYTES_PER_SAMPLE,
+            "{bytes} bytes a sample"
+        );
+    }
+}

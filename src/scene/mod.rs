@@ -8,6 +8,7 @@
 use crate::camera::desc::ModelDesc;
 use crate::camera::pose::build_views;
 use crate::camera::{Camera, CameraError, Model};
+use crate::resources::{open_input, read_input_to_string};
 use crate::sampling::Sampling;
 use crate::scene::desc::PARSE_STACK_BYTES;
 use crate::scene::objects::{BuiltObjects, ObjectBuilder};
@@ -210,11 +211,13 @@ impl Scene {
         };
         let name = path.display().to_string();
         let context = BuildContext::new(path.parent().map(Path::to_path_buf).unwrap_or_default());
-        let streamed = crate::scene::load_stream::load_streamed(std::fs::File::open(path).map_err(io)?, &context);
+        // a regular file within the input limit, read with that bound (never a FIFO or device)
+        let mut input = open_input(path, "scene file").map_err(io)?;
+        let streamed = crate::scene::load_stream::load_streamed(input.reader(), &context);
         let (mut scene, timing) = match streamed {
             Some(built) => Self::from_built(built, &context, start).map_err(|e| invalid(&name, e))?,
             None => {
-                let text = std::fs::read_to_string(path).map_err(io)?;
+                let text = read_input_to_string(path, "scene file").map_err(io)?;
                 let desc = parse_in_one_piece(&text, &name)?;
                 Self::from_desc_timed(desc, &context).map_err(|e| invalid(&name, e))?
             }

@@ -1,0 +1,672 @@
+//! The one guarded entry for what a user's numbers size: frames, sample buffers, ray and output
+//! arrays, pose lists and input files. The command line, the views and the Python bindings all
+//! come through here before allocating, so an absurd `width`, `spp`, ray count or file is
+//! refused at once with the estimate in the message, never an allocation abort.
+//!
+//! - **Memory**: [`ensure_memory`] compares an estimate with [`memory_room`], the least of
+//!   Linux's `MemAvailable` (`/proc/meminfo`: free memory plus what the kernel can reclaim
+//!   without swapping), the room under the process's cgroup (v2) limit (`memory.max −
+//!   memory.current`, as in a container) and the address space left under `RLIMIT_AS`
+//!   (`ulimit -v`: the limit less the process's virtual size, `/proc/self/statm`). Where none can
+//!   be read (other systems) the check is skipped; estimates under [`UNCHECKED_BYTES`] are not
+//!   checked (reading the limits would cost more than they risk). What is then allocated is
+//!   reserved fallibly ([`try_with_capacity`], [`try_vec`]), so an allocation that fails anyway
+//!   is the same error, not an abort. [`RenderMemory`] is what a render holds.
+//! - **Threads**: [`capped_threads`], at most [`THREADS_PER_CORE`] per core.
+//! - **Input files**: [`open_input`] and [`read_input_to_string`] read only regular files (a FIFO
+//!   or device could wait for ever or never end; it is refused without being waited on) of at
+//!   most [`input_limit`] bytes, [`DEFAULT_INPUT_LIMIT`] unless the environment variable
+//!   [`INPUT_LIMIT_VAR`] says otherwise.
+
+use std::fmt;
+use std::io::{self, Read};
+use std::path::Path;
+
+/// Most worker threads per available core: more only adds scheduling overhead (and a pool of
+/// 100,000 threads takes minutes to start).
+pub const THREADS_PER_CORE: usize = 4;
+
+/// Estimates below this many bytes are not checked against the limits.
+pub const UNCHECKED_BYTES: u64 = 16 << 20;
+
+/// Bytes a thread holds per sample of a pixel with several samples: the sample's position, lens
+/// point and time, its stratification scratch, its hit record and count entry (all but the
+/// scratch in vectors grown by doubling, so counted twice), rounded up (a test in
+/// `render::sampled` checks that it covers them).
+pub const BYTES_PER_SAMPLE: u64 = 640;
+
+/// The largest input file read unless [`INPUT_LIMIT_VAR`] says otherwise: 4 GiB.
+pub const DEFAULT_INPUT_LIMIT: u64 = 4 << 30;
+
+/// The environment variable that sets the input-file limit, in bytes.
+pub const INPUT_LIMIT_VAR: &str = "ZEROSET_MAX_INPUT_BYTES";
+
+/// What bounds the memory a process can still take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Limit {
+    /// The system's available memory (`MemAvailable`).
+    Available,
+    /// The cgroup's `memory.max`.
+    Cgroup,
+    /// `RLIMIT_AS` (`ulimit -v`), of this many bytes.
+    AddressSpace(u64),
+}
+
+/// Bytes that can still be allocated, and the limit that says so.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Room {
+    /// Bytes left.
+    pub bytes: u64,
+    /// The limit they are left under.
+    pub limit: Limit,
+}
+
+/// An allocation refused before it was tried (the estimate exceeds the room), or tried and
+/// failed (`room` is `None`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NotEnoughMemory {
+    /// What needed it, e.g. "rendering 1000x1000 with 4 channels at 16 spp".
+    pub what: String,
+    /// The estimate, in bytes.
+    pub needed: u64,
+    /// The room it was compared with; `None` where the allocation itself failed.
+    pub room: Option<Room>,
+}
+
+impl fmt::Display for NotEnoughMemory {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let needed = human_bytes(self.needed);
+        match self.room {
+            Some(Room { bytes, limit }) => {
+                let under = match limit {
+                    Limit::Available => "is available".to_string(),
+                    Limit::Cgroup => "is left under the cgroup's memory.max".to_string(),
+                    Limit::AddressSpace(total) => format!(
+                        "is left under the address-space limit of {} (ulimit -v)",
+                        human_bytes(total)
+                    ),
+                };
+                write!(
+                    f,
+                    "{} needs about {needed} of memory but only {} {under}; reduce it",
+                    self.what,
+                    human_bytes(bytes)
+                )
+            }
+            None => write!(
+                f,
+                "{} needs about {needed} of memory, which could not be allocated; reduce it",
+                self.what
+            ),
+        }
+    }
+}
+
+impl std::error::Error for NotEnoughMemory {}
+
+/// The room this process has for new allocations: the least of the available memory, the
+/// cgroup's room and the address space under `RLIMIT_AS`; `None` where none is known.
+#[must_use]
+pub fn memory_room() -> Option<Room> {
+    let available = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|text| parse_mem_available(&text))
+        .map(|bytes| Room {
+            bytes,
+            limit: Limit::Available,
+        });
+    let cgroup = cgroup_room_now().map(|bytes| Room {
+        bytes,
+        limit: Limit::Cgroup,
+    });
+    [available, cgroup, address_space_room()]
+        .into_iter()
+        .flatten()
+        .min_by_key(|room| room.bytes)
+}
+
+/// Bytes the process can still allocate, if known ([`memory_room`]).
+#[must_use]
+pub fn available_memory() -> Option<u64> {
+    memory_room().map(|room| room.bytes)
+}
+
+/// The room under the process's cgroup v2 limit, if it has one.
+fn cgroup_room_now() -> Option<u64> {
+    // the process's cgroup v2 directory: the `0::/path` line of /proc/self/cgroup
+    let group = std::fs::read_to_string("/proc/self/cgroup")
+        .ok()
+        .and_then(|text| text.lines().find_map(|l| l.strip_prefix("0::").map(str::to_string)))
+        .unwrap_or_else(|| "/".to_string());
+    let read =
+        |name: &str| std::fs::read_to_string(format!("/sys/fs/cgroup{}/{name}", group.trim_end_matches('/'))).ok();
+    cgroup_room(&read("memory.max")?, &read("memory.current")?)
+}
+
+/// Room left under a cgroup v2 limit: `memory.max` (bytes, or `max` for none) minus
+/// `memory.current`.
+fn cgroup_room(max: &str, current: &str) -> Option<u64> {
+    let max: u64 = max.trim().parse().ok()?; // "max": no limit
+    let current: u64 = current.trim().parse().ok()?;
+    Some(max.saturating_sub(current))
+}
+
+/// `MemAvailable` in bytes from the text of `/proc/meminfo`.
+fn parse_mem_available(meminfo: &str) -> Option<u64> {
+    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// The address space left under `RLIMIT_AS`, if it is limited.
+#[cfg(target_os = "linux")]
+fn address_space_room() -> Option<Room> {
+    let mut limit = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit only writes the struct it is given
+    if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut limit) } != 0 || limit.rlim_cur == libc::RLIM_INFINITY {
+        return None;
+    }
+    #[allow(clippy::unnecessary_cast)] // rlim_t is narrower than u64 on some targets
+    let total = limit.rlim_cur as u64;
+    // SAFETY: sysconf reads a constant of the system
+    let page = u64::try_from(unsafe { libc::sysconf(libc::_SC_PAGESIZE) }).unwrap_or(4096);
+    let used = std::fs::read_to_string("/proc/self/statm")
+        .ok()
+        .and_then(|text| parse_statm_size(&text, page))
+        .unwrap_or(0);
+    Some(address_space_left(total, used))
+}
+
+#[cfg(not(target_os = "linux"))]
+fn address_space_room() -> Option<Room> {
+    None
+}
+
+/// The room under an address-space limit of `total` bytes of which `used` are mapped.
+fn address_space_left(total: u64, used: u64) -> Room {
+    Room {
+        bytes: total.saturating_sub(used),
+        limit: Limit::AddressSpace(total),
+    }
+}
+
+/// The virtual size in bytes from the text of `/proc/self/statm` (its first field, in pages).
+fn parse_statm_size(statm: &str, page: u64) -> Option<u64> {
+    statm.split_whitespace().next()?.parse::<u64>().ok()?.checked_mul(page)
+}
+
+/// Refuses `estimated_bytes` for `what` when it exceeds the room ([`memory_room`]); estimates
+/// under [`UNCHECKED_BYTES`] always pass.
+///
+/// # Errors
+/// The estimate does not fit, with both numbers in the message.
+pub fn ensure_memory(what: &str, estimated_bytes: u64) -> Result<(), NotEnoughMemory> {
+    if estimated_bytes < UNCHECKED_BYTES {
+        return Ok(());
+    }
+    ensure_within(what, estimated_bytes, memory_room())
+}
+
+fn ensure_within(what: &str, estimated_bytes: u64, room: Option<Room>) -> Result<(), NotEnoughMemory> {
+    match room {
+        Some(room) if estimated_bytes > room.bytes => Err(NotEnoughMemory {
+            what: what.to_string(),
+            needed: estimated_bytes,
+            room: Some(room),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// An empty vector with room for `n` items, reserved fallibly.
+///
+/// # Errors
+/// The reservation failed (an error naming `what` and the bytes, instead of an abort).
+pub fn try_with_capacity<T>(n: usize, what: &str) -> Result<Vec<T>, NotEnoughMemory> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| NotEnoughMemory {
+        what: what.to_string(),
+        needed: (n as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+        room: None,
+    })?;
+    Ok(v)
+}
+
+/// `n` copies of `value`, reserved fallibly.
+///
+/// # Errors
+/// As [`try_with_capacity`].
+pub fn try_vec<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>, NotEnoughMemory> {
+    let mut v = try_with_capacity(n, what)?;
+    v.resize(n, value);
+    Ok(v)
+}
+
+/// What a render holds at its peak, in the terms of [`RenderMemory::bytes`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RenderMemory {
+    /// Width of the window rendered, in pixels.
+    pub width: u32,
+    /// Height of the window rendered, in pixels.
+    pub height: u32,
+    /// float32 samples a pixel (all AOVs' channels).
+    pub channels: u64,
+    /// Whole frames of the window's samples held at once (the command line's EXR writer: the
+    /// interleaved frame, its planar copy and the compressed blocks; Python: the returned planes).
+    pub frames: u64,
+    /// Pixels of a band buffer held besides the frames (a render in bands).
+    pub band_pixels: u64,
+    /// 8-bit RGB previews (3 bytes a pixel each).
+    pub previews: u64,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Threads tracing at once, each with its own sample buffers.
+    pub threads: usize,
+}
+
+impl RenderMemory {
+    /// Bytes of the frames, band, previews and each thread's per-pixel sample buffers
+    /// ([`BYTES_PER_SAMPLE`] a sample when `spp > 1`), saturating instead of overflowing.
+    #[must_use]
+    pub fn bytes(&self) -> u64 {
+        let pixels = u64::from(self.width) * u64::from(self.height);
+        let pixel_bytes = self.channels.saturating_mul(4);
+        let frames = pixels.saturating_mul(pixel_bytes).saturating_mul(self.frames);
+        let band = self.band_pixels.saturating_mul(pixel_bytes);
+        let previews = pixels.saturating_mul(3).saturating_mul(self.previews);
+        let per_thread = if self.spp > 1 {
+            u64::from(self.spp).saturating_mul(BYTES_PER_SAMPLE)
+        } else {
+            0
+        };
+        frames
+            .saturating_add(band)
+            .saturating_add(previews)
+            .saturating_add(per_thread.saturating_mul(self.threads as u64))
+    }
+
+    /// The estimate ([`RenderMemory::bytes`]), refused where it does not fit ([`ensure_memory`]).
+    ///
+    /// # Errors
+    /// The render does not fit, with its size, channels and samples in the message.
+    pub fn ensure(&self) -> Result<u64, NotEnoughMemory> {
+        let bytes = self.bytes();
+        ensure_memory(
+            &format!(
+                "rendering {}x{} with {} channels at {} spp",
+                self.width, self.height, self.channels, self.spp
+            ),
+            bytes,
+        )?;
+        Ok(bytes)
+    }
+}
+
+/// The thread count to use for a requested count, and a warning (without a `warning:` prefix)
+/// when it was capped at [`THREADS_PER_CORE`] × the available cores (`flag` names the option in
+/// the warning).
+#[must_use]
+pub fn capped_threads(requested: usize, flag: &str) -> (usize, Option<String>) {
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    let cap = cores * THREADS_PER_CORE;
+    if requested > cap {
+        (
+            cap,
+            Some(format!(
+                "{flag} {requested} capped at {cap} ({THREADS_PER_CORE} × {cores} cores)"
+            )),
+        )
+    } else {
+        (requested, None)
+    }
+}
+
+/// User + system CPU time of this process so far, in seconds (Linux `/proc/self/stat`; `None`
+/// elsewhere). On a machine shared with other work, CPU time is the fairer measure of a phase's
+/// cost than its wall time.
+#[must_use]
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // the fields after the parenthesised command name; utime and stime are fields 14 and 15
+    let (_, after) = stat.rsplit_once(')')?;
+    let fields: Vec<&str> = after.split_whitespace().collect();
+    let ticks = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0) // USER_HZ, 100 on every Linux ABI
+}
+
+/// `1234567` → `"1.2 MB"` (decimal units).
+#[must_use]
+pub fn human_bytes(bytes: u64) -> String {
+    let b = bytes as f64;
+    match bytes {
+        0..1_000 => format!("{bytes} B"),
+        1_000..1_000_000 => format!("{:.1} kB", b / 1e3),
+        1_000_000..1_000_000_000 => format!("{:.1} MB", b / 1e6),
+        1_000_000_000..1_000_000_000_000 => format!("{:.1} GB", b / 1e9),
+        _ => format!("{:.1} TB", b / 1e12),
+    }
+}
+
+/// The largest input file read: [`INPUT_LIMIT_VAR`] (a number of bytes) where set, else
+/// [`DEFAULT_INPUT_LIMIT`].
+///
+/// # Errors
+/// The variable is set but not a number of bytes.
+pub fn input_limit() -> io::Result<u64> {
+    match std::env::var(INPUT_LIMIT_VAR) {
+        Err(_) => Ok(DEFAULT_INPUT_LIMIT),
+        Ok(text) => text.trim().parse().map_err(|_| {
+            io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("{INPUT_LIMIT_VAR}={text:?} is not a number of bytes"),
+            )
+        }),
+    }
+}
+
+/// An input file opened for a bounded read ([`open_input`]).
+#[derive(Debug)]
+pub struct InputFile {
+    file: std::fs::File,
+    len: u64,
+    limit: u64,
+    what: String,
+}
+
+/// Opens `path`, a `what` ("scene file", "pose file"), for a bounded read: a regular file of at
+/// most [`input_limit`] bytes. Nothing waits on a FIFO (it is opened without blocking, then
+/// refused like a device, a socket or a directory).
+///
+/// # Errors
+/// The file cannot be opened, is not a regular file, or is over the limit (the message gives
+/// its size, the limit and how to raise it); the path is the caller's to add.
+pub fn open_input(path: &Path, what: &str) -> io::Result<InputFile> {
+    let limit = input_limit()?;
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        // a FIFO without a writer would block `open` for ever; regular files ignore the flag
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let file = options.open(path)?;
+    let kind = file.metadata()?.file_type();
+    if !kind.is_file() {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "not a regular file but {}: a {what} must be a regular file (a device or FIFO may never \
+                 end, or wait for ever)",
+                file_kind(&kind)
+            ),
+        ));
+    }
+    let len = file.metadata()?.len();
+    let input = InputFile {
+        file,
+        len,
+        limit,
+        what: what.to_string(),
+    };
+    if len > limit {
+        return Err(input.too_large(&format!("is {} ({len} bytes)", human_bytes(len))));
+    }
+    Ok(input)
+}
+
+/// "a directory", "a FIFO", … for a message.
+fn file_kind(kind: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if kind.is_char_device() {
+            return "a character device";
+        }
+        if kind.is_block_device() {
+            return "a block device";
+        }
+        if kind.is_socket() {
+            return "a socket";
+        }
+    }
+    if kind.is_dir() {
+        "a directory"
+    } else {
+        "not a file"
+    }
+}
+
+impl InputFile {
+    /// The file's length when it was opened.
+    #[must_use]
+    pub fn len(&self) -> u64 {
+        self.len
+    }
+
+    /// Whether the file was empty when it was opened.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The file as a reader that ends one byte past the limit (a file that grew past it since it
+    /// was opened then reads too long, which [`InputFile::read_to_string`] refuses).
+    pub fn reader(&mut self) -> impl Read + '_ {
+        (&mut self.file).take(self.limit.saturating_add(1))
+    }
+
+    /// The whole file as text, at most the limit, its buffer checked against the memory room and
+    /// reserved fallibly.
+    ///
+    /// # Errors
+    /// A read error, text that is not UTF-8, more than the limit read, or no memory for it.
+    pub fn read_to_string(mut self) -> io::Result<String> {
+        let what = format!("reading the {} ({})", self.what, human_bytes(self.len));
+        let len = usize::try_from(self.len).unwrap_or(usize::MAX);
+        let mut bytes = Vec::new();
+        ensure_memory(&what, self.len)
+            .and_then(|()| {
+                bytes.try_reserve_exact(len).map_err(|_| NotEnoughMemory {
+                    what: what.clone(),
+                    needed: self.len,
+                    room: None,
+                })
+            })
+            .map_err(|e| io::Error::new(io::ErrorKind::OutOfMemory, e.to_string()))?;
+        self.reader().read_to_end(&mut bytes)?;
+        if bytes.len() as u64 > self.limit {
+            return Err(self.too_large("grew while it was read"));
+        }
+        String::from_utf8(bytes).map_err(|e| {
+            io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+            )
+        })
+    }
+
+    fn too_large(&self, state: &str) -> io::Error {
+        io::Error::new(
+            io::ErrorKind::FileTooLarge,
+            format!(
+                "the {} {state}, over the limit of {} ({} bytes) for input files; set {INPUT_LIMIT_VAR} \
+                 to a larger number of bytes to read it",
+                self.what,
+                human_bytes(self.limit),
+                self.limit
+            ),
+        )
+    }
+}
+
+/// The whole of `path`, a `what`, as text: [`open_input`] then [`InputFile::read_to_string`].
+///
+/// # Errors
+/// As those two.
+pub fn read_input_to_string(path: &Path, what: &str) -> io::Result<String> {
+    open_input(path, what)?.read_to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mem_available_is_parsed_in_bytes() {
+        let text = "MemTotal:       24000000 kB\nMemFree:  100 kB\nMemAvailable:   2048 kB\n";
+        assert_eq!(parse_mem_available(text), Some(2048 * 1024));
+        assert_eq!(parse_mem_available("MemTotal: 1 kB\n"), None);
+    }
+
+    #[test]
+    fn cgroup_room_is_the_limit_less_the_usage() {
+        assert_eq!(cgroup_room("8589934592\n", "1073741824\n"), Some(7 << 30));
+        assert_eq!(cgroup_room("max\n", "1073741824\n"), None);
+        assert_eq!(cgroup_room("100\n", "200\n"), Some(0));
+    }
+
+    #[test]
+    fn address_space_room_is_the_limit_less_the_mapped_size() {
+        assert_eq!(parse_statm_size("1000 200 30 4 0 500 0\n", 4096), Some(4_096_000));
+        assert_eq!(parse_statm_size("", 4096), None);
+        let room = address_space_left(2 << 30, 500 << 20);
+        assert_eq!(room.bytes, (2 << 30) - (500 << 20));
+        let err = ensure_within("rendering 8x8 with 4 channels at 10000000 spp", 5 << 30, Some(room))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("5.4 GB") && err.contains("1.6 GB") && err.contains("address-space limit of 2.1 GB"),
+            "{err}"
+        );
+        assert_eq!(address_space_left(100, 200).bytes, 0);
+    }
+
+    #[test]
+    fn estimate_of_a_huge_frame_is_refused_with_its_size() {
+        // 100000² pixels × 10 channels × 4 B × 3 frames = 1.2 TB, plus 3 previews of 3 B a pixel
+        let render = RenderMemory {
+            width: 100_000,
+            height: 100_000,
+            channels: 10,
+            frames: 3,
+            band_pixels: 0,
+            previews: 3,
+            spp: 1,
+            threads: 2,
+        };
+        let estimate = render.bytes();
+        assert_eq!(estimate, 100_000 * 100_000 * (10 * 4 * 3 + 9));
+        let available = Some(Room {
+            bytes: 16 << 30,
+            limit: Limit::Available,
+        });
+        let err = ensure_within("the render", estimate, available)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("1.3 TB") && err.contains("17.2 GB is available"), "{err}");
+        ensure_within("the render", estimate, None).unwrap();
+        // the one entry refuses it too, wherever the room is smaller than 1 TB
+        if available_memory().is_some_and(|a| a < 1 << 40) {
+            let err = render.ensure().unwrap_err().to_string();
+            assert!(err.starts_with("rendering 100000x100000 with 10 channels at 1 spp needs about 1.3 TB"));
+        }
+        // samples per pixel saturate instead of overflowing
+        let samples = RenderMemory {
+            width: 1,
+            height: 1,
+            channels: 1,
+            frames: 1,
+            band_pixels: 0,
+            previews: 0,
+            spp: u32::MAX,
+            threads: usize::MAX,
+        };
+        assert_eq!(samples.bytes(), u64::MAX);
+        // a band and its per-thread samples: 16 spp × 640 B × 4 threads
+        let band = RenderMemory {
+            width: 10,
+            height: 10,
+            channels: 2,
+            frames: 0,
+            band_pixels: 50,
+            previews: 0,
+            spp: 16,
+            threads: 4,
+        };
+        assert_eq!(band.bytes(), 50 * 8 + 16 * 640 * 4);
+    }
+
+    #[test]
+    fn small_estimates_pass_and_failed_reservations_are_errors() {
+        ensure_memory("a small thing", UNCHECKED_BYTES - 1).unwrap();
+        assert_eq!(try_vec(3, 7u8, "three bytes").unwrap(), [7, 7, 7]);
+        let err = try_with_capacity::<u64>(usize::MAX / 4, "a huge buffer").unwrap_err();
+        assert_eq!(err.room, None);
+        assert!(err.to_string().starts_with("a huge buffer needs about"), "{err}");
+    }
+
+    #[test]
+    fn threads_are_capped() {
+        let cores = std::thread::available_parallelism().unwrap().get();
+        assert_eq!(capped_threads(1, "--threads"), (1, None));
+        let (n, warning) = capped_threads(100_000, "--threads");
+        assert_eq!(n, cores * THREADS_PER_CORE);
+        assert!(warning.unwrap().contains("--threads 100000"));
+    }
+
+    #[test]
+    fn human_bytes_units() {
+        assert_eq!(human_bytes(999), "999 B");
+        assert_eq!(human_bytes(1_500_000), "1.5 MB");
+        assert_eq!(human_bytes(40_000_000_000), "40.0 GB");
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn devices_fifos_and_directories_are_refused_without_waiting() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("fifo");
+        let c_path = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: a valid C string; mkfifo only creates the node
+        assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
+        for (path, kind) in [
+            (Path::new("/dev/zero"), "a character device"),
+            (fifo.as_path(), "a FIFO"),
+            (dir.path(), "a directory"),
+        ] {
+            let err = read_input_to_string(path, "scene file").unwrap_err().to_string();
+            assert!(
+                err.contains(kind) && err.contains("a scene file must be a regular file"),
+                "{err}"
+            );
+        }
+    }
+
+    #[test]
+    fn regular_files_are_read_within_the_limit() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("scene.ron");
+        std::fs::write(&path, "Scene()").unwrap();
+        assert_eq!(read_input_to_string(&path, "scene file").unwrap(), "Scene()");
+        let input = open_input(&path, "scene file").unwrap();
+        assert_eq!((input.len(), input.is_empty()), (7, false));
+        // over a limit of 4 bytes (the file as opened, then one that grew since)
+        let small = InputFile { limit: 4, ..input };
+        let err = small.too_large("is 7 B (7 bytes)").to_string();
+        assert!(
+            err.contains("the scene file is 7 B")
+                && err.contains("limit of 4 B (4 bytes)")
+                && err.contains(INPUT_LIMIT_VAR),
+            "{err}"
+        );
+        let err = small.read_to_string().unwrap_err();
+        assert_eq!(err.kind(), io::ErrorKind::FileTooLarge, "{err}");
+    }
+}
