@@ -154,12 +154,12 @@ fn monotone_along(gradient: &[Enclosure; 3], dir: DVec3) -> bool {
 }
 
 impl Compiled {
-    /// The octree, built on first use, on the calling thread alone: other threads asking for it
-    /// meanwhile wait, and a build that handed work to a thread pool could find the pool's
-    /// threads all waiting here.
+    /// The octree, built on first use by the calling thread with threads of its own (as many as
+    /// the current pool has): other threads asking for it meanwhile wait, and a build that
+    /// handed work to the pool could find the pool's threads all waiting here.
     fn cells(&self) -> &CellTree {
         self.cells
-            .get_or_init(|| CellTree::new(&self.tape, self.bounds.min, self.bounds.max, false))
+            .get_or_init(|| CellTree::new(&self.tape, self.bounds.min, self.bounds.max, true))
     }
 
     /// The first root along `ray` in `segment` (clipped to the grown bounds), walking the

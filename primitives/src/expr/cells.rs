@@ -150,16 +150,8 @@ fn build(
         let (l, h) = child_box(lo, hi, bits);
         build(&pruned, l, h, margin, depth + 1, parallel, scratch)
     };
-    let built: Box<[Built; 8]> = if parallel && depth < 2 {
-        use rayon::prelude::*;
-        let built: Vec<Built> = (0..8)
-            .into_par_iter()
-            .map(|bits| child(bits, &mut Scratch::default()))
-            .collect();
-        let Ok(built) = <Box<[Built; 8]>>::try_from(built.into_boxed_slice()) else {
-            unreachable!("eight children")
-        };
-        built
+    let built: Box<[Built; 8]> = if parallel && depth == 0 {
+        Box::new(build_children_on_threads(&|bits, scratch| child(bits, scratch)))
     } else {
         Box::new(std::array::from_fn(|bits| child(bits, scratch)))
     };
@@ -169,9 +161,47 @@ fn build(
     Built::Inner(built)
 }
 
+/// The eight children of the root, built on as many threads of their own as the current rayon
+/// pool has (plain threads that wait for nothing but their work: a pool's threads, while they
+/// wait for stolen work, may run other jobs that need this very tree), each taking the next
+/// child not yet taken; on the calling thread alone where no thread can be started.
+fn build_children_on_threads(child: &(dyn Fn(usize, &mut Scratch) -> Built + Sync)) -> [Built; 8] {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Mutex;
+    let workers = rayon::current_num_threads().clamp(1, 8);
+    let next = AtomicUsize::new(0);
+    let done: Mutex<Vec<(usize, Built)>> = Mutex::new(Vec::with_capacity(8));
+    let work = || {
+        let mut scratch = Scratch::default();
+        loop {
+            let bits = next.fetch_add(1, Ordering::Relaxed);
+            if bits >= 8 {
+                break;
+            }
+            let built = child(bits, &mut scratch);
+            done.lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .push((bits, built));
+        }
+    };
+    std::thread::scope(|scope| {
+        for _ in 1..workers {
+            // a thread that cannot be started leaves its share to the others
+            let _ = std::thread::Builder::new().spawn_scoped(scope, work);
+        }
+        work();
+    });
+    let mut slots: [Option<Built>; 8] = Default::default();
+    for (bits, built) in done.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
+        slots[bits] = Some(built);
+    }
+    slots.map(|slot| slot.unwrap_or(Built::Empty))
+}
+
 impl CellTree {
     /// The tree of `tape` over the box `[lo, hi]` (finite, non-empty), its upper levels built
-    /// on rayon's threads if `parallel`.
+    /// on threads of its own if `parallel` (the root's eight children shared among as many
+    /// threads as the current rayon pool has).
     #[must_use]
     pub fn new(tape: &Tape, lo: DVec3, hi: DVec3, parallel: bool) -> Self {
         let margin = MARGIN * (hi - lo).length();
