@@ -177,6 +177,10 @@ pub struct QueryArgs {
 #[must_use]
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    // an interrupt removes the unfinished outputs (the finished and previous ones stay)
+    if let Err(e) = crate::output::interrupt::install_handlers() {
+        eprintln!("warning: interrupts will not clean up temporary outputs: {e}");
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
