@@ -132,7 +132,10 @@ fn sigkill_at_seven_moments_leaves_the_old_or_the_new_file() {
             );
         }
         let left = unfinished_exrs();
-        assert!(left.len() <= 1, "only the last killed run's temporary EXR is left: {left:?}");
+        assert!(
+            left.len() <= 1,
+            "only the last killed run's temporary EXR is left: {left:?}"
+        );
         largest_unfinished = largest_unfinished.max(left.into_iter().max().unwrap_or(0));
         eprintln!("killed {delay:.2} s after the start (trace {trace:.2} s, wall {wall:.2} s; status {status}): depthMiss {miss}");
     }
