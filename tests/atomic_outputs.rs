@@ -1,7 +1,8 @@
 //! Outputs never lose data: a 4K multi-AOV render over an existing EXR, killed with SIGKILL at 7
 //! moments spread over its run (the files are written while the frame is traced), always leaves
 //! a complete readable EXR — the old one or the new one — and complete previews; nothing but
-//! hidden temporary files is left beside them.
+//! hidden temporary files is left beside them, and only the last killed run's (each run removes
+//! those its killed predecessors left).
 
 #![cfg(unix)]
 
@@ -85,6 +86,17 @@ fn sigkill_at_seven_moments_leaves_the_old_or_the_new_file() {
     // the end of the trace, the finishing of the files and their renaming
     let moments = [0.1, 0.25, 0.45, 0.65, 0.8, 0.9, 0.97].map(|f| f * wall);
     let (mut old, mut new) = (0, 0);
+    // the size of the largest EXR a killed run left unfinished (each run removes the ones its
+    // killed predecessors left, so it is read after each kill)
+    let unfinished_exrs = || -> Vec<u64> {
+        std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap())
+            .filter(|e| e.file_name().to_string_lossy().starts_with(".scene.exr."))
+            .map(|e| e.metadata().unwrap().len())
+            .collect()
+    };
+    let mut largest_unfinished = 0;
     for delay in moments {
         let mut child = render_command(&scene, &out, "inf")
             .stdout(Stdio::null())
@@ -119,6 +131,12 @@ fn sigkill_at_seven_moments_leaves_the_old_or_the_new_file() {
                 "unexpected file {name}"
             );
         }
+        let left = unfinished_exrs();
+        assert!(
+            left.len() <= 1,
+            "only the last killed run's temporary EXR is left: {left:?}"
+        );
+        largest_unfinished = largest_unfinished.max(left.into_iter().max().unwrap_or(0));
         eprintln!("killed {delay:.2} s after the start (trace {trace:.2} s, wall {wall:.2} s; status {status}): depthMiss {miss}");
     }
     assert!(
@@ -126,13 +144,6 @@ fn sigkill_at_seven_moments_leaves_the_old_or_the_new_file() {
         "kills early in the trace must leave the old file ({old} old, {new} new)"
     );
     // the killed runs had written rows: their (hidden, never renamed) EXRs hold more than a header
-    let largest_unfinished = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap())
-        .filter(|e| e.file_name().to_string_lossy().starts_with(".scene.exr."))
-        .map(|e| e.metadata().unwrap().len())
-        .max()
-        .unwrap_or(0);
     assert!(
         largest_unfinished > 10 << 20,
         "rows are written while tracing (largest unfinished file {largest_unfinished} B)"

@@ -148,7 +148,7 @@ pub struct QueryArgs {
     /// bound such as `1e-6`); every ray then gives the surface normal `nx,ny,nz` and the origin
     /// is moved off the surface so the ray cannot re-hit it through rounding (see
     /// `docs/numerics.md`, "Spawning rays").
-    #[arg(long, value_name = "f32|f64|E")]
+    #[arg(long, value_name = "f32|f64|E", allow_hyphen_values = true)]
     pub origin_precision: Option<zeroset_primitives::offset::PointPrecision>,
     /// Order in which each chunk's rays are traced (the answers and the output order are the
     /// same): `input` as given, `sorted` grouped for coherence (direction octant, origin cell,
@@ -177,6 +177,10 @@ pub struct QueryArgs {
 #[must_use]
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    // an interrupt removes the unfinished outputs (the finished and previous ones stay)
+    if let Err(e) = crate::output::interrupt::install_handlers() {
+        eprintln!("warning: interrupts will not clean up temporary outputs: {e}");
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

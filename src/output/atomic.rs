@@ -5,18 +5,21 @@
 //! destination. A rename within one file system is atomic (POSIX `rename(2)`), so a reader — or a
 //! kill, a Ctrl-C, a full disk at any moment — sees either the previous file or the complete new
 //! one, never a truncated mix. The temporary file (`.NAME.XXXXXX.tmp`) is removed on any error or
-//! unwind; only a SIGKILL can leave one behind, and it never has the destination's name.
+//! unwind, and on SIGINT, SIGTERM or SIGHUP once the CLI installed its handlers
+//! ([`super::interrupt`]); only a SIGKILL can leave one behind, it never has the destination's
+//! name, and the next run writing the same destination removes it.
 //!
 //! [`check_destination`] is the early check run before any tracing: the directory must exist or
 //! be creatable and must accept a new file, and its file system must have room for the estimated
 //! output.
 
+use super::interrupt::{create_temporary, lock_as_alive, remove_stale, Registered};
 use crate::resources::human_bytes;
 use anyhow::{bail, Context, Result};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use tempfile::NamedTempFile;
+use tempfile::TempPath;
 
 /// A file being written under a temporary name next to `destination`; [`AtomicFile::commit`]
 /// renames it into place. Dropped without a commit, it is deleted.
@@ -32,8 +35,14 @@ pub struct AtomicFile {
 
 /// Where the bytes go.
 enum Target {
-    /// A temporary file beside the destination, renamed over it on commit.
-    Temporary(NamedTempFile),
+    /// A temporary file beside the destination, renamed over it on commit. Its path is deleted
+    /// (on drop) before it leaves the registry of live temporary files, and both before the
+    /// file is closed (which releases its lock). Fields drop in this order.
+    Temporary {
+        path: TempPath,
+        registered: Registered,
+        file: File,
+    },
     /// The destination itself (a device or pipe).
     Direct(File),
 }
@@ -67,22 +76,19 @@ impl AtomicFile {
         let name = destination
             .file_name()
             .map_or_else(|| "output".to_string(), |n| n.to_string_lossy().into_owned());
-        let temp = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(".tmp")
-            .tempfile_in(&dir)
-            .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
+        // the temporary files of earlier runs that were killed (their lock is free)
+        remove_stale(&dir, &name);
+        let (file, path, registered) = new_temporary(&dir, &name)?;
         // a temporary file is private (0600); the result gets the replaced file's permissions,
         // or the usual 0644 for a new file
         let permissions =
             std::fs::metadata(destination).map_or_else(|_| default_permissions(), |m| Some(m.permissions()));
         if let Some(permissions) = permissions {
-            temp.as_file()
-                .set_permissions(permissions)
+            file.set_permissions(permissions)
                 .with_context(|| format!("setting the permissions of a file in {}", dir.display()))?;
         }
         Ok(Self {
-            target: Target::Temporary(temp),
+            target: Target::Temporary { file, path, registered },
             destination: destination.clone(),
         })
     }
@@ -90,8 +96,7 @@ impl AtomicFile {
     /// The open temporary file (or the device written directly).
     pub fn file(&mut self) -> &mut File {
         match &mut self.target {
-            Target::Temporary(temp) => temp.as_file_mut(),
-            Target::Direct(file) => file,
+            Target::Temporary { file, .. } | Target::Direct(file) => file,
         }
     }
 
@@ -106,23 +111,44 @@ impl AtomicFile {
     /// # Errors
     /// The `fsync` or the rename fails (the temporary file is then removed).
     pub fn commit(self) -> Result<()> {
-        let temp = match self.target {
-            Target::Temporary(temp) => temp,
-            Target::Direct(_) => return Ok(()),
+        let Target::Temporary { file, path, registered } = self.target else {
+            return Ok(());
         };
-        temp.as_file()
-            .sync_all()
+        file.sync_all()
             .with_context(|| format!("flushing {} to disk", self.destination.display()))?;
         let destination = self.destination;
-        temp.persist(&destination)
+        // the file stays open (its lock held) until after the rename
+        path.persist(&destination)
             .map_err(|e| e.error)
             .with_context(|| format!("renaming the finished file to {}", destination.display()))?;
+        drop((registered, file));
         // make the rename itself durable where the platform allows opening a directory
         if let Ok(dir) = File::open(parent_dir(&destination)) {
             let _ = dir.sync_all();
         }
         Ok(())
     }
+}
+
+/// A new registered temporary file `.NAME.XXXXXX.tmp` in `dir`, holding its lock.
+fn new_temporary(dir: &Path, name: &str) -> Result<(File, TempPath, Registered)> {
+    let context = || format!("creating a temporary file in {}", dir.display());
+    // another run's stale-file cleanup can delete a file between its creation and its lock
+    for _ in 0..16 {
+        let temp = tempfile::Builder::new()
+            .prefix(&format!(".{name}."))
+            .suffix(".tmp")
+            .make_in(dir, create_temporary)
+            .with_context(context)?;
+        let ((file, registered), path) = temp.into_parts();
+        if lock_as_alive(&file, &path).with_context(context)? {
+            return Ok((file, path, registered));
+        }
+        // the name was already deleted and may be another file's by now: never delete it again
+        let _ = path.keep();
+        drop(registered);
+    }
+    bail!("{}: the temporary file kept disappearing", context())
 }
 
 /// Asks the operating system to start writing `file`'s bytes `offset..offset + len` (already
@@ -242,7 +268,7 @@ pub fn check_destination(dir: &Path, estimated_bytes: u64) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating the output directory {}", dir.display()))?;
     let probe = tempfile::Builder::new()
         .prefix(".zeroset-write-check.")
-        .tempfile_in(dir)
+        .make_in(dir, create_temporary)
         .with_context(|| format!("the output directory {} is not writable", dir.display()))?;
     drop(probe);
     // file systems that cannot report free space (some network mounts) are not refused

@@ -6,6 +6,7 @@ pub mod atomic;
 pub mod cameras_json;
 pub mod exr;
 pub mod exr_stream;
+pub mod interrupt;
 pub mod merge;
 pub mod png;
 pub mod png_stream;

@@ -16,6 +16,7 @@ use crate::scene::shape_desc::{BuildContext, SceneShape, ShapeDesc};
 use glam::DVec3;
 use serde::Deserialize;
 use std::sync::Arc;
+use zeroset_primitives::expr::excerpt;
 use zeroset_primitives::{
     Aabb, Csg, CsgOp, Expr, Function, Offset, Primitive, PrimitiveError, RootOptions, SmoothUnion, Transformed,
 };
@@ -222,13 +223,17 @@ pub struct FunctionDesc {
 
 impl SceneShape for FunctionDesc {
     fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
-        let expr = Expr::parse(&self.phi)
-            .map_err(|e| PrimitiveError::new("Function", "phi", format!("syntax error in `{}` at {e}", self.phi)))?;
+        // a long expression is quoted around the error only (±60 characters)
+        let expr = Expr::parse(&self.phi).map_err(|e| {
+            let near = excerpt(&self.phi, e.column);
+            PrimitiveError::new("Function", "phi", format!("syntax error in `{near}` at {e}"))
+        })?;
         if let Some(l) = self.lipschitz {
             zeroset_primitives::error::require_positive("Function", "lipschitz", l)?;
             context
                 .warn("`lipschitz` is not needed (roots are isolated by interval arithmetic); it is only used by a SmoothUnion or Offset around this function that mixes it with a closed-form primitive");
         }
+        check_search_box(self.min, self.max)?;
         let defaults = RootOptions::default();
         let options = RootOptions {
             tolerance: self.tolerance.unwrap_or(defaults.tolerance),
@@ -243,9 +248,41 @@ impl SceneShape for FunctionDesc {
             context.warn(format!(
                 "`{}` may be undefined in parts of its box (interval evaluation could not exclude it); \
                  rays meeting such parts are counted",
-                self.phi
+                excerpt(&self.phi, 1)
             ));
         }
         Ok(Arc::new(function))
     }
+}
+
+/// A `Function`'s search box must have finite corners and positive thickness on every axis
+/// (`min < max`): the surface is searched only inside it, so a flat or inverted box holds no
+/// surface at all.
+fn check_search_box(min: DVec3, max: DVec3) -> Result<(), PrimitiveError> {
+    if !min.is_finite() || !max.is_finite() {
+        return Err(PrimitiveError::new(
+            "Function",
+            "min`/`max",
+            format!("the search box needs finite corners, got min {min} and max {max}"),
+        ));
+    }
+    for (axis, name) in ["x", "y", "z"].into_iter().enumerate() {
+        if min[axis] >= max[axis] {
+            let what = if min[axis] == max[axis] {
+                "has zero thickness"
+            } else {
+                "is inverted"
+            };
+            return Err(PrimitiveError::new(
+                "Function",
+                "min`/`max",
+                format!(
+                    "the search box {what} along {name} (min.{name} = {}, max.{name} = {}); \
+                     each component of `min` must be below that of `max`",
+                    min[axis], max[axis]
+                ),
+            ));
+        }
+    }
+    Ok(())
 }

@@ -11,7 +11,7 @@
 //! ```
 //!
 //! **Language.** `+ − × ÷` (`+ - * /`), powers `^` or `**` (an integer constant exponent up to
-//! 64 in magnitude is an integer power, defined for any base; any other needs a positive base), unary signs, parentheses; numbers
+//! 1024 in magnitude is an integer power, defined for any base; any other needs a positive base), unary signs, parentheses; numbers
 //! as `2`, `.5`, `1e-3`; variables `x y z`; constants `pi`, `e`, `tau`; functions `sqrt exp ln`
 //! (`log` is `ln`) `log10 log2 sin cos tan asin acos atan sinh cosh tanh cbrt abs sq` and
 //! `min max pow` of two arguments. See `expr/parse.rs` for the grammar.
@@ -27,6 +27,7 @@
 
 pub mod cells;
 mod parse;
+pub use parse::excerpt;
 pub mod scalar;
 pub mod tape;
 
@@ -208,6 +209,10 @@ fn checked(node: &Node, p: &[f64; 3]) -> Result<f64, DomainError> {
         Node::Call2(f, a, b, column) => {
             let (a, b) = (checked(a, p)?, checked(b, p)?);
             match f {
+                Func2::Pow if a <= 0.0 && b.fract() == 0.0 => return fail(
+                    *column,
+                    "pow with a base ≤ 0 and an integer exponent beyond ±1024 (the largest taken as an integer power)",
+                ),
                 Func2::Pow if a <= 0.0 => return fail(*column, "pow with a base ≤ 0 and a non-integer exponent"),
                 Func2::Pow => a.powf(b),
                 Func2::Min => a.min(b),
@@ -384,6 +389,67 @@ mod tests {
             assert_eq!(e.column, column, "{text}: {e}");
             assert!(e.message.contains(message), "{text}: {e}");
         }
+    }
+
+    #[test]
+    fn integer_powers_above_64_are_integer_powers() {
+        for text in ["x^65", "pow(x, 100)", "x**1024", "x^-65"] {
+            let e = Expr::parse(text).unwrap();
+            assert!(matches!(e.root, Node::PowI(..)), "{text}");
+        }
+        // defined at negative bases and at 0, with the right values
+        let at = |text: &str, x: f64| Expr::parse(text).unwrap().eval(DVec3::new(x, 0.0, 0.0));
+        assert_eq!(at("x^65", -1.0), -1.0);
+        assert_eq!(at("pow(x, 100)", -2.0), 2f64.powi(100));
+        assert_eq!(at("x^100", 0.0), 0.0);
+        assert!((at("x^65", 1.01) / 1.01f64.powf(65.0) - 1.0).abs() < 1e-14);
+        assert!(Expr::parse("x^65")
+            .unwrap()
+            .domain_error(DVec3::new(-3.0, 0.0, 0.0))
+            .is_ok());
+        // an enclosure over a box containing negative bases encloses the values
+        let e = Expr::parse("x^65").unwrap();
+        let b = e.enclose(DVec3::new(-1.1, 0.0, 0.0), DVec3::new(-0.9, 0.0, 0.0));
+        assert!(
+            b.lo <= (-1.1f64).powi(65) && b.hi >= (-0.9f64).powi(65) && !b.undefined(),
+            "{b:?}"
+        );
+        // beyond 1024 an integer exponent is a general power, and says so at a base ≤ 0
+        let big = Expr::parse("x^2000").unwrap();
+        let err = big.domain_error(DVec3::new(-1.0, 0.0, 0.0)).unwrap_err();
+        assert!(err.what.contains("integer exponent beyond"), "{err}");
+    }
+
+    #[test]
+    fn huge_balanced_expressions_are_refused_quickly() {
+        // a balanced tree escapes the depth limit (its depth is ~19) but not the size limit
+        let mut terms: Vec<String> = (0..131_072).map(|i| format!("x*{i}")).collect();
+        while terms.len() > 1 {
+            terms = terms.chunks(2).map(|p| format!("({}+{})", p[0], p[1])).collect();
+        }
+        let text = &terms[0];
+        assert!(text.len() > 1_000_000, "{}", text.len());
+        let started = std::time::Instant::now();
+        let e = Expr::parse(text).unwrap_err();
+        assert!(started.elapsed().as_secs_f64() < 2.0, "{:?}", started.elapsed());
+        assert!(e.message.contains("operations, more than 20000"), "{e}");
+        // a sum of 900 squares (4500 operations) is fine
+        let ok = (0..900).map(|i| format!("(x - {i})^2")).collect::<Vec<_>>().join(" + ");
+        assert!(Expr::parse(&ok).is_ok());
+    }
+
+    #[test]
+    fn excerpts_cut_long_sources_around_the_column() {
+        assert_eq!(excerpt("x + * y", 5), "x + * y");
+        let long = format!("{}@{}", "a".repeat(100_000), "b".repeat(100_000));
+        let near = excerpt(&long, 100_001);
+        assert_eq!(near, format!("…{}@{}…", "a".repeat(60), "b".repeat(59)));
+        assert_eq!(excerpt(&long, 1), format!("{}…", "a".repeat(60)));
+        let end = excerpt(&long, 200_002);
+        assert!(
+            end.starts_with('…') && !end.ends_with('…') && end.chars().count() == 61,
+            "{end}"
+        );
     }
 
     #[test]

@@ -142,6 +142,47 @@ const MAX_NESTING: usize = 200;
 /// small stacks); a sum of a thousand terms is still fine.
 pub(super) const MAX_DEPTH: usize = 1000;
 
+/// Most operations (nodes of the syntax tree: numbers, variables, operators, calls) accepted.
+/// Every evaluation walks them all, and loading alone evaluates Φ at thousands of points, so
+/// a limit keeps a huge expression (a balanced tree escapes the depth limit) from running for
+/// minutes; a sum of a thousand terms like `(x - 1)^2` is well within it.
+pub(super) const MAX_NODES: usize = 20_000;
+
+/// Largest integer exponent magnitude taken as an integer power (exact for any base, repeated
+/// squaring); a larger integer constant is a general power (positive base). The interval power
+/// widens by `|n| + 1` ulps, one step each, so the bound also bounds that cost.
+pub(super) const MAX_INTEGER_POWER: f64 = 1024.0;
+
+/// Whether a constant exponent is evaluated as an integer power.
+fn is_integer_power(n: f64) -> bool {
+    n.fract() == 0.0 && n.abs() <= MAX_INTEGER_POWER
+}
+
+/// Characters of the source shown on each side of an error's column.
+const EXCERPT_SIDE: usize = 60;
+
+/// `source` as an error message quotes it: whole when short, otherwise the characters within
+/// 60 of `column` (1-based), an ellipsis `…` marking each cut end.
+#[must_use]
+pub fn excerpt(source: &str, column: usize) -> String {
+    let count = source.chars().count();
+    if count <= 2 * EXCERPT_SIDE {
+        return source.to_string();
+    }
+    let at = column.saturating_sub(1).min(count);
+    let start = at.saturating_sub(EXCERPT_SIDE);
+    let end = (at + EXCERPT_SIDE).min(count);
+    let mut out = String::new();
+    if start > 0 {
+        out.push('…');
+    }
+    out.extend(source.chars().skip(start).take(end - start));
+    if end < count {
+        out.push('…');
+    }
+    out
+}
+
 struct Parser {
     tokens: Vec<Lexed>,
     at: usize,
@@ -240,7 +281,7 @@ impl Parser {
         if self.eat("^") || self.eat("**") {
             let exponent = self.unary()?;
             return Ok(match exponent {
-                Node::Const(n) if n.fract() == 0.0 && n.abs() <= 64.0 => Node::PowI(Box::new(base), n as i32, column),
+                Node::Const(n) if is_integer_power(n) => Node::PowI(Box::new(base), n as i32, column),
                 exponent => Node::Call2(Func2::Pow, Box::new(base), Box::new(exponent), column),
             });
         }
@@ -333,9 +374,7 @@ impl Parser {
             let b = args.pop().expect("two arguments");
             let a = args.pop().expect("two arguments");
             return Ok(match (f, b) {
-                (Func2::Pow, Node::Const(n)) if n.fract() == 0.0 && n.abs() <= 64.0 => {
-                    Node::PowI(Box::new(a), n as i32, column)
-                }
+                (Func2::Pow, Node::Const(n)) if is_integer_power(n) => Node::PowI(Box::new(a), n as i32, column),
                 (f, b) => Node::Call2(f, Box::new(a), Box::new(b), column),
             });
         }
@@ -375,22 +414,33 @@ pub(super) fn parse(text: &str) -> Result<Node, ParseError> {
             parser.describe()
         ));
     }
-    let depth = tree_depth(&node);
+    let (depth, nodes) = depth_and_size(&node);
     if depth > MAX_DEPTH {
         return Err(ParseError {
             column: 1,
             message: format!("the expression is {depth} operations deep, more than {MAX_DEPTH}"),
         });
     }
+    if nodes > MAX_NODES {
+        return Err(ParseError {
+            column: 1,
+            message: format!(
+                "the expression has {nodes} operations, more than {MAX_NODES} (each evaluation walks them all); \
+                 simplify it or split the shape into several objects"
+            ),
+        });
+    }
     Ok(node)
 }
 
-/// The depth of a tree, computed without recursion (an explicit stack).
-fn tree_depth(root: &Node) -> usize {
+/// The depth and the node count of a tree, computed without recursion (an explicit stack).
+fn depth_and_size(root: &Node) -> (usize, usize) {
     let mut deepest = 0;
+    let mut nodes = 0;
     let mut stack = vec![(root, 1usize)];
     while let Some((node, depth)) = stack.pop() {
         deepest = deepest.max(depth);
+        nodes += 1;
         match node {
             Node::Const(_) | Node::Var(_) => {}
             Node::Neg(a, _) | Node::PowI(a, _, _) | Node::Call1(_, a, _) => stack.push((a, depth + 1)),
@@ -404,5 +454,5 @@ fn tree_depth(root: &Node) -> usize {
             }
         }
     }
-    deepest
+    (deepest, nodes)
 }
