@@ -330,7 +330,7 @@ impl Function {
                                 "phi",
                                 format!(
                                     "`{}` is undefined inside the bounds: {e} at ({}, {}, {})",
-                                    expr.source(),
+                                    crate::expr::excerpt(expr.source(), 1),
                                     p.x,
                                     p.y,
                                     p.z
