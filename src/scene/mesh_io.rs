@@ -12,15 +12,22 @@
 //!
 //! Every error names the file, and the element, line or face where the format gives one.
 //!
-//! STL (binary, ASCII), OFF and glTF / GLB are read by the `stl`, `off` and `gltf` submodules,
-//! chosen in `formats` ([`read_mesh_report`]); see `docs/mesh-formats.md`.
+//! STL (binary, ASCII), OFF and glTF / GLB are read by the `stl`, `stl_ascii`, `off` and `gltf`
+//! submodules, chosen in `formats` ([`read_mesh_report`]); see `docs/mesh-formats.md`. The text
+//! formats share `text` (blocks of lines, parallel pieces, number parsing), STL corners are
+//! welded by `weld`, and `reference` keeps the former line-by-line readers as the tests' oracle.
 
 mod formats;
 mod gltf;
 mod off;
 mod ply_binary;
+#[cfg(test)]
+mod reference;
 mod shared;
 mod stl;
+mod stl_ascii;
+mod text;
+mod weld;
 
 pub use formats::{read_mesh_report, MeshReport};
 pub use shared::{MAX_LINE_BYTES, MAX_MESH_FILE_BYTES};

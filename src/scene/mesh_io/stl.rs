@@ -12,10 +12,15 @@
 //!
 //! Corners are welded with [`Welder`]: equal positions (bit-equal, and `-0.0` with `0.0`) become
 //! one vertex, so a closed STL is as watertight as the indexed mesh it was written from.
+//!
+//! A binary file is read in blocks of records, the next block read and decoded while the
+//! current one is welded; an ASCII one is read by `stl_ascii`.
 
-use super::shared::{coordinate, file_len, reserve, Lines, Welder};
+use super::shared::{file_len, reserve};
+use super::stl_ascii::read_ascii;
+use super::weld::{Corner, Welder};
 use super::MeshData;
-use std::io::{BufReader, Read};
+use std::io::Read;
 use std::path::Path;
 
 /// An STL file read and welded; `merged` counts the corners merged into earlier vertices.
@@ -61,16 +66,24 @@ fn read_up_to(file: &mut std::fs::File, buf: &mut [u8]) -> Result<usize, String>
     Ok(got)
 }
 
+/// Triangles per block of a binary STL read.
+const BLOCK_TRIANGLES: usize = 1 << 14;
+
 /// Reads a binary STL of `len` bytes.
 fn read_binary(path: &Path, len: u64) -> Result<Stl, String> {
+    read_binary_blocks(path, len, BLOCK_TRIANGLES)
+}
+
+/// Reads a binary STL of `len` bytes in blocks of `block` triangles.
+pub(super) fn read_binary_blocks(path: &Path, len: u64, block: usize) -> Result<Stl, String> {
     if len < 84 {
         return Err(format!(
             "binary STL: {len} bytes, shorter than the 84-byte header and count (truncated, or not an STL file?)"
         ));
     }
-    let mut reader = BufReader::with_capacity(1 << 20, std::fs::File::open(path).map_err(|e| e.to_string())?);
+    let mut file = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let mut head = [0u8; 84];
-    reader.read_exact(&mut head).map_err(|e| e.to_string())?;
+    file.read_exact(&mut head).map_err(|e| e.to_string())?;
     let n = u32::from_le_bytes([head[80], head[81], head[82], head[83]]);
     let want = 84 + 50 * u64::from(n);
     if want != len {
@@ -90,36 +103,101 @@ fn read_binary(path: &Path, len: u64) -> Result<Stl, String> {
     if n == 0 {
         return Err("binary STL: the count at byte 80 is 0 triangles".into());
     }
+    let n = u64::from(n);
     let mut indices = Vec::new();
-    reserve(&mut indices, u64::from(n), "binary STL triangles")?;
+    reserve(&mut indices, n, "binary STL triangles")?;
     // a closed mesh has about n / 2 vertices
-    let mut welder = Welder::with_capacity(u64::from(n) / 2 + 3)?;
-    let mut record = [0u8; 50];
-    for t in 0..u64::from(n) {
-        reader
-            .read_exact(&mut record)
-            .map_err(|e| format!("binary STL: triangle {t} at byte {}: {e}", 84 + 50 * t))?;
-        let mut tri = [0u32; 3];
-        for (c, slot) in tri.iter_mut().enumerate() {
-            let at = 12 + 12 * c;
-            let p: [f32; 3] = std::array::from_fn(|k| {
-                let b = at + 4 * k;
-                f32::from_le_bytes([record[b], record[b + 1], record[b + 2], record[b + 3]])
-            });
-            if !p.iter().all(|x| x.is_finite()) {
-                return Err(format!(
-                    "binary STL: triangle {t} at byte {}: corner {c} {p:?} is not finite",
-                    84 + 50 * t
-                ));
-            }
-            *slot = welder.index(p).map_err(|e| format!("binary STL: triangle {t}: {e}"))?;
+    let mut welder = Welder::with_capacity(n / 2 + 3)?;
+    let block = block.clamp(1, n as usize);
+    let mut current = Block::new(block)?;
+    let mut next = Block::new(block)?;
+    current.read(&mut file, 0, n)?;
+    loop {
+        let first = current.first;
+        let end = first + current.corners.len() as u64 / 3;
+        let weld = |welder: &mut Welder, indices: &mut Vec<[u32; 3]>, corners: &[Corner]| {
+            welder
+                .add(corners, indices)
+                .map_err(|e| format!("binary STL: triangle {first}: {e}"))
+        };
+        if end == n {
+            weld(&mut welder, &mut indices, &current.corners)?;
+            break;
         }
-        indices.push(tri);
+        let (welded, read) = rayon::join(
+            || weld(&mut welder, &mut indices, &current.corners),
+            || next.read(&mut file, end, n),
+        );
+        welded?;
+        read?;
+        std::mem::swap(&mut current, &mut next);
     }
     Ok(finish(welder, indices, false))
 }
 
-fn finish(welder: Welder, indices: Vec<[u32; 3]>, ascii: bool) -> Stl {
+/// A block of binary STL records read, and their corners (hashed for welding).
+struct Block {
+    bytes: Vec<u8>,
+    corners: Vec<Corner>,
+    /// The block's first triangle.
+    first: u64,
+}
+
+impl Block {
+    fn new(triangles: usize) -> Result<Self, String> {
+        let mut block = Self {
+            bytes: Vec::new(),
+            corners: Vec::new(),
+            first: 0,
+        };
+        reserve(&mut block.bytes, 50 * triangles as u64, "a read buffer")?;
+        reserve(&mut block.corners, 3 * triangles as u64, "a read buffer")?;
+        block.bytes.resize(50 * triangles, 0);
+        Ok(block)
+    }
+
+    /// Reads the records from triangle `first` on (of `n`, the file's count) and decodes them,
+    /// refusing corners that are not finite.
+    fn read(&mut self, file: &mut std::fs::File, first: u64, n: u64) -> Result<(), String> {
+        let count = (n - first).min(self.bytes.len() as u64 / 50) as usize;
+        let bytes = &mut self.bytes[..50 * count];
+        file.read_exact(bytes)
+            .map_err(|e| format!("binary STL: triangle {first} at byte {}: {e}", 84 + 50 * first))?;
+        self.first = first;
+        self.corners.clear();
+        let mut finite = true;
+        for record in bytes.chunks_exact(50) {
+            let xyz: &[u8; 36] = record[12..48].try_into().unwrap_or(&[0; 36]);
+            for c in 0..3 {
+                let p: [f32; 3] = std::array::from_fn(|k| {
+                    let b = 12 * c + 4 * k;
+                    f32::from_le_bytes([xyz[b], xyz[b + 1], xyz[b + 2], xyz[b + 3]])
+                });
+                let ok = |x: f32| x.to_bits() & 0x7f80_0000 != 0x7f80_0000;
+                finite &= ok(p[0]) & ok(p[1]) & ok(p[2]);
+                self.corners.push(Corner::new(p));
+            }
+        }
+        if finite {
+            return Ok(());
+        }
+        let j = self
+            .corners
+            .iter()
+            .position(|c| !c.p.iter().all(|x| x.is_finite()))
+            .unwrap_or(0);
+        let t = first + j as u64 / 3;
+        Err(format!(
+            "binary STL: triangle {t} at byte {}: corner {} {:?} is not finite",
+            84 + 50 * t,
+            j % 3,
+            self.corners[j].p
+        ))
+    }
+}
+
+/// The mesh of the welded corners.
+pub(super) fn finish(welder: Welder, indices: Vec<[u32; 3]>, ascii: bool) -> Stl {
     let (corners, merged) = (welder.corners, welder.merged());
     Stl {
         data: MeshData {
@@ -131,120 +209,4 @@ fn finish(welder: Welder, indices: Vec<[u32; 3]>, ascii: bool) -> Stl {
         merged,
         ascii,
     }
-}
-
-/// What the ASCII reader expects next.
-#[derive(Clone, Copy, PartialEq)]
-enum Expect {
-    Solid,
-    FacetOrEnd,
-    OuterLoop,
-    Vertex(usize),
-    EndLoop,
-    EndFacet,
-}
-
-/// Reads an ASCII STL, streamed line by line.
-fn read_ascii(path: &Path) -> Result<Stl, String> {
-    let len = file_len(path)?;
-    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
-    let mut lines = Lines::new(BufReader::with_capacity(1 << 20, file));
-    let mut buf = Vec::with_capacity(256);
-    // a facet takes at least 7 lines of ~100 bytes; reserve for what the size allows
-    let guess = len / 200;
-    let mut indices: Vec<[u32; 3]> = Vec::new();
-    reserve(&mut indices, guess, "ASCII STL triangles")?;
-    let mut welder = Welder::with_capacity(guess / 2 + 3)?;
-    let mut expect = Expect::Solid;
-    let mut tri = [0u32; 3];
-    let mut solids = 0usize;
-    loop {
-        let line = match lines.next_line(&mut buf) {
-            Ok(Some(line)) => line,
-            Ok(None) => break,
-            Err(e) => return Err(format!("ASCII STL: {e}")),
-        };
-        let mut tokens = line.split_ascii_whitespace();
-        let Some(word) = tokens.next() else { continue };
-        let word_is = |w: &str| word.eq_ignore_ascii_case(w);
-        let ok = match expect {
-            Expect::Solid => word_is("solid"),
-            Expect::FacetOrEnd => word_is("facet") || word_is("endsolid"),
-            Expect::OuterLoop => word_is("outer") && tokens.next().is_some_and(|w| w.eq_ignore_ascii_case("loop")),
-            Expect::Vertex(_) => word_is("vertex"),
-            Expect::EndLoop => word_is("endloop"),
-            Expect::EndFacet => word_is("endfacet"),
-        };
-        if !ok {
-            let wanted = match expect {
-                Expect::Solid => "`solid`",
-                Expect::FacetOrEnd => "`facet normal` or `endsolid`",
-                Expect::OuterLoop => "`outer loop`",
-                Expect::Vertex(_) => "`vertex x y z`",
-                Expect::EndLoop => "`endloop` (a facet has 3 vertices)",
-                Expect::EndFacet => "`endfacet`",
-            };
-            return Err(format!(
-                "ASCII STL: {}, facet {}: expected {wanted}, found `{}`",
-                lines.at(),
-                indices.len(),
-                clip(line)
-            ));
-        }
-        expect = match expect {
-            Expect::Solid => {
-                solids += 1;
-                Expect::FacetOrEnd
-            }
-            Expect::FacetOrEnd if word_is("endsolid") => Expect::Solid,
-            Expect::FacetOrEnd => Expect::OuterLoop,
-            Expect::OuterLoop => Expect::Vertex(0),
-            Expect::Vertex(c) => {
-                let mut p = [0f32; 3];
-                for (k, x) in p.iter_mut().enumerate() {
-                    *x = coordinate(tokens.next(), &format!("coordinate {}", ["x", "y", "z"][k]))
-                        .map_err(|e| format!("ASCII STL: {}, facet {}, vertex {c}: {e}", lines.at(), indices.len()))?;
-                }
-                tri[c] = welder.index(p).map_err(|e| format!("ASCII STL: {}: {e}", lines.at()))?;
-                if c == 2 {
-                    Expect::EndLoop
-                } else {
-                    Expect::Vertex(c + 1)
-                }
-            }
-            Expect::EndLoop => Expect::EndFacet,
-            Expect::EndFacet => {
-                if indices.len() == indices.capacity() {
-                    let more = indices.len().max(1024) as u64;
-                    reserve(&mut indices, more, "ASCII STL triangles")?;
-                }
-                indices.push(tri);
-                Expect::FacetOrEnd
-            }
-        };
-    }
-    if expect != Expect::Solid {
-        return Err(format!(
-            "ASCII STL: line {}: unexpected end of file inside {} (truncated?)",
-            lines.line,
-            if solids == 0 {
-                "the file".to_string()
-            } else {
-                format!("facet {}", indices.len())
-            }
-        ));
-    }
-    if indices.is_empty() {
-        return Err("ASCII STL: no facets".into());
-    }
-    Ok(finish(welder, indices, true))
-}
-
-/// The first 40 characters of a line, for messages.
-fn clip(line: &str) -> String {
-    let mut out: String = line.trim().chars().take(40).collect();
-    if line.trim().chars().count() > 40 {
-        out.push('…');
-    }
-    out
 }
