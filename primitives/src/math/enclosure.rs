@@ -172,13 +172,6 @@ impl Enclosure {
         self.flag != 0
     }
 
-    /// The same bounds, flagged as (possibly) undefined.
-    #[inline]
-    #[must_use]
-    pub const fn flagged(self) -> Self {
-        Self { flag: 1, ..self }
-    }
-
     /// `[lo, hi]` widened outward by `ulps`, NaN bounds replaced by infinities, the flag kept.
     #[inline]
     fn widened(lo: f64, hi: f64, ulps: u32, undefined: bool) -> Self {
@@ -229,12 +222,12 @@ impl Enclosure {
         Self {
             lo: self.lo.min(other.lo),
             hi: self.hi.max(other.hi),
-            flag: u64::from(self.undefined() || other.undefined()),
+            flag: self.flag | other.flag,
         }
     }
 
     #[inline]
-    fn flag(self, other: Self) -> bool {
+    fn either_undefined(self, other: Self) -> bool {
         self.undefined() || other.undefined()
     }
 
@@ -307,7 +300,7 @@ impl Enclosure {
             Self {
                 lo: 0.0,
                 hi: (-self.lo).max(self.hi),
-                flag: u64::from(self.undefined()),
+                flag: self.flag,
             }
         }
     }
@@ -319,7 +312,7 @@ impl Enclosure {
         Self {
             lo: self.lo.min(other.lo),
             hi: self.hi.min(other.hi),
-            flag: u64::from(self.flag(other)),
+            flag: self.flag | other.flag,
         }
     }
 
@@ -330,7 +323,7 @@ impl Enclosure {
         Self {
             lo: self.lo.max(other.lo),
             hi: self.hi.max(other.hi),
-            flag: u64::from(self.flag(other)),
+            flag: self.flag | other.flag,
         }
     }
 
@@ -341,7 +334,7 @@ impl Enclosure {
     pub fn powi(self, n: i32) -> Self {
         if n == 0 {
             return Self {
-                flag: u64::from(self.undefined()),
+                flag: self.flag,
                 ..Self::point(1.0)
             };
         }
@@ -407,7 +400,7 @@ impl Enclosure {
             return Self {
                 lo: -1.0,
                 hi: 1.0,
-                flag: u64::from(self.undefined()),
+                flag: self.flag,
             };
         }
         let (a, b) = (f(self.lo), f(self.hi));
@@ -556,7 +549,7 @@ impl Enclosure {
         Self {
             lo,
             hi,
-            flag: u64::from(self.undefined()),
+            flag: self.flag,
         }
     }
 }
@@ -568,7 +561,7 @@ impl Neg for Enclosure {
         Self {
             lo: -self.hi,
             hi: -self.lo,
-            flag: u64::from(self.undefined()),
+            flag: self.flag,
         }
     }
 }
@@ -580,7 +573,7 @@ impl Add for Enclosure {
         Self::checked(
             add_directed::<true>(self.lo, o.lo),
             add_directed::<false>(self.hi, o.hi),
-            self.flag(o),
+            self.either_undefined(o),
         )
     }
 }
@@ -592,7 +585,7 @@ impl Sub for Enclosure {
         Self::checked(
             add_directed::<true>(self.lo, -o.hi),
             add_directed::<false>(self.hi, -o.lo),
-            self.flag(o),
+            self.either_undefined(o),
         )
     }
 }
@@ -656,7 +649,7 @@ impl Mul for Enclosure {
         } else {
             (down(al, bh).min(down(ah, bl)), up(al, bl).max(up(ah, bh)))
         };
-        Self::checked(lo, hi, self.flag(o))
+        Self::checked(lo, hi, self.either_undefined(o))
     }
 }
 
@@ -676,7 +669,7 @@ impl Div for Enclosure {
             div_both(self.hi, o.lo),
             div_both(self.hi, o.hi),
         ]);
-        Self::checked(lo, hi, self.flag(o))
+        Self::checked(lo, hi, self.either_undefined(o))
     }
 }
 
