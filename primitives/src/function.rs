@@ -53,6 +53,7 @@ struct Scratch {
     points: Vec<f64>,
     enclosures: Vec<Enclosure>,
     jets: Vec<Jet<Enclosure>>,
+    curvatures: Vec<Jet<Jet<Enclosure>>>,
     gradients: Vec<Jet<f64>>,
 }
 
@@ -141,6 +142,47 @@ impl AlongRay for LeafAlong<'_> {
 
     fn within_boundary(&mut self, _t: f64) -> bool {
         true
+    }
+
+    /// From second-order jets (`g`, `g′`, `g′`, `g″` as a jet of jets) over the piece, on tapes
+    /// without `min`, `max` or `abs` only: their kinks put into `g″` what no jet sees.
+    fn curvature_sign(&mut self, piece: Interval) -> Option<f64> {
+        let c = coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max)?;
+        let tape = self.tape_for(&c);
+        if tape.has_branches() {
+            return None;
+        }
+        let d = self.ray.dir;
+        let seed = |a: usize| {
+            let slope = Enclosure::point(d[a]);
+            Jet::new(Jet::new(c[a], slope), Jet::new(slope, Enclosure::point(0.0)))
+        };
+        let curvature = tape
+            .eval([seed(0), seed(1), seed(2)], &mut self.scratch.curvatures)
+            .slope
+            .slope;
+        if curvature.undefined() || curvature.contains_zero() {
+            None
+        } else if curvature.lo > 0.0 {
+            Some(1.0)
+        } else {
+            Some(-1.0)
+        }
+    }
+
+    fn point_slope(&mut self, t: f64) -> (f64, f64) {
+        let p = self.ray.at(t);
+        let tape = if (p.cmpge(self.cell_lo) & p.cmple(self.cell_hi)).all() {
+            self.leaf
+        } else {
+            self.full
+        };
+        let d = self.ray.dir;
+        let seed = |a: usize| Jet::new(p[a], d[a]);
+        let jet = tape.eval([seed(0), seed(1), seed(2)], &mut self.scratch.gradients);
+        let g = finite_or_outside(jet.value);
+        *self.last = (t, g);
+        (g, jet.slope)
     }
 }
 

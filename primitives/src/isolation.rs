@@ -9,8 +9,18 @@
 //! 2. **Certify monotone pieces.** An enclosure `G′ ⊇ g′([a, b])` with `0 ∉ G′` proves `g`
 //!    strictly monotone there: it has a root iff `g(a)` and `g(b)` differ in sign, and then
 //!    exactly one, refined by regula falsi / bisection ([`crate::root`]) to the tolerance.
-//! 3. **Subdivide** otherwise, at the midpoint, front half first.
-//! 4. A piece no wider than the tolerance that can be neither pruned nor certified is
+//! 3. **Certify convex or concave pieces** (where the evaluator encloses `g″` too: tapes
+//!    without `min`, `max` or `abs`, whose second derivative has no kinks). `0 ∉ G″` makes
+//!    `h = ±g` strictly convex on the piece, so `{h ≤ 0}` is one interval and `h` has at most two
+//!    roots. End values of opposite signs bracket exactly one root; two negative ends exclude a
+//!    root; two positive ends are settled by the tangents at the ends, whose pointwise maximum
+//!    bounds the convex `h` from below: a lower bound above 0 (with a margin of `1e-10` of the
+//!    piece's scale for rounding) excludes a root, else the piece is cut where the tangents meet
+//!    (a Newton step towards the minimum) and both halves are examined front first, a negative
+//!    value there bracketing the first root. After 16 steps, or on a piece no wider than the
+//!    tolerance, the piece goes on to step 4 undecided.
+//! 4. **Subdivide** otherwise, at the midpoint, front half first.
+//! 5. A piece no wider than the tolerance that can be neither pruned nor certified is
 //!    - a **root** if `g` changes sign across it (a crossing within the tolerance);
 //!    - else **uncertain**: `g` may touch 0 there without crossing (a tangent ray, a double root,
 //!      or a near miss closer than the enclosures can separate). It is returned as the hit, so
@@ -86,6 +96,16 @@ pub(crate) trait AlongRay {
     fn point(&mut self, t: f64) -> f64;
     /// Whether the zero-set point at `t` belongs to the surface.
     fn within_boundary(&mut self, t: f64) -> bool;
+    /// `Some(1.0)` where an enclosure of `g″` over `piece` is certainly positive, `Some(-1.0)`
+    /// where certainly negative, `None` otherwise or where no enclosure of `g″` is known (then
+    /// [`AlongRay::point_slope`] is never asked).
+    fn curvature_sign(&mut self, _piece: Interval) -> Option<f64> {
+        None
+    }
+    /// `g(t)` (as [`AlongRay::point`] gives it) and `g′(t)` in f64.
+    fn point_slope(&mut self, t: f64) -> (f64, f64) {
+        (self.point(t), f64::NAN)
+    }
 }
 
 struct ImplicitAlong<'a, I: Implicit + ?Sized> {
@@ -161,14 +181,27 @@ pub(crate) fn isolate_in<P: AlongRay>(
         }
         let mid = 0.5 * (a + b);
         let splittable = b - a > tolerance && mid > a && mid < b;
-        let (t, uncertain) = if defined && !enclosure.slope.contains_zero() {
+        let monotone = defined && !enclosure.slope.contains_zero();
+        // 3. strictly convex or concave (where g″ is enclosed)
+        let curved = if defined && !monotone {
+            along
+                .curvature_sign(piece)
+                .map(|sign| convex_root(along, a, b, sign, tolerance, evaluations))
+        } else {
+            None
+        };
+        let (t, uncertain) = if monotone {
             // 2. strictly monotone: a root iff the end values differ in sign
             match monotone_root(along, a, b, tolerance, evaluations) {
                 Some(t) => (t, false),
                 None => continue,
             }
+        } else if let Some(Curved::Root(t)) = curved {
+            (t, false)
+        } else if curved == Some(Curved::NoRoot) {
+            continue;
         } else if splittable {
-            // 3. subdivide, front half on top
+            // 4. subdivide, front half on top
             stack.push((mid, b));
             stack.push((a, mid));
             continue;
@@ -176,7 +209,7 @@ pub(crate) fn isolate_in<P: AlongRay>(
             out.undefined_seen = true;
             continue;
         } else {
-            // 4. at the tolerance: a crossing, or a touch that cannot be excluded
+            // 5. at the tolerance: a crossing, or a touch that cannot be excluded
             let (ga, gb) = (point(along, a, evaluations), point(along, b, evaluations));
             let t = if ga.abs() <= gb.abs() { a } else { b };
             (t, !differ(ga, gb))
@@ -223,6 +256,109 @@ pub(crate) fn monotone_root<P: AlongRay>(
             tolerance.max(f64::MIN_POSITIVE),
         ))
     }
+}
+
+/// What [`convex_root`] decided about a piece.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Curved {
+    /// The first root in the piece.
+    Root(f64),
+    /// No root in the piece.
+    NoRoot,
+    /// Neither within its step budget (a nearly tangent ray, a non-finite value).
+    Undecided,
+}
+
+/// The first root of `g` on `[a, b]` where `h = sign·g` is strictly convex there (step 3 of the
+/// module docs): brackets by the end values, then Newton steps towards the minimum of `h` from
+/// the tangents at the ends of each piece. Point values are counted in `evaluations`.
+pub(crate) fn convex_root<P: AlongRay>(
+    along: &mut P,
+    a: f64,
+    b: f64,
+    sign: f64,
+    tolerance: f64,
+    evaluations: &mut u32,
+) -> Curved {
+    const STEPS: u32 = 16;
+    let tolerance = tolerance.max(f64::MIN_POSITIVE);
+    let bracket = |along: &mut P, (t0, h0): (f64, f64), (t1, h1): (f64, f64), evaluations: &mut u32| {
+        let g = |t: f64| {
+            *evaluations = evaluations.saturating_add(1);
+            along.point(t)
+        };
+        Curved::Root(refine_bracket(g, (t0, sign * h0), (t1, sign * h1), tolerance))
+    };
+    *evaluations = evaluations.saturating_add(2);
+    let (ha, hb) = (sign * along.point(a), sign * along.point(b));
+    if !(ha.is_finite() && hb.is_finite()) {
+        return Curved::Undecided;
+    }
+    if ha == 0.0 {
+        return Curved::Root(a);
+    }
+    if ha < 0.0 {
+        // {h ≤ 0} is an interval holding a: a root only where it ends
+        return if hb < 0.0 {
+            Curved::NoRoot
+        } else if hb == 0.0 {
+            Curved::Root(b)
+        } else {
+            bracket(along, (a, ha), (b, hb), evaluations)
+        };
+    }
+    if hb < 0.0 {
+        return bracket(along, (a, ha), (b, hb), evaluations);
+    }
+    // h(a) > 0, h(b) ≥ 0: the minimum of h decides
+    let slope = |along: &mut P, t: f64, evaluations: &mut u32| {
+        *evaluations = evaluations.saturating_add(1);
+        let (g, dg) = along.point_slope(t);
+        (sign * g, sign * dg)
+    };
+    let (da, db) = (slope(along, a, evaluations).1, slope(along, b, evaluations).1);
+    let mut pieces = vec![(a, ha, da, b, hb, db)];
+    let mut steps = 0;
+    while let Some((t0, h0, d0, t1, h1, d1)) = pieces.pop() {
+        if !(d0.is_finite() && d1.is_finite()) {
+            return Curved::Undecided;
+        }
+        if d0 < 0.0 && d1 > 0.0 {
+            // the tangents at the ends meet at t0 + u, where their maximum is least
+            let width = t1 - t0;
+            let u = (h1 - h0 - d1 * width) / (d0 - d1);
+            let lower = h0 + d0 * u;
+            let scale = h0 + h1 + (d1 - d0) * width;
+            if !(lower > 1e-10 * scale) {
+                steps += 1;
+                let mut tm = t0 + u;
+                if !(tm > t0 && tm < t1) {
+                    tm = 0.5 * (t0 + t1);
+                }
+                if steps > STEPS || width <= tolerance || !(tm > t0 && tm < t1) {
+                    return Curved::Undecided;
+                }
+                let (hm, dm) = slope(along, tm, evaluations);
+                if !hm.is_finite() {
+                    return Curved::Undecided;
+                }
+                if hm < 0.0 {
+                    return bracket(along, (t0, h0), (tm, hm), evaluations);
+                }
+                if hm == 0.0 {
+                    return if dm < 0.0 { Curved::Root(tm) } else { Curved::Undecided };
+                }
+                pieces.push((tm, hm, dm, t1, h1, d1));
+                pieces.push((t0, h0, d0, tm, hm, dm));
+                continue;
+            }
+        }
+        // h > 0 on [t0, t1): monotone there, or above its tangents; a root only at t1
+        if h1 == 0.0 {
+            return Curved::Root(t1);
+        }
+    }
+    Curved::NoRoot
 }
 
 /// A stack of pieces kept in place for the usual depths (a piece list grows by one per halving
@@ -312,5 +448,79 @@ pub(crate) fn isolate_first_root<I: Implicit + ?Sized>(
         lipschitz_violated: false,
         evaluations,
         uncertain,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `g(t) = s·((t − c)² − e)` with its exact derivatives (`g″ = 2s`): roots `c ± √e`.
+    struct Parabola {
+        c: f64,
+        e: f64,
+        s: f64,
+    }
+
+    impl AlongRay for Parabola {
+        fn value(&mut self, _piece: Interval) -> Enclosure {
+            Enclosure::ENTIRE
+        }
+        fn jet(&mut self, _piece: Interval) -> Jet<Enclosure> {
+            Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE)
+        }
+        fn point(&mut self, t: f64) -> f64 {
+            self.s * ((t - self.c) * (t - self.c) - self.e)
+        }
+        fn within_boundary(&mut self, _t: f64) -> bool {
+            true
+        }
+        fn curvature_sign(&mut self, _piece: Interval) -> Option<f64> {
+            Some(self.s)
+        }
+        fn point_slope(&mut self, t: f64) -> (f64, f64) {
+            (self.point(t), self.s * 2.0 * (t - self.c))
+        }
+    }
+
+    /// The first root of convex and concave parabolas on [0, 1] against the closed form `c − √e`
+    /// (or `c + √e` where the first is before the piece), misses where `e < 0` or both roots lie
+    /// outside, and an exact double root left undecided or found, never missed.
+    #[test]
+    fn convex_pieces_give_the_first_root_or_none() {
+        let tolerance = 1e-9;
+        let mut checked = 0;
+        for &s in &[1.0, -1.0] {
+            for &c in &[0.05, 0.3, 0.5, 0.77, 0.98, 1.4, -0.2] {
+                for &e in &[-0.3, -1e-6, 1e-9, 1e-6, 0.01, 0.05, 0.2, 0.6] {
+                    let mut g = Parabola { c, e, s };
+                    let mut evaluations = 0;
+                    let got = convex_root(&mut g, 0.0, 1.0, s, tolerance, &mut evaluations);
+                    let expected = if e < 0.0 {
+                        None
+                    } else {
+                        let r = e.sqrt();
+                        [c - r, c + r].into_iter().find(|t| (0.0..=1.0).contains(t))
+                    };
+                    match (got, expected) {
+                        (Curved::Root(t), Some(x)) => {
+                            assert!((t - x).abs() <= 2.0 * tolerance, "{s} {c} {e}: {t} vs {x}")
+                        }
+                        (Curved::NoRoot, None) => {}
+                        other => panic!("s {s} c {c} e {e}: {other:?}"),
+                    }
+                    assert!(evaluations < 80, "{s} {c} {e}: {evaluations} evaluations");
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 112);
+        // a double root at 0.5: never reported as root-free
+        let mut touch = Parabola { c: 0.5, e: 0.0, s: 1.0 };
+        let got = convex_root(&mut touch, 0.0, 1.0, 1.0, tolerance, &mut 0);
+        assert!(
+            matches!(got, Curved::Undecided) || matches!(got, Curved::Root(t) if (t - 0.5).abs() < 1e-6),
+            "{got:?}"
+        );
     }
 }

@@ -10,6 +10,9 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 pub trait Scalar:
     Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self>
 {
+    /// Whether the arithmetic rounds outward with fused multiply-adds (intervals and jets of
+    /// them): tapes evaluate such types in a copy compiled for the CPU's FMA instruction.
+    const DIRECTED: bool = false;
     /// The number `c`.
     fn constant(c: f64) -> Self;
     /// `√x`.
@@ -177,6 +180,7 @@ impl Scalar for f64 {
 }
 
 impl Scalar for Enclosure {
+    const DIRECTED: bool = true;
     #[inline]
     fn constant(c: f64) -> Self {
         Enclosure::point(c)
@@ -308,7 +312,7 @@ impl<T: Scalar> Jet<T> {
 
 impl<T: Scalar> Add for Jet<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
         Self::new(self.value + o.value, self.slope + o.slope)
     }
@@ -316,7 +320,7 @@ impl<T: Scalar> Add for Jet<T> {
 
 impl<T: Scalar> Sub for Jet<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Self::new(self.value - o.value, self.slope - o.slope)
     }
@@ -324,7 +328,7 @@ impl<T: Scalar> Sub for Jet<T> {
 
 impl<T: Scalar> Mul for Jet<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn mul(self, o: Self) -> Self {
         Self::new(self.value * o.value, self.slope * o.value + self.value * o.slope)
     }
@@ -332,7 +336,7 @@ impl<T: Scalar> Mul for Jet<T> {
 
 impl<T: Scalar> Div for Jet<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn div(self, o: Self) -> Self {
         let q = self.value / o.value;
         Self::new(q, (self.slope - q * o.slope) / o.value)
@@ -341,13 +345,14 @@ impl<T: Scalar> Div for Jet<T> {
 
 impl<T: Scalar> Neg for Jet<T> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn neg(self) -> Self {
         Self::new(-self.value, -self.slope)
     }
 }
 
 impl<T: Scalar> Scalar for Jet<T> {
+    const DIRECTED: bool = T::DIRECTED;
     #[inline]
     fn constant(c: f64) -> Self {
         Self::new(T::constant(c), T::constant(0.0))

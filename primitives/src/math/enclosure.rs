@@ -35,7 +35,7 @@ pub struct Enclosure {
     flag: u64,
 }
 
-#[inline]
+#[inline(always)]
 fn down(x: f64, ulps: u32) -> f64 {
     let mut x = x;
     for _ in 0..ulps {
@@ -44,7 +44,7 @@ fn down(x: f64, ulps: u32) -> f64 {
     x
 }
 
-#[inline]
+#[inline(always)]
 fn up(x: f64, ulps: u32) -> f64 {
     let mut x = x;
     for _ in 0..ulps {
@@ -54,7 +54,7 @@ fn up(x: f64, ulps: u32) -> f64 {
 }
 
 /// `a + b` rounded towards −∞ (`DOWN`) or +∞, from the exact error of the nearest sum.
-#[inline]
+#[inline(always)]
 fn add_directed<const DOWN: bool>(a: f64, b: f64) -> f64 {
     let s = a + b;
     let bb = s - a;
@@ -62,32 +62,26 @@ fn add_directed<const DOWN: bool>(a: f64, b: f64) -> f64 {
     directed::<DOWN>(s, e)
 }
 
-/// The exact error `a·b − p` of the nearest product `p = a·b` by Dekker's two-product (Veltkamp's
-/// split, no fused multiply-add, which a portable build would call in software), or `None`
-/// outside the range where the split cannot overflow and the error is representable.
-#[inline]
+/// The exact error `a·b − p` of the nearest product `p = a·b` by one fused multiply-add, or
+/// `None` outside the range where the error is surely representable (no overflow of the
+/// product, no underflow of the error). The tape evaluators that do interval arithmetic run in a
+/// copy compiled for the CPU's FMA instruction where it has one ([`crate::expr::tape`]);
+/// elsewhere `mul_add` calls the C library's `fma`, exact in either case.
+#[inline(always)]
 fn product_error(a: f64, b: f64, p: f64) -> Option<f64> {
-    const SPLITTER: f64 = 134_217_729.0; // 2^27 + 1
     const BIG: f64 = f64::from_bits((1023 + 996) << 52); // 2^996
     const SMALL: f64 = f64::from_bits((1023 - 969) << 52); // 2^-969
     if !(a.abs() < BIG && b.abs() < BIG && p.abs() < BIG && p.abs() > SMALL) {
         return None;
     }
-    let split = |x: f64| {
-        let c = SPLITTER * x;
-        let hi = c - (c - x);
-        (hi, x - hi)
-    };
-    let (ah, al) = split(a);
-    let (bh, bl) = split(b);
-    Some(((ah * bh - p) + ah * bl + al * bh) + al * bl)
+    Some(a.mul_add(b, -p))
 }
 
 /// `a · b` rounded towards −∞ (`DOWN`) or +∞: the nearest product, moved one ulp to the
 /// requested side where its exact error says it lies on the other (exact products stay exact),
 /// or one ulp outward where the error cannot be computed; `0 · ∞ = 0` (the exact product of a
 /// finite zero factor with an unbounded one).
-#[inline]
+#[inline(always)]
 fn mul_directed<const DOWN: bool>(a: f64, b: f64) -> f64 {
     if a == 0.0 || b == 0.0 {
         return 0.0;
@@ -111,7 +105,7 @@ fn mul_directed<const DOWN: bool>(a: f64, b: f64) -> f64 {
 
 /// `a / b` rounded towards −∞ and towards +∞: the residual `a − q·b` (exact by FMA) has the
 /// sign of `(a/b − q)·b`.
-#[inline]
+#[inline(always)]
 fn div_both(a: f64, b: f64) -> (f64, f64) {
     let q = a / b;
     let r = (-q).mul_add(b, a);
@@ -120,7 +114,7 @@ fn div_both(a: f64, b: f64) -> (f64, f64) {
 }
 
 /// `√x` rounded towards −∞ (`DOWN`) or +∞: the residual `x − s²` has the sign of `√x − s`.
-#[inline]
+#[inline(always)]
 fn sqrt_directed<const DOWN: bool>(x: f64) -> f64 {
     let s = x.sqrt();
     directed::<DOWN>(s, (-s).mul_add(s, x))
@@ -128,7 +122,7 @@ fn sqrt_directed<const DOWN: bool>(x: f64) -> f64 {
 
 /// The rounded value `v` of an exact value `v + e`, moved one ulp to the requested side where it
 /// lies on the other; non-finite values or errors fall back to one ulp outward.
-#[inline]
+#[inline(always)]
 fn directed<const DOWN: bool>(v: f64, e: f64) -> f64 {
     if !v.is_finite() || !e.is_finite() {
         // an overflow to ±∞ or a NaN error: the plain outward step is still sound
@@ -173,7 +167,7 @@ impl Enclosure {
     }
 
     /// `[lo, hi]` widened outward by `ulps`, NaN bounds replaced by infinities, the flag kept.
-    #[inline]
+    #[inline(always)]
     fn widened(lo: f64, hi: f64, ulps: u32, undefined: bool) -> Self {
         let lo = if lo.is_nan() { f64::NEG_INFINITY } else { down(lo, ulps) };
         let hi = if hi.is_nan() { f64::INFINITY } else { up(hi, ulps) };
@@ -185,7 +179,7 @@ impl Enclosure {
     }
 
     /// `[lo, hi]` with NaN bounds (`∞ − ∞`, `∞ / ∞`) replaced by infinities.
-    #[inline]
+    #[inline(always)]
     fn checked(lo: f64, hi: f64, undefined: bool) -> Self {
         Self {
             lo: if lo.is_nan() { f64::NEG_INFINITY } else { lo },
@@ -226,7 +220,7 @@ impl Enclosure {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn either_undefined(self, other: Self) -> bool {
         self.undefined() || other.undefined()
     }
@@ -330,7 +324,7 @@ impl Enclosure {
     /// `xⁿ` for an integer `n`: the tight range (even powers are non-negative and smallest at the
     /// point of the argument nearest 0); negative `n` is `1 / x⁻ⁿ`.
     #[must_use]
-    #[inline]
+    #[inline(always)]
     pub fn powi(self, n: i32) -> Self {
         if n == 0 {
             return Self {
@@ -556,7 +550,7 @@ impl Enclosure {
 
 impl Neg for Enclosure {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn neg(self) -> Self {
         Self {
             lo: -self.hi,
@@ -568,7 +562,7 @@ impl Neg for Enclosure {
 
 impl Add for Enclosure {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
         Self::checked(
             add_directed::<true>(self.lo, o.lo),
@@ -580,7 +574,7 @@ impl Add for Enclosure {
 
 impl Sub for Enclosure {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Self::checked(
             add_directed::<true>(self.lo, -o.hi),
@@ -592,7 +586,7 @@ impl Sub for Enclosure {
 
 /// `xⁿ` for `n ≥ 1` by repeated squaring, inline (the same products, in the same order, as the
 /// runtime's `powi`).
-#[inline]
+#[inline(always)]
 pub(crate) fn power(x: f64, n: i32) -> f64 {
     let mut base = x;
     let mut n = n.unsigned_abs();
@@ -610,7 +604,7 @@ pub(crate) fn power(x: f64, n: i32) -> f64 {
 }
 
 /// The smallest lower and largest upper bound of four directed results.
-#[inline]
+#[inline(always)]
 fn hull_of(bounds: [(f64, f64); 4]) -> (f64, f64) {
     let lo = bounds[0].0.min(bounds[1].0).min(bounds[2].0.min(bounds[3].0));
     let hi = bounds[0].1.max(bounds[1].1).max(bounds[2].1.max(bounds[3].1));
@@ -621,7 +615,7 @@ impl Mul for Enclosure {
     type Output = Self;
     /// The product by the signs of the factors' bounds (two directed products in the eight
     /// cases where the signs decide which corners bound it, four where both straddle 0).
-    #[inline]
+    #[inline(always)]
     fn mul(self, o: Self) -> Self {
         let (al, ah, bl, bh) = (self.lo, self.hi, o.lo, o.hi);
         let down = mul_directed::<true>;
@@ -655,7 +649,7 @@ impl Mul for Enclosure {
 
 impl Div for Enclosure {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn div(self, o: Self) -> Self {
         if o.contains_zero() {
             return Self {
