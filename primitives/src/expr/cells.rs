@@ -78,12 +78,14 @@ enum Built {
 }
 
 fn child_box(lo: DVec3, hi: DVec3, bits: usize) -> (DVec3, DVec3) {
-    let mid = 0.5 * (lo + hi);
-    let pick = |axis: usize, l: f64, m: f64, h: f64| if bits >> axis & 1 == 1 { (m, h) } else { (l, m) };
-    let (x0, x1) = pick(0, lo.x, mid.x, hi.x);
-    let (y0, y1) = pick(1, lo.y, mid.y, hi.y);
-    let (z0, z1) = pick(2, lo.z, mid.z, hi.z);
-    (DVec3::new(x0, y0, z0), DVec3::new(x1, y1, z1))
+    child_box_at(lo, 0.5 * (lo + hi), hi, bits)
+}
+
+/// The child `bits` of the cell `[lo, hi]` whose mid-point is `mid`.
+#[inline]
+fn child_box_at(lo: DVec3, mid: DVec3, hi: DVec3, bits: usize) -> (DVec3, DVec3) {
+    let upper = glam::BVec3::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0);
+    (DVec3::select(upper, mid, lo), DVec3::select(upper, hi, mid))
 }
 
 /// Scratch space of a build (one per thread of it).
@@ -364,7 +366,7 @@ impl CellTree {
                     }
                     let child = children[bits];
                     if child != Cell::Empty {
-                        let (l, h) = child_box(lo, hi, bits);
+                        let (l, h) = child_box_at(lo, mid, hi, bits);
                         if self.walk_cell(child, l, h, origin, dir, inv, t, next, visit) {
                             return true;
                         }
