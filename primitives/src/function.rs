@@ -54,7 +54,8 @@ struct Scratch {
     enclosures: Vec<Enclosure>,
     jets: Vec<Jet<Enclosure>>,
     curvatures: Vec<Jet<Jet<Enclosure>>>,
-    gradients: Vec<Jet<f64>>,
+    gradients: Vec<Jet<f64, [f64; 3]>>,
+    slopes: Vec<Jet<f64>>,
 }
 
 thread_local! {
@@ -179,7 +180,7 @@ impl AlongRay for LeafAlong<'_> {
         };
         let d = self.ray.dir;
         let seed = |a: usize| Jet::new(p[a], d[a]);
-        let jet = tape.eval([seed(0), seed(1), seed(2)], &mut self.scratch.gradients);
+        let jet = tape.eval([seed(0), seed(1), seed(2)], &mut self.scratch.slopes);
         let g = finite_or_outside(jet.value);
         *self.last = (t, g);
         (g, jet.slope)

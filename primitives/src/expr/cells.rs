@@ -93,7 +93,7 @@ fn child_box_at(lo: DVec3, mid: DVec3, hi: DVec3, bits: usize) -> (DVec3, DVec3)
 struct Scratch {
     slots: Vec<Enclosure>,
     choices: Vec<Choice>,
-    jets: Vec<Jet<Enclosure>>,
+    jets: Vec<Jet<Enclosure, [Enclosure; 3]>>,
 }
 
 /// Whether the gradients enclosed by `gradient` lie in a cone of half-angle below 30° around
@@ -112,12 +112,16 @@ fn narrow_cone(gradient: &[Enclosure; 3]) -> bool {
     radius.length() < 0.5 * mid.length()
 }
 
-/// Enclosures of `∂Φ/∂x, ∂Φ/∂y, ∂Φ/∂z` over the box `vars` (forward mode, one axis at a time).
-fn enclose_gradient(tape: &Tape, vars: [Enclosure; 3], slots: &mut Vec<Jet<Enclosure>>) -> [Enclosure; 3] {
-    std::array::from_fn(|axis| {
-        let seed = |a: usize| Jet::new(vars[a], Enclosure::point(if a == axis { 1.0 } else { 0.0 }));
-        tape.eval([seed(0), seed(1), seed(2)], slots).slope
-    })
+/// Enclosures of `∂Φ/∂x, ∂Φ/∂y, ∂Φ/∂z` over the box `vars` (forward mode, the three axes in
+/// one pass).
+fn enclose_gradient(
+    tape: &Tape,
+    vars: [Enclosure; 3],
+    slots: &mut Vec<Jet<Enclosure, [Enclosure; 3]>>,
+) -> [Enclosure; 3] {
+    let unit = |axis: usize| std::array::from_fn(|a| Enclosure::point(if a == axis { 1.0 } else { 0.0 }));
+    tape.eval([0, 1, 2].map(|axis| Jet::new(vars[axis], unit(axis))), slots)
+        .slope
 }
 
 fn build(

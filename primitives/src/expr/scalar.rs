@@ -285,19 +285,102 @@ impl Scalar for Enclosure {
     }
 }
 
-/// `value + slope·h`: a number with its derivative along one direction (forward mode).
+/// What the slope of a [`Jet`] can be: a derivative along one direction (`T` itself), or the
+/// partial derivatives along the three axes at once (`[T; 3]`: a gradient in one pass, each
+/// component computed by the same operations as the one-direction jet along that axis).
+pub trait Tangent<T>: Copy {
+    /// The zero slope (of a constant).
+    fn zero() -> Self;
+    /// `self + o`.
+    fn plus(self, o: Self) -> Self;
+    /// `self − o`.
+    fn minus(self, o: Self) -> Self;
+    /// `−self`.
+    fn negated(self) -> Self;
+    /// `k · self` (the chain rule's factor on the left, as in one-direction jets).
+    fn scaled(self, k: T) -> Self;
+    /// `self / k`.
+    fn divided(self, k: T) -> Self;
+    /// A slope covering both (see [`Scalar::either`]).
+    fn covering(self, o: Self) -> Self;
+}
+
+impl<T: Scalar> Tangent<T> for T {
+    #[inline(always)]
+    fn zero() -> Self {
+        T::constant(0.0)
+    }
+    #[inline(always)]
+    fn plus(self, o: Self) -> Self {
+        self + o
+    }
+    #[inline(always)]
+    fn minus(self, o: Self) -> Self {
+        self - o
+    }
+    #[inline(always)]
+    fn negated(self) -> Self {
+        -self
+    }
+    #[inline(always)]
+    fn scaled(self, k: T) -> Self {
+        k * self
+    }
+    #[inline(always)]
+    fn divided(self, k: T) -> Self {
+        self / k
+    }
+    #[inline(always)]
+    fn covering(self, o: Self) -> Self {
+        self.either(o)
+    }
+}
+
+impl<T: Scalar> Tangent<T> for [T; 3] {
+    #[inline(always)]
+    fn zero() -> Self {
+        [T::constant(0.0); 3]
+    }
+    #[inline(always)]
+    fn plus(self, o: Self) -> Self {
+        [self[0] + o[0], self[1] + o[1], self[2] + o[2]]
+    }
+    #[inline(always)]
+    fn minus(self, o: Self) -> Self {
+        [self[0] - o[0], self[1] - o[1], self[2] - o[2]]
+    }
+    #[inline(always)]
+    fn negated(self) -> Self {
+        [-self[0], -self[1], -self[2]]
+    }
+    #[inline(always)]
+    fn scaled(self, k: T) -> Self {
+        [k * self[0], k * self[1], k * self[2]]
+    }
+    #[inline(always)]
+    fn divided(self, k: T) -> Self {
+        [self[0] / k, self[1] / k, self[2] / k]
+    }
+    #[inline(always)]
+    fn covering(self, o: Self) -> Self {
+        [self[0].either(o[0]), self[1].either(o[1]), self[2].either(o[2])]
+    }
+}
+
+/// `value + slope·h`: a number with its derivative along one direction (forward mode), or with
+/// its gradient (`S = [T; 3]`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Jet<T> {
+pub struct Jet<T, S = T> {
     /// The value.
     pub value: T,
     /// Its derivative.
-    pub slope: T,
+    pub slope: S,
 }
 
-impl<T: Scalar> Jet<T> {
+impl<T: Scalar, S: Tangent<T>> Jet<T, S> {
     /// A variable with value `value` whose derivative along the direction is `slope`.
     #[inline]
-    pub fn new(value: T, slope: T) -> Self {
+    pub fn new(value: T, slope: S) -> Self {
         Self { value, slope }
     }
 
@@ -305,57 +388,60 @@ impl<T: Scalar> Jet<T> {
     fn chain(self, value: T, derivative: T) -> Self {
         Self {
             value,
-            slope: derivative * self.slope,
+            slope: self.slope.scaled(derivative),
         }
     }
 }
 
-impl<T: Scalar> Add for Jet<T> {
+impl<T: Scalar, S: Tangent<T>> Add for Jet<T, S> {
     type Output = Self;
     #[inline(always)]
     fn add(self, o: Self) -> Self {
-        Self::new(self.value + o.value, self.slope + o.slope)
+        Self::new(self.value + o.value, self.slope.plus(o.slope))
     }
 }
 
-impl<T: Scalar> Sub for Jet<T> {
+impl<T: Scalar, S: Tangent<T>> Sub for Jet<T, S> {
     type Output = Self;
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
-        Self::new(self.value - o.value, self.slope - o.slope)
+        Self::new(self.value - o.value, self.slope.minus(o.slope))
     }
 }
 
-impl<T: Scalar> Mul for Jet<T> {
+impl<T: Scalar, S: Tangent<T>> Mul for Jet<T, S> {
     type Output = Self;
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
-        Self::new(self.value * o.value, self.slope * o.value + self.value * o.slope)
+        Self::new(
+            self.value * o.value,
+            self.slope.scaled(o.value).plus(o.slope.scaled(self.value)),
+        )
     }
 }
 
-impl<T: Scalar> Div for Jet<T> {
+impl<T: Scalar, S: Tangent<T>> Div for Jet<T, S> {
     type Output = Self;
     #[inline(always)]
     fn div(self, o: Self) -> Self {
         let q = self.value / o.value;
-        Self::new(q, (self.slope - q * o.slope) / o.value)
+        Self::new(q, self.slope.minus(o.slope.scaled(q)).divided(o.value))
     }
 }
 
-impl<T: Scalar> Neg for Jet<T> {
+impl<T: Scalar, S: Tangent<T>> Neg for Jet<T, S> {
     type Output = Self;
     #[inline(always)]
     fn neg(self) -> Self {
-        Self::new(-self.value, -self.slope)
+        Self::new(-self.value, self.slope.negated())
     }
 }
 
-impl<T: Scalar> Scalar for Jet<T> {
+impl<T: Scalar, S: Tangent<T>> Scalar for Jet<T, S> {
     const DIRECTED: bool = T::DIRECTED;
     #[inline]
     fn constant(c: f64) -> Self {
-        Self::new(T::constant(c), T::constant(0.0))
+        Self::new(T::constant(c), S::zero())
     }
     #[inline]
     fn sqrt(self) -> Self {
@@ -433,7 +519,7 @@ impl<T: Scalar> Scalar for Jet<T> {
     }
     #[inline]
     fn sign(self) -> Self {
-        Self::new(self.value.sign(), T::constant(0.0))
+        Self::new(self.value.sign(), S::zero())
     }
     #[inline]
     fn powi(self, n: i32) -> Self {
@@ -447,7 +533,11 @@ impl<T: Scalar> Scalar for Jet<T> {
     #[inline]
     fn pow(self, y: Self) -> Self {
         let r = self.value.pow(y.value);
-        Self::new(r, r * (y.slope * self.value.ln() + y.value * self.slope / self.value))
+        let slope = y
+            .slope
+            .scaled(self.value.ln())
+            .plus(self.slope.scaled(y.value).divided(self.value));
+        Self::new(r, slope.scaled(r))
     }
     #[inline]
     fn min(self, y: Self) -> Self {
@@ -456,7 +546,7 @@ impl<T: Scalar> Scalar for Jet<T> {
             Some(Ordering::Less) => self.slope,
             Some(Ordering::Greater) => y.slope,
             // equal points take the first; overlapping enclosures cover both branches
-            _ => self.slope.either(y.slope),
+            _ => self.slope.covering(y.slope),
         };
         Self::new(value, slope)
     }
@@ -466,7 +556,7 @@ impl<T: Scalar> Scalar for Jet<T> {
         let slope = match self.value.certain_order(y.value) {
             Some(Ordering::Greater) => self.slope,
             Some(Ordering::Less) => y.slope,
-            _ => self.slope.either(y.slope),
+            _ => self.slope.covering(y.slope),
         };
         Self::new(value, slope)
     }
@@ -476,6 +566,6 @@ impl<T: Scalar> Scalar for Jet<T> {
     }
     #[inline]
     fn either(self, y: Self) -> Self {
-        Self::new(self.value.either(y.value), self.slope.either(y.slope))
+        Self::new(self.value.either(y.value), self.slope.covering(y.slope))
     }
 }
