@@ -290,6 +290,30 @@ fn chunks_keep_line_numbers_and_order() {
     assert_eq!(err.location, "12");
 }
 
+/// A direction of length 1e-320 would put a hit at distance 5 at t = 5e320 = +∞ (a miss):
+/// refused on a line and in columns (both paths), while 2⁻⁵¹¹ itself is accepted.
+#[test]
+fn directions_whose_t_overflows_are_refused() {
+    assert_eq!(rays::MIN_DIRECTION, 2f64.powi(-511));
+    assert!((5.0 / 1e-320f64).is_infinite());
+    let message = rays::ray_from_fields(&[0.0, 0.0, 5.0, 0.0, 0.0, -1e-320], &rays::RaySetup::default()).unwrap_err();
+    assert!(
+        message.contains("too short") && message.contains("-1e-320"),
+        "{message}"
+    );
+    assert!(rays::ray_from_fields(
+        &[0.0, 0.0, 5.0, 0.0, 0.0, -rays::MIN_DIRECTION],
+        &rays::RaySetup::default()
+    )
+    .is_ok());
+    let origins = [0.0, 0.0, 5.0, 0.0, 0.0, 5.0];
+    let directions = [0.0, 0.0, -1.0, 0.0, 0.0, -1e-320];
+    let columns = rays::RayColumns::new(&origins, &directions, &[0.0], &[f64::INFINITY], None).unwrap();
+    let (index, message) = columns.rays(&rays::RaySetup::default()).unwrap_err();
+    assert_eq!(index, 1);
+    assert!(message.contains("too short"), "{message}");
+}
+
 #[test]
 fn npy_preamble_is_aligned_and_round_trips() {
     let p = npy_preamble(12_345_678_901, NPY_HIT_COLUMNS + 1);
