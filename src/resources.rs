@@ -245,8 +245,9 @@ pub fn try_vec<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>, NotEn
     Ok(v)
 }
 
-/// What a render holds at its peak, in the terms of [`RenderMemory::bytes`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// What a render holds at its peak, in the terms of [`RenderMemory::bytes`]. The scene itself
+/// (meshes, octrees) is not counted: it is loaded before the check, within its own limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RenderMemory {
     /// Width of the window rendered, in pixels.
     pub width: u32,
@@ -257,8 +258,16 @@ pub struct RenderMemory {
     /// Whole frames of the window's samples held at once (the command line's EXR writer: the
     /// interleaved frame, its planar copy and the compressed blocks; Python: the returned planes).
     pub frames: u64,
-    /// Pixels of a band buffer held besides the frames (a render in bands).
+    /// Pixels of the band buffers held besides the frames (a render in bands: for a streamed
+    /// render, [`crate::render::stream::bands_held`] bands).
     pub band_pixels: u64,
+    /// Bytes a band pixel holds besides its samples (a streamed render: the EXR blocks encoded
+    /// from the band, at most its samples' bytes and a header a block, and 3 a pixel for each
+    /// 8-bit preview written as the bands arrive).
+    pub band_extra: u64,
+    /// Bytes a pixel of the window held in whole planes besides the frames and previews (a
+    /// streamed depth preview keeps its `f32` depths, 4, then makes its 8-bit image, 3).
+    pub planes: u64,
     /// 8-bit RGB previews (3 bytes a pixel each).
     pub previews: u64,
     /// Samples per pixel.
@@ -268,15 +277,18 @@ pub struct RenderMemory {
 }
 
 impl RenderMemory {
-    /// Bytes of the frames, band, previews and each thread's per-pixel sample buffers
+    /// Bytes of the frames, bands, previews, planes and each thread's per-pixel sample buffers
     /// ([`BYTES_PER_SAMPLE`] a sample when `spp > 1`), saturating instead of overflowing.
     #[must_use]
     pub fn bytes(&self) -> u64 {
         let pixels = u64::from(self.width) * u64::from(self.height);
         let pixel_bytes = self.channels.saturating_mul(4);
         let frames = pixels.saturating_mul(pixel_bytes).saturating_mul(self.frames);
-        let band = self.band_pixels.saturating_mul(pixel_bytes);
+        let band = self
+            .band_pixels
+            .saturating_mul(pixel_bytes.saturating_add(self.band_extra));
         let previews = pixels.saturating_mul(3).saturating_mul(self.previews);
+        let planes = pixels.saturating_mul(self.planes);
         let per_thread = if self.spp > 1 {
             u64::from(self.spp).saturating_mul(BYTES_PER_SAMPLE)
         } else {
@@ -285,6 +297,7 @@ impl RenderMemory {
         frames
             .saturating_add(band)
             .saturating_add(previews)
+            .saturating_add(planes)
             .saturating_add(per_thread.saturating_mul(self.threads as u64))
     }
 
@@ -303,6 +316,40 @@ impl RenderMemory {
         )?;
         Ok(bytes)
     }
+}
+
+/// Samples a second one thread traces at best (a single sphere at 1 spp, writing included, traced
+/// 256 million pixels in 25 s on 2 threads): what [`long_work_warning`] divides by, so its
+/// times are lower bounds.
+pub const SAMPLES_PER_THREAD_SECOND: f64 = 5e6;
+
+/// Seconds of estimated work above which [`long_work_warning`] warns.
+pub const LONG_WORK_SECONDS: f64 = 180.0;
+
+/// A warning (without a `warning:` prefix) for a render of `views` views of `width × height`
+/// pixels at `spp` samples on `threads` threads whose samples would take more than
+/// [`LONG_WORK_SECONDS`] even at [`SAMPLES_PER_THREAD_SECOND`]; `None` below that.
+#[must_use]
+pub fn long_work_warning(width: u32, height: u32, spp: u32, views: usize, threads: usize) -> Option<String> {
+    let samples = f64::from(width) * f64::from(height) * f64::from(spp) * views.max(1) as f64;
+    let seconds = samples / (SAMPLES_PER_THREAD_SECOND * threads.max(1) as f64);
+    (seconds > LONG_WORK_SECONDS).then(|| {
+        let time = if seconds < 7200.0 {
+            format!("{:.0} minutes", seconds / 60.0)
+        } else {
+            format!("{:.1} hours", seconds / 3600.0)
+        };
+        let views = if views > 1 {
+            format!(" × {views} views")
+        } else {
+            String::new()
+        };
+        format!(
+            "{width}x{height} at {spp} spp{views} is {samples:.1e} samples: at least {time} on {threads} \
+             thread(s) (at {SAMPLES_PER_THREAD_SECOND:.0e} samples a second each, a simple scene's rate); \
+             Ctrl-C stops it and removes the unfinished outputs"
+        )
+    })
 }
 
 /// The thread count to use for a requested count, and a warning (without a `warning:` prefix)
@@ -560,6 +607,7 @@ mod tests {
             previews: 3,
             spp: 1,
             threads: 2,
+            ..RenderMemory::default()
         };
         let estimate = render.bytes();
         assert_eq!(estimate, 100_000 * 100_000 * (10 * 4 * 3 + 9));
@@ -587,6 +635,7 @@ mod tests {
             previews: 0,
             spp: u32::MAX,
             threads: usize::MAX,
+            ..RenderMemory::default()
         };
         assert_eq!(samples.bytes(), u64::MAX);
         // a band and its per-thread samples: 16 spp × 640 B × 4 threads
@@ -599,8 +648,25 @@ mod tests {
             previews: 0,
             spp: 16,
             threads: 4,
+            ..RenderMemory::default()
         };
         assert_eq!(band.bytes(), 50 * 8 + 16 * 640 * 4);
+        // a streamed 16000² render of 7 channels on 2 threads holds 6 bands of 16 rows, each
+        // pixel with its 28 B of samples, 28 B of EXR blocks and 1 B of block headers, and a
+        // depth preview's planes (7 B a pixel): 87.6 MB + 1.79 GB, not three 7.2 GB frames
+        let streamed = RenderMemory {
+            width: 16_000,
+            height: 16_000,
+            channels: 7,
+            band_pixels: 6 * 16 * 16_000,
+            band_extra: 29,
+            planes: 7,
+            spp: 1,
+            threads: 2,
+            ..RenderMemory::default()
+        };
+        assert_eq!(streamed.bytes(), 1_536_000 * 57 + 256_000_000 * 7);
+        assert_eq!(human_bytes(streamed.bytes()), "1.9 GB");
     }
 
     #[test]
@@ -610,6 +676,23 @@ mod tests {
         let err = try_with_capacity::<u64>(usize::MAX / 4, "a huge buffer").unwrap_err();
         assert_eq!(err.room, None);
         assert!(err.to_string().starts_with("a huge buffer needs about"), "{err}");
+    }
+
+    #[test]
+    fn long_work_is_announced() {
+        // 4000² × 1000 spp = 1.6e10 samples; at 5e6 a second on 2 threads: 1600 s = 27 minutes
+        let warning = long_work_warning(4000, 4000, 1000, 1, 2).unwrap();
+        assert!(
+            warning.starts_with("4000x4000 at 1000 spp is 1.6e10 samples: at least 27 minutes on 2 thread(s)"),
+            "{warning}"
+        );
+        // 1.6e12 samples on 16 threads: 20000 s = 5.6 hours
+        assert!(long_work_warning(40_000, 40_000, 1000, 1, 16)
+            .unwrap()
+            .contains("at least 5.6 hours"));
+        // 1920x1080 at 64 spp on 2 threads: 13.3 s, no warning; 2 views × 100 spp of 4000²: 320 s
+        assert_eq!(long_work_warning(1920, 1080, 64, 1, 2), None);
+        assert!(long_work_warning(4000, 4000, 100, 2, 2).unwrap().contains("× 2 views"));
     }
 
     #[test]
