@@ -19,8 +19,12 @@
 //!   [`INPUT_LIMIT_VAR`] says otherwise.
 
 use std::fmt;
-use std::io::{self, Read};
-use std::path::Path;
+
+mod input;
+pub use input::{
+    check_input_path, file_kind, input_limit, input_limit_or, open_input, read_input_to_string, BoundedReader,
+    InputFile,
+};
 
 /// Most worker threads per available core: more only adds scheduling overhead (and a pool of
 /// 100,000 threads takes minutes to start).
@@ -397,170 +401,6 @@ pub fn human_bytes(bytes: u64) -> String {
     }
 }
 
-/// The largest input file read: [`INPUT_LIMIT_VAR`] (a number of bytes) where set, else
-/// [`DEFAULT_INPUT_LIMIT`].
-///
-/// # Errors
-/// The variable is set but not a number of bytes.
-pub fn input_limit() -> io::Result<u64> {
-    match std::env::var(INPUT_LIMIT_VAR) {
-        Err(_) => Ok(DEFAULT_INPUT_LIMIT),
-        Ok(text) => text.trim().parse().map_err(|_| {
-            io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!("{INPUT_LIMIT_VAR}={text:?} is not a number of bytes"),
-            )
-        }),
-    }
-}
-
-/// An input file opened for a bounded read ([`open_input`]).
-#[derive(Debug)]
-pub struct InputFile {
-    file: std::fs::File,
-    len: u64,
-    limit: u64,
-    what: String,
-}
-
-/// Opens `path`, a `what` ("scene file", "pose file"), for a bounded read: a regular file of at
-/// most [`input_limit`] bytes. Nothing waits on a FIFO (it is opened without blocking, then
-/// refused like a device, a socket or a directory).
-///
-/// # Errors
-/// The file cannot be opened, is not a regular file, or is over the limit (the message gives
-/// its size, the limit and how to raise it); the path is the caller's to add.
-pub fn open_input(path: &Path, what: &str) -> io::Result<InputFile> {
-    let limit = input_limit()?;
-    let mut options = std::fs::OpenOptions::new();
-    options.read(true);
-    #[cfg(target_os = "linux")]
-    {
-        use std::os::unix::fs::OpenOptionsExt;
-        // a FIFO without a writer would block `open` for ever; regular files ignore the flag
-        options.custom_flags(libc::O_NONBLOCK);
-    }
-    let file = options.open(path)?;
-    let kind = file.metadata()?.file_type();
-    if !kind.is_file() {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!(
-                "not a regular file but {}: a {what} must be a regular file (a device or FIFO may never \
-                 end, or wait for ever)",
-                file_kind(&kind)
-            ),
-        ));
-    }
-    let len = file.metadata()?.len();
-    let input = InputFile {
-        file,
-        len,
-        limit,
-        what: what.to_string(),
-    };
-    if len > limit {
-        return Err(input.too_large(&format!("is {} ({len} bytes)", human_bytes(len))));
-    }
-    Ok(input)
-}
-
-/// "a directory", "a FIFO", … for a message.
-fn file_kind(kind: &std::fs::FileType) -> &'static str {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::FileTypeExt;
-        if kind.is_fifo() {
-            return "a FIFO (named pipe)";
-        }
-        if kind.is_char_device() {
-            return "a character device";
-        }
-        if kind.is_block_device() {
-            return "a block device";
-        }
-        if kind.is_socket() {
-            return "a socket";
-        }
-    }
-    if kind.is_dir() {
-        "a directory"
-    } else {
-        "not a file"
-    }
-}
-
-impl InputFile {
-    /// The file's length when it was opened.
-    #[must_use]
-    pub fn len(&self) -> u64 {
-        self.len
-    }
-
-    /// Whether the file was empty when it was opened.
-    #[must_use]
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-
-    /// The file as a reader that ends one byte past the limit (a file that grew past it since it
-    /// was opened then reads too long, which [`InputFile::read_to_string`] refuses).
-    pub fn reader(&mut self) -> impl Read + '_ {
-        (&mut self.file).take(self.limit.saturating_add(1))
-    }
-
-    /// The whole file as text, at most the limit, its buffer checked against the memory room and
-    /// reserved fallibly.
-    ///
-    /// # Errors
-    /// A read error, text that is not UTF-8, more than the limit read, or no memory for it.
-    pub fn read_to_string(mut self) -> io::Result<String> {
-        let what = format!("reading the {} ({})", self.what, human_bytes(self.len));
-        let len = usize::try_from(self.len).unwrap_or(usize::MAX);
-        let mut bytes = Vec::new();
-        ensure_memory(&what, self.len)
-            .and_then(|()| {
-                bytes.try_reserve_exact(len).map_err(|_| NotEnoughMemory {
-                    what: what.clone(),
-                    needed: self.len,
-                    room: None,
-                })
-            })
-            .map_err(|e| io::Error::new(io::ErrorKind::OutOfMemory, e.to_string()))?;
-        self.reader().read_to_end(&mut bytes)?;
-        if bytes.len() as u64 > self.limit {
-            return Err(self.too_large("grew while it was read"));
-        }
-        String::from_utf8(bytes).map_err(|e| {
-            io::Error::new(
-                io::ErrorKind::InvalidData,
-                format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
-            )
-        })
-    }
-
-    fn too_large(&self, state: &str) -> io::Error {
-        io::Error::new(
-            io::ErrorKind::FileTooLarge,
-            format!(
-                "the {} {state}, over the limit of {} ({} bytes) for input files; set {INPUT_LIMIT_VAR} \
-                 to a larger number of bytes to read it",
-                self.what,
-                human_bytes(self.limit),
-                self.limit
-            ),
-        )
-    }
-}
-
-/// The whole of `path`, a `what`, as text: [`open_input`] then [`InputFile::read_to_string`].
-///
-/// # Errors
-/// As those two.
-pub fn read_input_to_string(path: &Path, what: &str) -> io::Result<String> {
-    open_input(path, what)?.read_to_string()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -709,47 +549,5 @@ mod tests {
         assert_eq!(human_bytes(999), "999 B");
         assert_eq!(human_bytes(1_500_000), "1.5 MB");
         assert_eq!(human_bytes(40_000_000_000), "40.0 GB");
-    }
-
-    #[cfg(target_os = "linux")]
-    #[test]
-    fn devices_fifos_and_directories_are_refused_without_waiting() {
-        let dir = tempfile::tempdir().unwrap();
-        let fifo = dir.path().join("fifo");
-        let c_path = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
-        // SAFETY: a valid C string; mkfifo only creates the node
-        assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
-        for (path, kind) in [
-            (Path::new("/dev/zero"), "a character device"),
-            (fifo.as_path(), "a FIFO"),
-            (dir.path(), "a directory"),
-        ] {
-            let err = read_input_to_string(path, "scene file").unwrap_err().to_string();
-            assert!(
-                err.contains(kind) && err.contains("a scene file must be a regular file"),
-                "{err}"
-            );
-        }
-    }
-
-    #[test]
-    fn regular_files_are_read_within_the_limit() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("scene.ron");
-        std::fs::write(&path, "Scene()").unwrap();
-        assert_eq!(read_input_to_string(&path, "scene file").unwrap(), "Scene()");
-        let input = open_input(&path, "scene file").unwrap();
-        assert_eq!((input.len(), input.is_empty()), (7, false));
-        // over a limit of 4 bytes (the file as opened, then one that grew since)
-        let small = InputFile { limit: 4, ..input };
-        let err = small.too_large("is 7 B (7 bytes)").to_string();
-        assert!(
-            err.contains("the scene file is 7 B")
-                && err.contains("limit of 4 B (4 bytes)")
-                && err.contains(INPUT_LIMIT_VAR),
-            "{err}"
-        );
-        let err = small.read_to_string().unwrap_err();
-        assert_eq!(err.kind(), io::ErrorKind::FileTooLarge, "{err}");
     }
 }
