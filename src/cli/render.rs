@@ -6,10 +6,11 @@ use super::{uncertain_warning, RenderArgs};
 use crate::aov::Aov;
 use crate::camera::Camera;
 use crate::diagnostics::{uncertain_message, uncertain_since};
-use crate::output::atomic::{check_destination, write_atomically};
+use crate::output::atomic::{check_destination, require_file_destination, write_atomically};
 use crate::output::cameras_json::{cameras_json, exr_camera_attributes, transforms_json};
 use crate::output::exr::{size_estimate, write_exr_with, ExrCompression, ExrHeader};
 use crate::output::exr_stream::ExrStream;
+use crate::output::merge::SPP_ATTRIBUTE;
 use crate::output::png::{write_previews, PREVIEWS};
 use crate::output::png_stream::PreviewStream;
 use crate::render::stream::{band_rows, bands_held, render_view_to, BandSink};
@@ -42,6 +43,10 @@ pub(super) fn render_command(args: &RenderArgs) -> Result<()> {
     let previews = scene.outputs.previews && !args.no_previews;
     let views = view_files(&scene, &stem);
     let selected = selected_views(args, &scene, views.len())?;
+    // every file the render writes, checked before any is written (cameras.json comes first)
+    for path in output_files(&views, &selected, &dir, &stem, previews, args.transforms) {
+        require_file_destination(&path).with_context(|| format!("-o {}", args.output.display()))?;
+    }
     check_resources(&scene, &aovs, crop, previews, selected.len(), &dir, args.compression)?;
     write_camera_files(&views, &dir, &stem, args.transforms)?;
     let options = RenderOptions {
@@ -254,7 +259,16 @@ impl Job<'_> {
             world_to_ndc: camera.world_to_ndc(0.01, 1000.0),
             scene_file: self.args.scene.display().to_string(),
             depth_miss: self.args.depth_miss,
-            camera_attributes: exr_camera_attributes(camera, index),
+            camera_attributes: {
+                let mut attributes = exr_camera_attributes(camera, index);
+                // crops merge only with crops of the same samples (`zeroset merge` compares it)
+                let spp = i32::try_from(self.scene.sampling.spp).unwrap_or(i32::MAX);
+                attributes.push((
+                    SPP_ATTRIBUTE.to_string(),
+                    exr::meta::attribute::AttributeValue::I32(spp),
+                ));
+                attributes
+            },
         }
     }
 
@@ -454,6 +468,35 @@ fn warn_uncertain(exhausted: u64) {
 
 /// Writes `NAME.cameras.json` for every view (and `transforms.json` when asked) into `dir`,
 /// each atomically.
+/// The paths of the files a render writes: each selected view's EXR and previews, the cameras
+/// file and, with `--transforms`, `transforms.json`.
+fn output_files(
+    views: &[(&Camera, String)],
+    selected: &[usize],
+    dir: &Path,
+    stem: &str,
+    previews: bool,
+    transforms: bool,
+) -> Vec<PathBuf> {
+    let mut paths = vec![dir.join(format!("{stem}.cameras.json"))];
+    if transforms {
+        paths.push(dir.join("transforms.json"));
+    }
+    for &i in selected {
+        let file = &views[i].1;
+        paths.push(dir.join(file));
+        if previews {
+            let preview_stem = file.trim_end_matches(".exr");
+            paths.extend(
+                PREVIEWS
+                    .iter()
+                    .map(|(_, name)| dir.join(format!("{preview_stem}.{name}.png"))),
+            );
+        }
+    }
+    paths
+}
+
 fn write_camera_files(views: &[(&Camera, String)], dir: &Path, stem: &str, transforms: bool) -> Result<()> {
     let path = dir.join(format!("{stem}.cameras.json"));
     let text = cameras_json(views);
