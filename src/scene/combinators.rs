@@ -17,6 +17,7 @@ use glam::{DAffine3, DVec3};
 use serde::Deserialize;
 use std::sync::Arc;
 use zeroset_primitives::expr::excerpt;
+use zeroset_primitives::expr::faces::{negative_faces, FACE_NAMES};
 use zeroset_primitives::{
     Aabb, Csg, CsgOp, Expr, Function, Offset, Primitive, PrimitiveError, RootOptions, SmoothUnion, Transformed,
 };
@@ -265,6 +266,9 @@ impl SceneShape for FunctionDesc {
                 .warn("`lipschitz` is not needed (roots are isolated by interval arithmetic); it is only used by a SmoothUnion or Offset around this function that mixes it with a closed-form primitive");
         }
         check_search_box(self.min, self.max)?;
+        if let Some(warning) = box_cut_warning(&expr, self.min, self.max) {
+            context.warn(warning);
+        }
         let defaults = RootOptions::default();
         let options = RootOptions {
             tolerance: self.tolerance.unwrap_or(defaults.tolerance),
@@ -284,6 +288,35 @@ impl SceneShape for FunctionDesc {
         }
         Ok(Arc::new(function))
     }
+}
+
+/// The warning for a search box that cuts its surface: the faces on which Φ < 0 somewhere
+/// (proved by interval evaluation, [`zeroset_primitives::expr::faces`]), each with a point where
+/// it is; `None` where no face is cut.
+fn box_cut_warning(expr: &Expr, min: DVec3, max: DVec3) -> Option<String> {
+    let cuts = negative_faces(expr, min, max);
+    if cuts.is_empty() {
+        return None;
+    }
+    let faces: Vec<String> = cuts
+        .iter()
+        .map(|cut| {
+            let axis = cut.face / 2;
+            let name = ["x", "y", "z"][axis];
+            let at = if cut.face % 2 == 0 { min[axis] } else { max[axis] };
+            let w = cut.witness;
+            format!(
+                "{} ({name} = {at}; Φ < 0 at ({}, {}, {}))",
+                FACE_NAMES[cut.face], w.x, w.y, w.z
+            )
+        })
+        .collect();
+    Some(format!(
+        "the search box cuts the surface: Φ < 0 (inside) on its face{} {}, so the surface is cut open \
+         there (searched only inside the box); widen `min`/`max` until Φ > 0 on every face",
+        if faces.len() == 1 { "" } else { "s" },
+        faces.join(", ")
+    ))
 }
 
 /// A `Function`'s search box must have finite corners and positive thickness on every axis
