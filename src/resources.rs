@@ -19,8 +19,12 @@
 //!   [`INPUT_LIMIT_VAR`] says otherwise.
 
 use std::fmt;
-use std::io::{self, Read};
-use std::path::Path;
+
+mod input;
+pub use input::{
+    check_input_path, file_kind, input_limit, input_limit_or, open_input, read_input_to_string, BoundedReader,
+    InputFile,
+};
 
 /// Most worker threads per available core: more only adds scheduling overhead (and a pool of
 /// 100,000 threads takes minutes to start).
@@ -245,8 +249,9 @@ pub fn try_vec<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>, NotEn
     Ok(v)
 }
 
-/// What a render holds at its peak, in the terms of [`RenderMemory::bytes`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// What a render holds at its peak, in the terms of [`RenderMemory::bytes`]. The scene itself
+/// (meshes, octrees) is not counted: it is loaded before the check, within its own limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RenderMemory {
     /// Width of the window rendered, in pixels.
     pub width: u32,
@@ -257,8 +262,16 @@ pub struct RenderMemory {
     /// Whole frames of the window's samples held at once (the command line's EXR writer: the
     /// interleaved frame, its planar copy and the compressed blocks; Python: the returned planes).
     pub frames: u64,
-    /// Pixels of a band buffer held besides the frames (a render in bands).
+    /// Pixels of the band buffers held besides the frames (a render in bands: for a streamed
+    /// render, [`crate::render::stream::bands_held`] bands).
     pub band_pixels: u64,
+    /// Bytes a band pixel holds besides its samples (a streamed render: the EXR blocks encoded
+    /// from the band, at most its samples' bytes and a header a block, and 3 a pixel for each
+    /// 8-bit preview written as the bands arrive).
+    pub band_extra: u64,
+    /// Bytes a pixel of the window held in whole planes besides the frames and previews (a
+    /// streamed depth preview keeps its `f32` depths, 4, then makes its 8-bit image, 3).
+    pub planes: u64,
     /// 8-bit RGB previews (3 bytes a pixel each).
     pub previews: u64,
     /// Samples per pixel.
@@ -268,15 +281,18 @@ pub struct RenderMemory {
 }
 
 impl RenderMemory {
-    /// Bytes of the frames, band, previews and each thread's per-pixel sample buffers
+    /// Bytes of the frames, bands, previews, planes and each thread's per-pixel sample buffers
     /// ([`BYTES_PER_SAMPLE`] a sample when `spp > 1`), saturating instead of overflowing.
     #[must_use]
     pub fn bytes(&self) -> u64 {
         let pixels = u64::from(self.width) * u64::from(self.height);
         let pixel_bytes = self.channels.saturating_mul(4);
         let frames = pixels.saturating_mul(pixel_bytes).saturating_mul(self.frames);
-        let band = self.band_pixels.saturating_mul(pixel_bytes);
+        let band = self
+            .band_pixels
+            .saturating_mul(pixel_bytes.saturating_add(self.band_extra));
         let previews = pixels.saturating_mul(3).saturating_mul(self.previews);
+        let planes = pixels.saturating_mul(self.planes);
         let per_thread = if self.spp > 1 {
             u64::from(self.spp).saturating_mul(BYTES_PER_SAMPLE)
         } else {
@@ -285,6 +301,7 @@ impl RenderMemory {
         frames
             .saturating_add(band)
             .saturating_add(previews)
+            .saturating_add(planes)
             .saturating_add(per_thread.saturating_mul(self.threads as u64))
     }
 
@@ -303,6 +320,40 @@ impl RenderMemory {
         )?;
         Ok(bytes)
     }
+}
+
+/// Samples a second one thread traces at best (a single sphere at 1 spp, writing included, traced
+/// 256 million pixels in 25 s on 2 threads): what [`long_work_warning`] divides by, so its
+/// times are lower bounds.
+pub const SAMPLES_PER_THREAD_SECOND: f64 = 5e6;
+
+/// Seconds of estimated work above which [`long_work_warning`] warns.
+pub const LONG_WORK_SECONDS: f64 = 180.0;
+
+/// A warning (without a `warning:` prefix) for a render of `views` views of `width × height`
+/// pixels at `spp` samples on `threads` threads whose samples would take more than
+/// [`LONG_WORK_SECONDS`] even at [`SAMPLES_PER_THREAD_SECOND`]; `None` below that.
+#[must_use]
+pub fn long_work_warning(width: u32, height: u32, spp: u32, views: usize, threads: usize) -> Option<String> {
+    let samples = f64::from(width) * f64::from(height) * f64::from(spp) * views.max(1) as f64;
+    let seconds = samples / (SAMPLES_PER_THREAD_SECOND * threads.max(1) as f64);
+    (seconds > LONG_WORK_SECONDS).then(|| {
+        let time = if seconds < 7200.0 {
+            format!("{:.0} minutes", seconds / 60.0)
+        } else {
+            format!("{:.1} hours", seconds / 3600.0)
+        };
+        let views = if views > 1 {
+            format!(" × {views} views")
+        } else {
+            String::new()
+        };
+        format!(
+            "{width}x{height} at {spp} spp{views} is {samples:.1e} samples: at least {time} on {threads} \
+             thread(s) (at {SAMPLES_PER_THREAD_SECOND:.0e} samples a second each, a simple scene's rate); \
+             Ctrl-C stops it and removes the unfinished outputs"
+        )
+    })
 }
 
 /// The thread count to use for a requested count, and a warning (without a `warning:` prefix)
@@ -348,170 +399,6 @@ pub fn human_bytes(bytes: u64) -> String {
         1_000_000_000..1_000_000_000_000 => format!("{:.1} GB", b / 1e9),
         _ => format!("{:.1} TB", b / 1e12),
     }
-}
-
-/// The largest input file read: [`INPUT_LIMIT_VAR`] (a number of bytes) where set, else
-/// [`DEFAULT_INPUT_LIMIT`].
-///
-/// # Errors
-/// The variable is set but not a number of bytes.
-pub fn input_limit() -> io::Result<u64> {
-    match std::env::var(INPUT_LIMIT_VAR) {
-        Err(_) => Ok(DEFAULT_INPUT_LIMIT),
-        Ok(text) => text.trim().parse().map_err(|_| {
-            io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!("{INPUT_LIMIT_VAR}={text:?} is not a number of bytes"),
-            )
-        }),
-    }
-}
-
-/// An input file opened for a bounded read ([`open_input`]).
-#[derive(Debug)]
-pub struct InputFile {
-    file: std::fs::File,
-    len: u64,
-    limit: u64,
-    what: String,
-}
-
-/// Opens `path`, a `what` ("scene file", "pose file"), for a bounded read: a regular file of at
-/// most [`input_limit`] bytes. Nothing waits on a FIFO (it is opened without blocking, then
-/// refused like a device, a socket or a directory).
-///
-/// # Errors
-/// The file cannot be opened, is not a regular file, or is over the limit (the message gives
-/// its size, the limit and how to raise it); the path is the caller's to add.
-pub fn open_input(path: &Path, what: &str) -> io::Result<InputFile> {
-    let limit = input_limit()?;
-    let mut options = std::fs::OpenOptions::new();
-    options.read(true);
-    #[cfg(target_os = "linux")]
-    {
-        use std::os::unix::fs::OpenOptionsExt;
-        // a FIFO without a writer would block `open` for ever; regular files ignore the flag
-        options.custom_flags(libc::O_NONBLOCK);
-    }
-    let file = options.open(path)?;
-    let kind = file.metadata()?.file_type();
-    if !kind.is_file() {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!(
-                "not a regular file but {}: a {what} must be a regular file (a device or FIFO may never \
-                 end, or wait for ever)",
-                file_kind(&kind)
-            ),
-        ));
-    }
-    let len = file.metadata()?.len();
-    let input = InputFile {
-        file,
-        len,
-        limit,
-        what: what.to_string(),
-    };
-    if len > limit {
-        return Err(input.too_large(&format!("is {} ({len} bytes)", human_bytes(len))));
-    }
-    Ok(input)
-}
-
-/// "a directory", "a FIFO", … for a message.
-fn file_kind(kind: &std::fs::FileType) -> &'static str {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::FileTypeExt;
-        if kind.is_fifo() {
-            return "a FIFO (named pipe)";
-        }
-        if kind.is_char_device() {
-            return "a character device";
-        }
-        if kind.is_block_device() {
-            return "a block device";
-        }
-        if kind.is_socket() {
-            return "a socket";
-        }
-    }
-    if kind.is_dir() {
-        "a directory"
-    } else {
-        "not a file"
-    }
-}
-
-impl InputFile {
-    /// The file's length when it was opened.
-    #[must_use]
-    pub fn len(&self) -> u64 {
-        self.len
-    }
-
-    /// Whether the file was empty when it was opened.
-    #[must_use]
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-
-    /// The file as a reader that ends one byte past the limit (a file that grew past it since it
-    /// was opened then reads too long, which [`InputFile::read_to_string`] refuses).
-    pub fn reader(&mut self) -> impl Read + '_ {
-        (&mut self.file).take(self.limit.saturating_add(1))
-    }
-
-    /// The whole file as text, at most the limit, its buffer checked against the memory room and
-    /// reserved fallibly.
-    ///
-    /// # Errors
-    /// A read error, text that is not UTF-8, more than the limit read, or no memory for it.
-    pub fn read_to_string(mut self) -> io::Result<String> {
-        let what = format!("reading the {} ({})", self.what, human_bytes(self.len));
-        let len = usize::try_from(self.len).unwrap_or(usize::MAX);
-        let mut bytes = Vec::new();
-        ensure_memory(&what, self.len)
-            .and_then(|()| {
-                bytes.try_reserve_exact(len).map_err(|_| NotEnoughMemory {
-                    what: what.clone(),
-                    needed: self.len,
-                    room: None,
-                })
-            })
-            .map_err(|e| io::Error::new(io::ErrorKind::OutOfMemory, e.to_string()))?;
-        self.reader().read_to_end(&mut bytes)?;
-        if bytes.len() as u64 > self.limit {
-            return Err(self.too_large("grew while it was read"));
-        }
-        String::from_utf8(bytes).map_err(|e| {
-            io::Error::new(
-                io::ErrorKind::InvalidData,
-                format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
-            )
-        })
-    }
-
-    fn too_large(&self, state: &str) -> io::Error {
-        io::Error::new(
-            io::ErrorKind::FileTooLarge,
-            format!(
-                "the {} {state}, over the limit of {} ({} bytes) for input files; set {INPUT_LIMIT_VAR} \
-                 to a larger number of bytes to read it",
-                self.what,
-                human_bytes(self.limit),
-                self.limit
-            ),
-        )
-    }
-}
-
-/// The whole of `path`, a `what`, as text: [`open_input`] then [`InputFile::read_to_string`].
-///
-/// # Errors
-/// As those two.
-pub fn read_input_to_string(path: &Path, what: &str) -> io::Result<String> {
-    open_input(path, what)?.read_to_string()
 }
 
 #[cfg(test)]
@@ -560,6 +447,7 @@ mod tests {
             previews: 3,
             spp: 1,
             threads: 2,
+            ..RenderMemory::default()
         };
         let estimate = render.bytes();
         assert_eq!(estimate, 100_000 * 100_000 * (10 * 4 * 3 + 9));
@@ -587,6 +475,7 @@ mod tests {
             previews: 0,
             spp: u32::MAX,
             threads: usize::MAX,
+            ..RenderMemory::default()
         };
         assert_eq!(samples.bytes(), u64::MAX);
         // a band and its per-thread samples: 16 spp × 640 B × 4 threads
@@ -599,8 +488,25 @@ mod tests {
             previews: 0,
             spp: 16,
             threads: 4,
+            ..RenderMemory::default()
         };
         assert_eq!(band.bytes(), 50 * 8 + 16 * 640 * 4);
+        // a streamed 16000² render of 7 channels on 2 threads holds 6 bands of 16 rows, each
+        // pixel with its 28 B of samples, 28 B of EXR blocks and 1 B of block headers, and a
+        // depth preview's planes (7 B a pixel): 87.6 MB + 1.79 GB, not three 7.2 GB frames
+        let streamed = RenderMemory {
+            width: 16_000,
+            height: 16_000,
+            channels: 7,
+            band_pixels: 6 * 16 * 16_000,
+            band_extra: 29,
+            planes: 7,
+            spp: 1,
+            threads: 2,
+            ..RenderMemory::default()
+        };
+        assert_eq!(streamed.bytes(), 1_536_000 * 57 + 256_000_000 * 7);
+        assert_eq!(human_bytes(streamed.bytes()), "1.9 GB");
     }
 
     #[test]
@@ -610,6 +516,23 @@ mod tests {
         let err = try_with_capacity::<u64>(usize::MAX / 4, "a huge buffer").unwrap_err();
         assert_eq!(err.room, None);
         assert!(err.to_string().starts_with("a huge buffer needs about"), "{err}");
+    }
+
+    #[test]
+    fn long_work_is_announced() {
+        // 4000² × 1000 spp = 1.6e10 samples; at 5e6 a second on 2 threads: 1600 s = 27 minutes
+        let warning = long_work_warning(4000, 4000, 1000, 1, 2).unwrap();
+        assert!(
+            warning.starts_with("4000x4000 at 1000 spp is 1.6e10 samples: at least 27 minutes on 2 thread(s)"),
+            "{warning}"
+        );
+        // 1.6e12 samples on 16 threads: 20000 s = 5.6 hours
+        assert!(long_work_warning(40_000, 40_000, 1000, 1, 16)
+            .unwrap()
+            .contains("at least 5.6 hours"));
+        // 1920x1080 at 64 spp on 2 threads: 13.3 s, no warning; 2 views × 100 spp of 4000²: 320 s
+        assert_eq!(long_work_warning(1920, 1080, 64, 1, 2), None);
+        assert!(long_work_warning(4000, 4000, 100, 2, 2).unwrap().contains("× 2 views"));
     }
 
     #[test]
@@ -626,47 +549,5 @@ mod tests {
         assert_eq!(human_bytes(999), "999 B");
         assert_eq!(human_bytes(1_500_000), "1.5 MB");
         assert_eq!(human_bytes(40_000_000_000), "40.0 GB");
-    }
-
-    #[cfg(target_os = "linux")]
-    #[test]
-    fn devices_fifos_and_directories_are_refused_without_waiting() {
-        let dir = tempfile::tempdir().unwrap();
-        let fifo = dir.path().join("fifo");
-        let c_path = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
-        // SAFETY: a valid C string; mkfifo only creates the node
-        assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
-        for (path, kind) in [
-            (Path::new("/dev/zero"), "a character device"),
-            (fifo.as_path(), "a FIFO"),
-            (dir.path(), "a directory"),
-        ] {
-            let err = read_input_to_string(path, "scene file").unwrap_err().to_string();
-            assert!(
-                err.contains(kind) && err.contains("a scene file must be a regular file"),
-                "{err}"
-            );
-        }
-    }
-
-    #[test]
-    fn regular_files_are_read_within_the_limit() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("scene.ron");
-        std::fs::write(&path, "Scene()").unwrap();
-        assert_eq!(read_input_to_string(&path, "scene file").unwrap(), "Scene()");
-        let input = open_input(&path, "scene file").unwrap();
-        assert_eq!((input.len(), input.is_empty()), (7, false));
-        // over a limit of 4 bytes (the file as opened, then one that grew since)
-        let small = InputFile { limit: 4, ..input };
-        let err = small.too_large("is 7 B (7 bytes)").to_string();
-        assert!(
-            err.contains("the scene file is 7 B")
-                && err.contains("limit of 4 B (4 bytes)")
-                && err.contains(INPUT_LIMIT_VAR),
-            "{err}"
-        );
-        let err = small.read_to_string().unwrap_err();
-        assert_eq!(err.kind(), io::ErrorKind::FileTooLarge, "{err}");
     }
 }

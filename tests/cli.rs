@@ -1165,3 +1165,75 @@ fn exhausted_budgets_are_counted_and_flagged() {
         stderr(&o)
     );
 }
+
+/// Crops rendered with different `--spp` are refused by `merge` (the header records the spp),
+/// naming both files and both counts; nothing is written.
+#[test]
+fn merge_refuses_crops_of_different_spp() {
+    let dir = tempfile::tempdir().unwrap();
+    let render_to = |name: &str, crop: &str, spp: &str| {
+        let path = dir.path().join(name);
+        let args = [
+            "render",
+            "scenes/default.ron",
+            "-o",
+            p(&path),
+            "--no-previews",
+            "--width",
+            "24",
+            "--height",
+            "16",
+            "--crop",
+            crop,
+            "--spp",
+            spp,
+        ];
+        assert_ok(&run(&args), name);
+        path
+    };
+    let left = render_to("left.exr", "0,0,10,16", "4");
+    let right = render_to("right.exr", "10,0,24,16", "16");
+    let merged = dir.path().join("merged.exr");
+    let o = run(&["merge", p(&left), p(&right), "-o", p(&merged)]);
+    assert_fails(
+        &o,
+        &[p(&right), "rendered at 16 spp", p(&left), "at 4 spp", "same --spp"],
+        "crops of different spp",
+    );
+    assert!(!merged.exists());
+    // the same spp merges
+    let right4 = render_to("right4.exr", "10,0,24,16", "4");
+    assert_ok(&run(&["merge", p(&left), p(&right4), "-o", p(&merged)]), "same spp");
+}
+
+/// `-o DIR.exr` where DIR.exr is a directory, and `-o link.exr` where the link points to
+/// `/dev/null`, are refused before anything is written (no cameras.json) or traced.
+#[cfg(unix)]
+#[test]
+fn output_paths_that_are_not_files_are_refused_before_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let taken = dir.path().join("taken.exr");
+    std::fs::create_dir(&taken).unwrap();
+    let o = run(&["render", "scenes/sphere.ron", "-o", p(&taken), "--no-previews"]);
+    assert_fails(&o, &[p(&taken), "is a directory, not a regular file"], "a directory");
+    assert!(!dir.path().join("taken.cameras.json").exists());
+    let link = dir.path().join("link.exr");
+    std::os::unix::fs::symlink("/dev/null", &link).unwrap();
+    let o = run(&["render", "scenes/sphere.ron", "-o", p(&link), "--no-previews"]);
+    let err = assert_fails(
+        &o,
+        &[
+            p(&link),
+            "a link to /dev/null",
+            "a character device, not a regular file",
+        ],
+        "a link to /dev/null",
+    );
+    assert!(!err.contains("writing"), "refused before the render: {err}");
+    assert!(!dir.path().join("link.cameras.json").exists());
+    // a preview that would replace a directory is refused too
+    std::fs::create_dir(dir.path().join("p.depth.png")).unwrap();
+    let o = run(&["render", "scenes/sphere.ron", "-o", p(&dir.path().join("p.exr"))]);
+    assert_fails(&o, &["p.depth.png", "is a directory"], "a preview path");
+    assert!(!dir.path().join("p.exr").exists() && !dir.path().join("p.cameras.json").exists());
+}

@@ -12,8 +12,8 @@ enum Form {
     Flat,
     /// `Difference(children: [Difference(children: [… box, h₁ …]), hₙ])`, left-deep.
     Chain,
-    /// The chain with every level wrapped in an identity `Transformed`, which stops flattening:
-    /// the renderer walks the nested tree itself.
+    /// The chain with every level wrapped in an identity `Transformed`, which flattening looks
+    /// through: it loads as the flat form too.
     WrappedChain,
 }
 
@@ -83,31 +83,6 @@ fn assert_identical(a: &Frame, b: &Frame) {
     assert_covered(a);
 }
 
-/// Alpha and depth are equal bit for bit; normals (and beauty, if `shading`) agree to `1e-6` (an
-/// identity `Transformed` renormalises the normal, which may move it by an ulp).
-///
-/// Beauty is left out for hundreds of nested `Transformed`s: each multiplies the hit-error bound
-/// that offsets shadow-ray origins by its map's Frobenius norm (√3 for the identity), so at 300
-/// levels the bound is meaningless and shadows differ. That is `Transformed`'s bound, not CSG.
-fn assert_same_hits(a: &Frame, b: &Frame, shading: bool) {
-    for (aov, channels) in [(Aov::Alpha, 1), (Aov::Depth, 1)] {
-        assert!(bits(a, aov, channels) == bits(b, aov, channels), "{aov:?} differs");
-    }
-    let compared: &[(Aov, usize)] = if shading {
-        &[(Aov::Beauty, 3), (Aov::Normal, 3)]
-    } else {
-        &[(Aov::Normal, 3)]
-    };
-    for &(aov, channels) in compared {
-        for c in 0..channels {
-            let (x, y) = (a.planar_channel(aov, c), b.planar_channel(aov, c));
-            let worst = x.iter().zip(&y).map(|(p, q)| (p - q).abs()).fold(0.0f32, f32::max);
-            assert!(worst <= 1e-6, "{aov:?}[{c}] differs by {worst}");
-        }
-    }
-    assert_covered(a);
-}
-
 fn assert_covered(a: &Frame) {
     let hits = a.planar_channel(Aov::Alpha, 0).iter().filter(|&&v| v == 1.0).count();
     assert!(
@@ -120,14 +95,46 @@ fn assert_covered(a: &Frame) {
 fn sixteen_hole_chain_renders_as_the_flat_difference() {
     let flat = render_at(&holes_scene(16, Form::Flat), 160, 120);
     assert_identical(&flat, &render_at(&holes_scene(16, Form::Chain), 160, 120));
-    assert_same_hits(&flat, &render_at(&holes_scene(16, Form::WrappedChain), 160, 120), true);
+    // the identity transforms are folded at load: the same tree, so the same bits
+    assert_identical(&flat, &render_at(&holes_scene(16, Form::WrappedChain), 160, 120));
 }
 
 #[test]
 fn three_hundred_level_chains_load_and_render_as_the_flat_difference() {
     let flat = render_at(&holes_scene(300, Form::Flat), 40, 30);
     assert_identical(&flat, &render_at(&holes_scene(300, Form::Chain), 40, 30));
-    assert_same_hits(&flat, &render_at(&holes_scene(300, Form::WrappedChain), 40, 30), false);
+    assert_identical(&flat, &render_at(&holes_scene(300, Form::WrappedChain), 40, 30));
+}
+
+/// The wrapped chain loads as one flat `Difference` of the box and its 16 holes, no
+/// `Transformed` left; a non-identity transform is kept (and nested ones composed into one).
+#[test]
+fn identity_transforms_are_folded_and_nested_ones_composed() {
+    let scene = Scene::from_ron(&holes_scene(16, Form::WrappedChain), "w.ron").unwrap();
+    let tree = format!("{:?}", scene.objects[0].primitive);
+    assert!(!tree.contains("Transformed"), "{tree}");
+    assert_eq!(tree.matches("Cylinder").count(), 16, "{tree}");
+    assert_eq!(tree.matches("Csg").count(), 1, "one flat Difference: {tree}");
+    // a unit sphere moved by (1, 0, 0), then scaled by 2: centre (2, 0, 0), radius 2; a ray
+    // from (2, 0, −10) along +z meets it at t = 8, and (3, 0, −10) at t = 10 − √3
+    let nested = "Scene(camera: (eye: (0, 0, -5), look_at: (0, 0, 0)), objects: [(shape: \
+                  Transformed(shape: Transformed(shape: Sphere(radius: 1), transform: (translate: (1, 0, 0))), \
+                  transform: (scale: (2, 2, 2))))])";
+    let scene = Scene::from_ron(nested, "n.ron").unwrap();
+    let tree = format!("{:?}", scene.objects[0].primitive);
+    assert_eq!(tree.matches("Transformed").count(), 1, "composed into one: {tree}");
+    for (x, expected) in [(2.0, 8.0), (3.0, 10.0 - 3f64.sqrt())] {
+        let ray = zeroset_primitives::Ray::new(glam::DVec3::new(x, 0.0, -10.0), glam::DVec3::Z);
+        let (_, hit) = scene.intersect(&ray, zeroset_primitives::Interval::POSITIVE).unwrap();
+        assert!((hit.t - expected).abs() < 1e-12, "x = {x}: t = {}", hit.t);
+    }
+    // an error inside a folded identity transform names the path through it
+    let text = holes_scene(3, Form::WrappedChain).replacen("radius: 0.6", "radius: -0.6", 1);
+    let message = Scene::from_ron(&text, "bad.ron").unwrap_err().to_string();
+    assert!(
+        message.contains("children[0] (Transformed).shape (Difference).children[0] (Transformed)"),
+        "{message}"
+    );
 }
 
 #[test]

@@ -122,3 +122,54 @@ fn a_negative_origin_precision_names_the_option_and_its_range() {
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// A `Function` whose box is smaller than its surface is reported at load: the object and the
+/// faces it cuts, each with a point where Φ < 0; a box that encloses the surface (even touching
+/// it) is not.
+#[test]
+fn a_search_box_that_cuts_the_surface_is_reported_with_its_faces() {
+    let warnings = |min: &str, max: &str| {
+        Scene::from_ron(&function_scene("x^2 + y^2 + z^2 - 1", min, max), "f.ron")
+            .unwrap()
+            .warnings
+    };
+    assert!(warnings("(-1.2, -1.2, -1.2)", "(1.2, 1.2, 1.2)").is_empty());
+    assert!(warnings("(-1, -1, -1)", "(1, 1, 1)").is_empty());
+    // the unit sphere in x ≤ 0.5: only the +X face (x = 0.5) cuts it
+    let cut = warnings("(-1.2, -1.2, -1.2)", "(0.5, 1.2, 1.2)");
+    assert_eq!(cut.len(), 1, "{cut:?}");
+    let w = &cut[0];
+    assert!(
+        w.starts_with("objects[1] (Function): the search box cuts the surface"),
+        "{w}"
+    );
+    assert!(w.contains("face +X (x = 0.5; Φ < 0 at (0.5, "), "{w}");
+    for other in ["−X", "−Y", "+Y", "−Z", "+Z"] {
+        assert!(!w.contains(other), "{other} is not cut: {w}");
+    }
+    // on the command line, the warning is printed before the render
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_file(
+        dir.path(),
+        "cut.ron",
+        function_scene("x^2 + y^2 + z^2 - 1", "(-0.8, -0.8, -0.8)", "(0.8, 0.8, 0.8)"),
+    );
+    let out = bin()
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            dir.path().join("o").to_str().unwrap(),
+            "--no-previews",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let err = stderr(&out);
+    assert!(
+        err.contains(
+            "warning: objects[1] (Function): the search box cuts the surface: Φ < 0 (inside) on its faces −X (x = -0.8"
+        ),
+        "{err}"
+    );
+}

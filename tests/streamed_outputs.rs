@@ -13,7 +13,7 @@ use zeroset::output::exr::{write_exr_with, ExrCompression, ExrHeader};
 use zeroset::output::exr_stream::ExrStream;
 use zeroset::output::png::{write_previews, PREVIEWS};
 use zeroset::output::png_stream::PreviewStream;
-use zeroset::render::stream::{render_view_to, BandSink};
+use zeroset::render::stream::{bands_held, render_view_to, BandSink};
 use zeroset::render::{render_view, Frame, FrameLayout, RenderOptions, Window};
 use zeroset::scene::Scene;
 
@@ -270,4 +270,54 @@ fn a_failing_sink_stops_the_render_and_the_old_file_stays() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     assert_eq!(names, vec!["old.exr".to_string()], "no temporary file is left");
+}
+
+/// A sink slower than the trace: counts the bands traced and not yet written (each is held in
+/// memory meanwhile), and the most at once.
+struct Slow {
+    held: AtomicUsize,
+    most: AtomicUsize,
+    written: AtomicUsize,
+}
+
+impl BandSink for Slow {
+    fn prepare(&self, _first_row: u32, _rows: &[f32]) -> anyhow::Result<Vec<u8>> {
+        let now = self.held.fetch_add(1, Ordering::SeqCst) + 1;
+        self.most.fetch_max(now, Ordering::SeqCst);
+        Ok(Vec::new())
+    }
+
+    fn write(&self, _first_row: u32, _rows: &[f32], _prepared: Vec<u8>) -> anyhow::Result<()> {
+        // a slow disk: every band takes a while to write, while the others trace on
+        std::thread::sleep(std::time::Duration::from_millis(3));
+        self.held.fetch_sub(1, Ordering::SeqCst);
+        self.written.fetch_add(1, Ordering::SeqCst);
+        Ok(())
+    }
+}
+
+/// 60 bands of 16 rows traced by 1, 3 and 6 threads into a sink far slower than the trace: no
+/// more than `bands_held(threads)` (4, 8, 14) are ever held, and every band is written. Without
+/// the bound the fast trace ran ahead by most of the 60.
+#[test]
+fn bands_traced_ahead_of_a_slow_sink_are_bounded() {
+    let mut scene = scene("");
+    scene.camera = scene.camera.with_resolution(8, 960).unwrap();
+    let options = options(None, f32::INFINITY);
+    for threads in [1, 3, 6] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let slow = Slow {
+            held: AtomicUsize::new(0),
+            most: AtomicUsize::new(0),
+            written: AtomicUsize::new(0),
+        };
+        pool.install(|| render_view_to(&scene, &scene.camera, &options, &[&slow]))
+            .unwrap();
+        assert_eq!(slow.written.load(Ordering::SeqCst), 60, "{threads} threads");
+        let most = slow.most.load(Ordering::SeqCst);
+        assert!(
+            most <= bands_held(threads) && bands_held(threads) == 2 * threads + 2,
+            "{threads} threads: {most} bands held at once"
+        );
+    }
 }

@@ -24,7 +24,10 @@
 //!   is that face's normal, exact. A direction component of `±0` leaves that slab unconstrained
 //!   if `minᵢ ≤ oᵢ ≤ maxᵢ` and misses otherwise: the box is closed, so **a ray lying in a face
 //!   plane touches the box**; it hits where it enters the closed face (an edge, reported with
-//!   the face it crossed there), or at `t_min` when its origin already lies on the face.
+//!   the face it crossed there), and a ray that already lies on the face at `t_min` hits where
+//!   it leaves it, the far edge (with the face it crosses there): the answer a ray nudged into
+//!   the box would give, whatever `t_min` is (answering `t_min` itself gave `t = 5·10⁻³²⁴` for an
+//!   open range starting at 0, which flipped under any perturbation).
 //!   Returns the entry `t_near` if it is in the query interval, else the exit `t_far`.
 
 use crate::bounds::Aabb;
@@ -160,7 +163,6 @@ impl Intersect for Cuboid {
         fn test(this: &Cuboid, ray: &Ray, range: Interval) -> Option<RawHit> {
             let (mut t_near, mut near_face) = (f64::NEG_INFINITY, 0);
             let (mut t_far, mut far_face) = (f64::INFINITY, 0);
-            let mut in_face_plane = None;
             for axis in 0..3 {
                 let (o, d) = (ray.origin[axis], ray.dir[axis]);
                 let (lo, hi) = (this.min[axis], this.max[axis]);
@@ -169,9 +171,6 @@ impl Intersect for Cuboid {
                     // parallel to this slab (±0): inside or on it constrains nothing, else a miss
                     if !(lo <= o && o <= hi) {
                         return None;
-                    }
-                    if o == lo || o == hi {
-                        in_face_plane = Some(lower + u32::from(o == hi));
                     }
                     continue;
                 }
@@ -192,12 +191,6 @@ impl Intersect for Cuboid {
             }
             if t_near.is_finite() && range.contains(t_near) {
                 return Some(RawHit::on_feature(t_near, near_face));
-            }
-            if let Some(face) = in_face_plane {
-                // the ray runs along a face and is on it at t_min: it touches the closed box there
-                if t_near < range.min && range.min <= t_far && range.min.is_finite() && range.contains(range.min) {
-                    return Some(RawHit::on_feature(range.min, face));
-                }
             }
             if t_far.is_finite() && range.contains(t_far) {
                 return Some(RawHit::on_feature(t_far, far_face));
@@ -332,17 +325,28 @@ mod tests {
     }
 
     #[test]
-    fn ray_in_a_face_plane_touches_the_closed_box() {
+    fn ray_in_a_face_plane_touches_the_closed_box_and_leaves_it_stably() {
         let b = cuboid();
         // in the plane y = 4 (the +Y face): enters the face across the edge x = 1 at t = 1
         let ray = Ray::new(DVec3::new(0.0, 4.0, 5.0), DVec3::X);
         let h = b.intersect(&ray, Interval::POSITIVE).unwrap();
         assert_eq!((h.t, h.feature), (1.0, 0));
-        // starting on that face: the touch is at t_min, on the face itself
+        // starting on that face: it leaves the face across the far edge x = 2 at t = 0.5 (+X),
+        // whatever t_min is: not t_min itself (5e-324 for the open range from 0)
         let ray = Ray::new(DVec3::new(1.5, 4.0, 5.0), DVec3::X);
-        let h = b.intersect(&ray, Interval::new(0.25, 10.0)).unwrap();
-        assert_eq!((h.t, h.feature), (0.25, 3));
-        assert_eq!(b.normal_at(&ray, &h), DVec3::Y);
+        for t_min in [f64::from_bits(1), 1e-300, 1e-9, 0.25, 0.5] {
+            let h = b.intersect(&ray, Interval::new(t_min, 10.0)).unwrap();
+            assert_eq!((h.t, h.feature), (0.5, 1), "t_min {t_min}");
+            assert_eq!(b.normal_at(&ray, &h), DVec3::X);
+        }
+        // the same ray nudged into the box by an ulp: the same exit
+        let nudged = Ray::new(DVec3::new(1.5, 4.0f64.next_down(), 5.0), DVec3::X);
+        let h = b.intersect(&nudged, Interval::new(f64::from_bits(1), 10.0)).unwrap();
+        assert_eq!((h.t, h.feature), (0.5, 1));
+        // along −Z on the face: leaves across the edge z = 3 at t = 2 (−Z face)
+        let down = Ray::new(DVec3::new(1.5, 4.0, 5.0), -DVec3::Z);
+        let h = b.intersect(&down, Interval::new(f64::from_bits(1), 10.0)).unwrap();
+        assert_eq!((h.t, h.feature), (2.0, 4));
         // past the face's end: nothing
         assert!(b.intersect(&ray, Interval::new(0.75, 10.0)).is_none());
         // in the face plane but beside the face

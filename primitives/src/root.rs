@@ -1,7 +1,8 @@
 //! The generic intersector: first root of Φ along a ray, for any [`Implicit`] type.
 //!
 //! 1. **Clip** the query interval to the type's bounds (slab test); unbounded types march the
-//!    whole query interval, which must then be finite.
+//!    whole query interval, out to the farthest finite point where it runs to `+∞` (see
+//!    [`first_root`]).
 //! 2. **Bracket** the first sign change of `g(t) = Φ(origin + t·dir)`:
 //!    - with a declared Lipschitz bound `L` (|∇Φ| ≤ L), step by `|g(t)| / (L·|dir|)` (sphere
 //!      tracing), never less than the tolerance: the ball of that radius holds no root, so no
@@ -73,6 +74,16 @@ impl<I: Implicit + ?Sized> Marcher<'_, I> {
 }
 
 /// The first point in `range` where Φ crosses zero along `ray` (see the module docs).
+///
+/// **Unbounded surfaces** (infinite bounds, e.g. an [`crate::Offset`] or [`crate::SmoothUnion`]
+/// of a [`crate::Plane`]) whose clipped range runs to `+∞` are marched from `range.min` to the
+/// farthest `t` whose point is finite ([`far_end`]): with a Lipschitz bound by sphere tracing
+/// over the whole of it (the steps grow with `|Φ|`, so a ray leaving the surface reaches the far
+/// end in about `ln(10³⁰⁸) / ln(1 + 1.6·cos θ)` steps), without one by
+/// [`RootOptions::samples`] samples over segments that double in length. A ray that runs out of
+/// [`RootOptions::max_evaluations`] first (one nearly parallel to a plane) is counted as
+/// uncertain, never a silent miss; so is an unbounded range that starts at `−∞`, which has no
+/// first point to march from.
 pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval, options: &RootOptions) -> RootReport {
     let mut report = RootReport {
         hit: None,
@@ -86,92 +97,192 @@ pub fn first_root<I: Implicit + ?Sized>(surface: &I, ray: &Ray, range: Interval,
     let Some(clipped) = surface.bounds().expanded(margin).clip(ray, range) else {
         return report;
     };
-    if !clipped.min.is_finite() || !clipped.max.is_finite() || !ray.is_valid() {
+    if !ray.is_valid() || clipped.min.is_nan() || clipped.max.is_nan() {
         return report;
+    }
+    if !clipped.min.is_finite() || !clipped.max.is_finite() {
+        return first_root_unbounded(surface, ray, clipped, options);
     }
     if surface.enclose_value_along(ray, clipped).is_some() {
         return crate::isolation::isolate_first_root(surface, ray, clipped, options);
     }
-    let dir_len = ray.dir.length();
-    let tolerance = options.tolerance.max(f64::MIN_POSITIVE);
     let mut m = Marcher {
         surface,
         ray,
         evaluations: 0,
     };
-    let (t_start, t_end) = (clipped.min, clipped.max);
-
-    let mut t0 = t_start;
-    let mut g0 = m.g(t0);
-    let uniform_step = (t_end - t_start) / f64::from(options.samples.max(1));
-    let mut slope = surface.lipschitz().map(|l| l * dir_len);
-    let mut relax = RELAXATION;
-
-    while t0 < t_end && m.evaluations < options.max_evaluations {
-        if g0 == 0.0 && surface.within_boundary(ray.at(t0)) {
-            report.hit = Some(RawHit::at(t0));
-            break;
-        }
-        let radius = slope.map(|k| g0.abs() / k);
-        let step = match radius {
-            // over-relaxed step (Keinert et al. 2014); checked below
-            Some(r) => (relax * r).max(tolerance),
-            None => uniform_step,
-        };
-        let mut t1 = (t0 + step).min(t_end);
-        let mut g1 = m.g(t1);
-        if let (Some(k), Some(r0)) = (slope, radius) {
-            let same_sign = (g0 < 0.0) == (g1 < 0.0) && g1 != 0.0;
-            if relax > 1.0 && same_sign && r0 + g1.abs() / k < t1 - t0 {
-                // the two root-free balls leave a gap: retake the plain sphere-tracing step
-                relax = 1.0;
-                continue;
-            }
-            // the midpoint too: a wrong bound can step over a whole thin part between two samples
-            // of equal sign and similar value, which the end points alone cannot reveal
-            let observed = if t1 - t0 > 2.0 * tolerance {
-                let mid = 0.5 * (t0 + t1);
-                let gm = m.g(mid);
-                let observed = ((gm - g0).abs() / (mid - t0)).max((g1 - gm).abs() / (t1 - mid));
-                if (g0 < 0.0) != (gm < 0.0) || gm == 0.0 {
-                    // the crossing is in the first half: take that half as the step
-                    (t1, g1) = (mid, gm);
-                }
-                observed
-            } else {
-                (g1 - g0).abs() / (t1 - t0)
-            };
-            if observed > k * (1.0 + 1e-9) + f64::MIN_POSITIVE {
-                if !report.lipschitz_violated {
-                    report.lipschitz_violated = true;
-                    LIPSCHITZ_VIOLATIONS.fetch_add(1, Ordering::Relaxed);
-                }
-                slope = Some(2.0 * observed);
-                relax = 1.0;
-                // re-march from t0 with the steeper slope unless the step was already minimal
-                if step > tolerance {
-                    continue;
-                }
-            }
-            relax = RELAXATION;
-        }
-        if (g0 < 0.0) != (g1 < 0.0) || g1 == 0.0 {
-            let t = if g1 == 0.0 {
-                t1
-            } else {
-                refine_bracket(|t| m.g(t), (t0, g0), (t1, g1), tolerance)
-            };
-            if surface.within_boundary(ray.at(t)) {
-                report.hit = Some(RawHit::at(t));
-                break;
-            }
-        }
-        t0 = t1;
-        g0 = g1;
-    }
-    if report.hit.is_none() && t0 < t_end && m.evaluations >= options.max_evaluations {
+    let mut march = March::start(&mut m, clipped.min, options);
+    march.segment(&mut m, &mut report, clipped.max, options);
+    if report.hit.is_none() && march.t0 < clipped.max && m.evaluations >= options.max_evaluations {
         record_budget_exhaustion();
     }
     report.evaluations = m.evaluations;
     report
+}
+
+/// The largest `t` at which `ray.at(t)` is surely finite: `t·|dir|∞ ≤ ½·f64::MAX` (less the
+/// origin's magnitude), or `f64::MAX` for a direction so short that this is not representable.
+#[must_use]
+pub fn far_end(ray: &Ray) -> f64 {
+    let room = (0.5 * f64::MAX - ray.origin.abs().max_element()).max(0.0);
+    let t = room / ray.dir.abs().max_element();
+    if t.is_finite() {
+        t
+    } else {
+        f64::MAX
+    }
+}
+
+/// [`first_root`] where the clipped range is infinite (see its docs).
+fn first_root_unbounded<I: Implicit + ?Sized>(
+    surface: &I,
+    ray: &Ray,
+    clipped: Interval,
+    options: &RootOptions,
+) -> RootReport {
+    let mut report = RootReport {
+        hit: None,
+        lipschitz_violated: false,
+        evaluations: 0,
+        uncertain: false,
+    };
+    let t_far = far_end(ray).min(clipped.max);
+    if !clipped.min.is_finite() || clipped.min >= t_far {
+        // no first point to march from (or none before the point overflows): undecided
+        report.uncertain = clipped.min < clipped.max;
+        if report.uncertain {
+            note_uncertain_on_thread();
+        }
+        return report;
+    }
+    let mut m = Marcher {
+        surface,
+        ray,
+        evaluations: 0,
+    };
+    let mut march = March::start(&mut m, clipped.min, options);
+    if march.slope.is_some() {
+        // sphere tracing needs no segments: its steps are safe whatever the length
+        march.segment(&mut m, &mut report, t_far, options);
+    } else {
+        // uniform samples over segments doubling in length, starting at the scale of the origin
+        let dir_len = ray.dir.length();
+        let mut length = (ray.origin.abs().max_element().max(1.0) / dir_len).max(f64::MIN_POSITIVE);
+        while report.hit.is_none() && march.t0 < t_far && m.evaluations < options.max_evaluations {
+            let end = if t_far - march.t0 > length {
+                march.t0 + length
+            } else {
+                t_far
+            };
+            march.segment(&mut m, &mut report, end, options);
+            length *= 2.0;
+        }
+    }
+    if report.hit.is_none() && march.t0 < t_far && m.evaluations >= options.max_evaluations {
+        record_budget_exhaustion();
+        report.uncertain = true;
+    }
+    report.evaluations = m.evaluations;
+    report
+}
+
+/// The state of one march along a ray, carried from one segment to the next.
+struct March {
+    t0: f64,
+    g0: f64,
+    slope: Option<f64>,
+    relax: f64,
+    tolerance: f64,
+}
+
+impl March {
+    fn start<I: Implicit + ?Sized>(m: &mut Marcher<'_, I>, t_start: f64, options: &RootOptions) -> Self {
+        let dir_len = m.ray.dir.length();
+        let g0 = m.g(t_start);
+        Self {
+            t0: t_start,
+            g0,
+            slope: m.surface.lipschitz().map(|l| l * dir_len),
+            relax: RELAXATION,
+            tolerance: options.tolerance.max(f64::MIN_POSITIVE),
+        }
+    }
+
+    /// Marches from `self.t0` to `t_end` (steps 2–3 of the module docs), setting `report.hit`
+    /// at the first root; stops there, at `t_end`, or when the budget is spent.
+    fn segment<I: Implicit + ?Sized>(
+        &mut self,
+        m: &mut Marcher<'_, I>,
+        report: &mut RootReport,
+        t_end: f64,
+        options: &RootOptions,
+    ) {
+        let (surface, ray, tolerance) = (m.surface, m.ray, self.tolerance);
+        let uniform_step = (t_end - self.t0) / f64::from(options.samples.max(1));
+        let Self {
+            t0, g0, slope, relax, ..
+        } = self;
+        while *t0 < t_end && m.evaluations < options.max_evaluations {
+            if *g0 == 0.0 && surface.within_boundary(ray.at(*t0)) {
+                report.hit = Some(RawHit::at(*t0));
+                break;
+            }
+            let radius = slope.map(|k| g0.abs() / k);
+            let step = match radius {
+                // over-relaxed step (Keinert et al. 2014); checked below
+                Some(r) => (*relax * r).max(tolerance),
+                None => uniform_step,
+            };
+            let mut t1 = (*t0 + step).min(t_end);
+            let mut g1 = m.g(t1);
+            if let (Some(k), Some(r0)) = (*slope, radius) {
+                let same_sign = (*g0 < 0.0) == (g1 < 0.0) && g1 != 0.0;
+                if *relax > 1.0 && same_sign && r0 + g1.abs() / k < t1 - *t0 {
+                    // the two root-free balls leave a gap: retake the plain sphere-tracing step
+                    *relax = 1.0;
+                    continue;
+                }
+                // the midpoint too: a wrong bound can step over a whole thin part between two
+                // samples of equal sign and similar value, which the end points alone cannot reveal
+                let observed = if t1 - *t0 > 2.0 * tolerance {
+                    let mid = 0.5 * (*t0 + t1);
+                    let gm = m.g(mid);
+                    let observed = ((gm - *g0).abs() / (mid - *t0)).max((g1 - gm).abs() / (t1 - mid));
+                    if (*g0 < 0.0) != (gm < 0.0) || gm == 0.0 {
+                        // the crossing is in the first half: take that half as the step
+                        (t1, g1) = (mid, gm);
+                    }
+                    observed
+                } else {
+                    (g1 - *g0).abs() / (t1 - *t0)
+                };
+                if observed > k * (1.0 + 1e-9) + f64::MIN_POSITIVE {
+                    if !report.lipschitz_violated {
+                        report.lipschitz_violated = true;
+                        LIPSCHITZ_VIOLATIONS.fetch_add(1, Ordering::Relaxed);
+                    }
+                    *slope = Some(2.0 * observed);
+                    *relax = 1.0;
+                    // re-march from t0 with the steeper slope unless the step was already minimal
+                    if step > tolerance {
+                        continue;
+                    }
+                }
+                *relax = RELAXATION;
+            }
+            if (*g0 < 0.0) != (g1 < 0.0) || g1 == 0.0 {
+                let t = if g1 == 0.0 {
+                    t1
+                } else {
+                    refine_bracket(|t| m.g(t), (*t0, *g0), (t1, g1), tolerance)
+                };
+                if surface.within_boundary(ray.at(t)) {
+                    report.hit = Some(RawHit::at(t));
+                    break;
+                }
+            }
+            *t0 = t1;
+            *g0 = g1;
+        }
+    }
 }

@@ -362,6 +362,7 @@ impl PyScene {
                 previews: 0,
                 spp: spp.unwrap_or(scene.sampling.spp),
                 threads,
+                ..RenderMemory::default()
             }
             .ensure()
             .map_err(memory_error)?;

@@ -4,8 +4,8 @@
 holes16_flat.ron     Difference(children: [box, h1, ..., h16])
 holes16_chain.ron    the left-deep chain Difference(children: [Difference(... [box, h1] ...), h16]),
                      as a generator would write it (flattened to the flat form at load)
-holes16_wrapped.ron  the chain with each level inside an identity Transformed, which is not
-                     flattened: the renderer walks all 16 nested levels
+holes16_wrapped.ron  the chain with each level inside an identity Transformed, which is folded
+                     at load: flattened to the flat form too
 
 The same geometry as `holes_scene` in tests/csg_scenes.rs. Usage: python3 make_holes.py [N]
 """

@@ -8,6 +8,7 @@ use crate::query::rays::{scene_magnitude, RangeConvention, RaySetup};
 use crate::query::{
     run_batch_in, CsvHits, CsvRays, HitSink, NpyHits, NpyRays, NpyStream, RaySource, VecRays, CHUNK_RAYS,
 };
+use crate::resources::open_input;
 use crate::scene::Scene;
 use anyhow::{bail, Context, Result};
 use std::io::{BufReader, BufWriter};
@@ -27,10 +28,13 @@ pub(super) fn query_command(args: &QueryArgs) -> Result<()> {
         (Some(rays), _) => {
             let rays_name = rays.display().to_string();
             // `Stdin`, not its lock: the rays are read on whichever thread of the pool is free
+            // a regular file within the input limit (never a FIFO or device), read with that bound;
+            // standard input streams (lines and headers are bounded by the readers)
             let input: Box<dyn std::io::Read + Send> = if rays.as_os_str() == "-" {
                 Box::new(std::io::stdin())
             } else {
-                Box::new(std::fs::File::open(rays).with_context(|| format!("reading {rays_name}"))?)
+                let file = open_input(rays, "ray file").with_context(|| format!("reading {rays_name}"))?;
+                Box::new(file.into_reader())
             };
             let input = BufReader::with_capacity(1 << 20, input);
             match args.rays_format.unwrap_or_else(|| BatchFormat::of(rays)) {

@@ -6,16 +6,17 @@ use super::{uncertain_warning, RenderArgs};
 use crate::aov::Aov;
 use crate::camera::Camera;
 use crate::diagnostics::{uncertain_message, uncertain_since};
-use crate::output::atomic::{check_destination, write_atomically};
+use crate::output::atomic::{check_destination, require_file_destination, write_atomically};
 use crate::output::cameras_json::{cameras_json, exr_camera_attributes, transforms_json};
-use crate::output::exr::{size_estimate, write_exr_with, ExrHeader};
+use crate::output::exr::{size_estimate, write_exr_with, ExrCompression, ExrHeader};
 use crate::output::exr_stream::ExrStream;
+use crate::output::merge::SPP_ATTRIBUTE;
 use crate::output::png::{write_previews, PREVIEWS};
 use crate::output::png_stream::PreviewStream;
-use crate::render::stream::{render_view_to, BandSink};
+use crate::render::stream::{band_rows, bands_held, render_view_to, BandSink};
 use crate::render::views::{render_views, view_files};
 use crate::render::{Frame, FrameLayout, RenderOptions, Window};
-use crate::resources::{process_cpu_seconds, RenderMemory};
+use crate::resources::{human_bytes, long_work_warning, process_cpu_seconds, RenderMemory};
 use crate::scene::Scene;
 use anyhow::{bail, Context, Result};
 use rayon::iter::{IntoParallelIterator, ParallelIterator};
@@ -42,7 +43,11 @@ pub(super) fn render_command(args: &RenderArgs) -> Result<()> {
     let previews = scene.outputs.previews && !args.no_previews;
     let views = view_files(&scene, &stem);
     let selected = selected_views(args, &scene, views.len())?;
-    check_resources(&scene, &aovs, crop, previews, selected.len(), &dir)?;
+    // every file the render writes, checked before any is written (cameras.json comes first)
+    for path in output_files(&views, &selected, &dir, &stem, previews, args.transforms) {
+        require_file_destination(&path).with_context(|| format!("-o {}", args.output.display()))?;
+    }
+    check_resources(&scene, &aovs, crop, previews, selected.len(), &dir, args.compression)?;
     write_camera_files(&views, &dir, &stem, args.transforms)?;
     let options = RenderOptions {
         aovs,
@@ -123,9 +128,12 @@ fn apply_overrides(scene: &mut Scene, args: &RenderArgs) -> Result<Option<Window
 }
 
 /// The resources a render of `views` views needs, checked before any tracing: memory for its
-/// buffers (several views are rendered a batch of one per thread at a time, each holding its
-/// frame and the EXR writer's copies), and a writable directory `dir` with room for the EXR and
-/// the previews.
+/// buffers, and a writable directory `dir` with room for the EXR and the previews. One view is
+/// streamed ([`render_view_to`]): it holds [`bands_held`] bands (their samples, the EXR blocks
+/// encoded from them, the preview rows) and, with a depth preview, that preview's whole planes
+/// (its `f32` depths, then its 8-bit image). Several views are rendered a batch of one per thread
+/// at a time, each holding its frame, the EXR writer's copies and its previews. The estimate is
+/// printed; work estimated at more than a few minutes is announced ([`long_work_warning`]).
 fn check_resources(
     scene: &Scene,
     aovs: &[Aov],
@@ -133,6 +141,7 @@ fn check_resources(
     previews: bool,
     views: usize,
     dir: &Path,
+    compression: ExrCompression,
 ) -> Result<()> {
     let window = crop.unwrap_or(Window {
         x0: 0,
@@ -145,27 +154,52 @@ fn check_resources(
     distinct.sort();
     distinct.dedup();
     let channels: u64 = distinct.iter().map(|a| a.channels().len() as u64).sum();
-    let preview_count = if previews {
-        distinct
-            .iter()
-            .filter(|a| matches!(a, Aov::Beauty | Aov::Depth | Aov::Normal))
-            .count() as u64
-    } else {
-        0
-    };
+    let previewed = |a: &&Aov| previews && matches!(a, Aov::Beauty | Aov::Depth | Aov::Normal);
+    let preview_count = distinct.iter().filter(previewed).count() as u64;
+    let depth_previewed = distinct.iter().filter(previewed).any(|a| *a == Aov::Depth);
     let threads = rayon::current_num_threads();
-    let in_flight = views.clamp(1, threads.max(1)) as u64;
-    RenderMemory {
-        width: window.width(),
-        height: window.height(),
-        channels,
-        frames: 3 * in_flight,
-        band_pixels: 0,
-        previews: preview_count * in_flight,
-        spp: scene.sampling.spp,
-        threads,
+    let memory = if views == 1 {
+        let rows = band_rows(compression.codec().scan_lines_per_block() as u32).min(window.height());
+        let streamed_previews = preview_count - u64::from(depth_previewed);
+        RenderMemory {
+            width: window.width(),
+            height: window.height(),
+            channels,
+            band_pixels: bands_held(threads) as u64 * u64::from(rows) * u64::from(window.width()),
+            // the encoded EXR blocks (at most the samples' bytes, and a block header counted as a
+            // byte a pixel), the streamed previews' 8-bit rows
+            band_extra: 4 * channels + 1 + 3 * streamed_previews,
+            planes: if depth_previewed { 4 + 3 } else { 0 },
+            spp: scene.sampling.spp,
+            threads,
+            ..RenderMemory::default()
+        }
+    } else {
+        let in_flight = views.clamp(1, threads.max(1)) as u64;
+        RenderMemory {
+            width: window.width(),
+            height: window.height(),
+            channels,
+            frames: 3 * in_flight,
+            previews: preview_count * in_flight,
+            spp: scene.sampling.spp,
+            threads,
+            ..RenderMemory::default()
+        }
+    };
+    let estimate = memory.ensure()?;
+    eprintln!(
+        "memory: about {} for the render's buffers ({})",
+        human_bytes(estimate),
+        if views == 1 {
+            "bands streamed to the outputs"
+        } else {
+            "whole frames, one per view in flight"
+        }
+    );
+    if let Some(warning) = long_work_warning(window.width(), window.height(), scene.sampling.spp, views, threads) {
+        eprintln!("warning: {warning}");
     }
-    .ensure()?;
     let disk = size_estimate(pixels, channels, u64::from(window.height())) + pixels * 3 * preview_count;
     check_destination(dir, disk.saturating_mul(views.max(1) as u64))
 }
@@ -225,7 +259,16 @@ impl Job<'_> {
             world_to_ndc: camera.world_to_ndc(0.01, 1000.0),
             scene_file: self.args.scene.display().to_string(),
             depth_miss: self.args.depth_miss,
-            camera_attributes: exr_camera_attributes(camera, index),
+            camera_attributes: {
+                let mut attributes = exr_camera_attributes(camera, index);
+                // crops merge only with crops of the same samples (`zeroset merge` compares it)
+                let spp = i32::try_from(self.scene.sampling.spp).unwrap_or(i32::MAX);
+                attributes.push((
+                    SPP_ATTRIBUTE.to_string(),
+                    exr::meta::attribute::AttributeValue::I32(spp),
+                ));
+                attributes
+            },
         }
     }
 
@@ -425,6 +468,35 @@ fn warn_uncertain(exhausted: u64) {
 
 /// Writes `NAME.cameras.json` for every view (and `transforms.json` when asked) into `dir`,
 /// each atomically.
+/// The paths of the files a render writes: each selected view's EXR and previews, the cameras
+/// file and, with `--transforms`, `transforms.json`.
+fn output_files(
+    views: &[(&Camera, String)],
+    selected: &[usize],
+    dir: &Path,
+    stem: &str,
+    previews: bool,
+    transforms: bool,
+) -> Vec<PathBuf> {
+    let mut paths = vec![dir.join(format!("{stem}.cameras.json"))];
+    if transforms {
+        paths.push(dir.join("transforms.json"));
+    }
+    for &i in selected {
+        let file = &views[i].1;
+        paths.push(dir.join(file));
+        if previews {
+            let preview_stem = file.trim_end_matches(".exr");
+            paths.extend(
+                PREVIEWS
+                    .iter()
+                    .map(|(_, name)| dir.join(format!("{preview_stem}.{name}.png"))),
+            );
+        }
+    }
+    paths
+}
+
 fn write_camera_files(views: &[(&Camera, String)], dir: &Path, stem: &str, transforms: bool) -> Result<()> {
     let path = dir.join(format!("{stem}.cameras.json"));
     let text = cameras_json(views);

@@ -258,6 +258,33 @@ pub fn parent_dir(path: &Path) -> PathBuf {
     }
 }
 
+/// Refuses, before anything is written, a destination that exists (following links) but is not
+/// a regular file: a directory, or a device or FIFO (`-o link.exr` where the link points to
+/// `/dev/null`). A render's files are written to a temporary file beside the destination and
+/// renamed over it, so only a regular file (or none) can be replaced; such a destination used to
+/// fail after the whole render.
+///
+/// # Errors
+/// The destination is not a regular file; the message names it, its link target and its kind.
+pub fn require_file_destination(path: &Path) -> Result<()> {
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(());
+    };
+    if meta.is_file() {
+        return Ok(());
+    }
+    let target = match std::fs::canonicalize(path) {
+        Ok(t) if path.is_symlink() => format!(" (a link to {})", t.display()),
+        _ => String::new(),
+    };
+    bail!(
+        "{}{target} is {}, not a regular file: outputs are written to a temporary file and renamed \
+         over the destination; choose another file name",
+        path.display(),
+        crate::resources::file_kind(&meta.file_type())
+    )
+}
+
 /// The early check before tracing: creates `dir` if needed, proves it accepts a new file (by
 /// creating and deleting a temporary one), and compares `estimated_bytes` with the space
 /// available to this user on its file system.

@@ -5,7 +5,8 @@
 //! included) keeps its exact bits. The crops must
 //! - be single-part flat scanline or tiled images with the same display window,
 //! - have the same channels (names and sample types) and the same header attributes apart from
-//!   the data window (so they come from one camera and scene),
+//!   the data window (so they come from one camera and scene, and were rendered with the same
+//!   samples per pixel: [`SPP_ATTRIBUTE`]),
 //! - tile the display window: lie inside it, cover every pixel, and overlap nowhere.
 //!
 //! The output has the display window as its data window, the first crop's compression and all of
@@ -13,6 +14,20 @@
 //! ([`crate::output::exr`]).
 
 use crate::output::exr::{write_image_atomically, FlatImage};
+
+/// The header attribute holding the samples per pixel a render used (`i32`).
+pub const SPP_ATTRIBUTE: &str = "zeroset/spp";
+
+/// A crop's samples per pixel, as its header says (read back, a single part's attributes are
+/// the image's or the layer's).
+fn spp_of(image: &ImageAttributes, layer: &LayerAttributes) -> String {
+    let name = Text::from(SPP_ATTRIBUTE);
+    match image.other.get(&name).or_else(|| layer.other.get(&name)) {
+        Some(AttributeValue::I32(spp)) => format!("{spp} spp"),
+        Some(other) => format!("{other:?} spp"),
+        None => "an unrecorded spp".to_string(),
+    }
+}
 use anyhow::{bail, Context, Result};
 use exr::meta::attribute::IntegerBounds;
 use exr::prelude::*;
@@ -133,6 +148,16 @@ pub fn merge_crops(crops: &[PathBuf], output: &Path) -> Result<()> {
                 channel_signature(&crop.layer),
                 first_path.display(),
                 signature
+            );
+        }
+        let spp = spp_of(&attributes, &crop.layer.attributes);
+        let first_spp = spp_of(&image_attributes, &all[0].layer.attributes);
+        if spp != first_spp {
+            bail!(
+                "{}: rendered at {spp}, {} at {first_spp}: crops of one frame must be rendered with the \
+                 same --spp",
+                path.display(),
+                first_path.display()
             );
         }
         let mut same_position = crop.layer.attributes.clone();

@@ -7,7 +7,7 @@ use super::{HitSink, RaySource, CHUNK_RAYS};
 use crate::scene::Scene;
 use rayon::prelude::*;
 use std::fmt::Write as _;
-use std::io::{BufRead, Write};
+use std::io::{BufRead, Read, Write};
 
 /// The documented CSV headers (without and with the `t` range).
 pub const CSV_RAY_HEADERS: [&str; 4] = [
@@ -98,6 +98,11 @@ impl<R: BufRead> CsvRays<R> {
     }
 }
 
+/// The longest line of a CSV ray file: 64 KiB (eleven numbers in full take under 300 bytes). A
+/// longer line is refused after that much is read, so an input without line ends (`/dev/zero`,
+/// a binary file) is never read whole.
+pub const MAX_RAY_LINE_BYTES: usize = 64 << 10;
+
 impl<R: BufRead> RaySource for CsvRays<R> {
     fn read_chunk(&mut self, max: usize, out: &mut Vec<QueryRay>) -> Result<bool, QueryError> {
         out.clear();
@@ -110,11 +115,25 @@ impl<R: BufRead> RaySource for CsvRays<R> {
             }
             let buffer = &mut self.lines[count];
             buffer.clear();
-            let read = self.reader.read_line(buffer).map_err(|e| QueryError {
-                path: self.path.clone(),
-                location: (self.line_no + 1).to_string(),
-                message: format!("reading: {e}"),
-            })?;
+            // at most one byte more than a line may have: a longer one is refused, not read on
+            let read = (&mut self.reader)
+                .take(MAX_RAY_LINE_BYTES as u64 + 1)
+                .read_line(buffer)
+                .map_err(|e| QueryError {
+                    path: self.path.clone(),
+                    location: (self.line_no + 1).to_string(),
+                    message: format!("reading: {e}"),
+                })?;
+            if buffer.len() > MAX_RAY_LINE_BYTES {
+                return Err(QueryError {
+                    path: self.path.clone(),
+                    location: (self.line_no + 1).to_string(),
+                    message: format!(
+                        "line longer than {} KiB (a ray line has at most 11 numbers): not a CSV ray file?",
+                        MAX_RAY_LINE_BYTES >> 10
+                    ),
+                });
+            }
             if read == 0 {
                 self.done = true;
                 break;

@@ -21,7 +21,8 @@
 //! C order, with the same columns; errors name the row (0-based, as NumPy indexes it).
 //!
 //! The direction is used as given: `t` is in units of `|d|`, so normalise directions to get
-//! distances. Origins and directions must be finite, directions non-zero, `tmin ≤ tmax`.
+//! distances. Origins and directions must be finite, directions non-zero with a largest
+//! component of at least `2⁻⁵¹¹` ([`rays::MIN_DIRECTION`]: shorter ones would overflow `t`), `tmin ≤ tmax`.
 //!
 //! **CSV output**: a header line, then one line per input ray, in input order:
 //! `hit,t,px,py,pz,nx,ny,nz,id,name,u,v` — `hit` is 1 or 0; on a miss every other field is

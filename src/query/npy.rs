@@ -51,48 +51,177 @@ pub(super) fn read_npy_header(reader: &mut impl Read, path: &str) -> Result<NpyH
     reader
         .read_exact(&mut text)
         .map_err(|e| err(format!("reading the header: {e}")))?;
-    let text = String::from_utf8_lossy(&text).replace(' ', "");
-    let value_of = |key: &str| -> Option<&str> {
-        let start = text.find(&format!("'{key}':"))? + key.len() + 3;
-        Some(&text[start..])
+    let text = String::from_utf8_lossy(&text);
+    let dict = parse_header_dict(&text).map_err(|m| err(format!("header dictionary `{}`: {m}", text.trim_end())))?;
+    let double = match dict.descr.as_str() {
+        "<f8" => true,
+        "<f4" => false,
+        other => {
+            return Err(err(format!(
+                "dtype '{other}' is not supported; use little-endian float64 ('<f8') or float32 ('<f4')"
+            )))
+        }
     };
-    let descr = value_of("descr").ok_or_else(|| err(format!("no 'descr' in `{text}`")))?;
-    let double = if descr.starts_with("'<f8'") {
-        true
-    } else if descr.starts_with("'<f4'") {
-        false
-    } else {
-        return Err(err(format!(
-            "dtype {} is not supported; use little-endian float64 ('<f8') or float32 ('<f4')",
-            descr.split(',').next().unwrap_or(descr)
-        )));
-    };
-    if !value_of("fortran_order").is_some_and(|v| v.starts_with("False")) {
+    if dict.fortran_order {
         return Err(err(
             "Fortran-order arrays are not supported; save a C-order array".into()
         ));
     }
-    let shape = value_of("shape")
-        .and_then(|v| v.strip_prefix('('))
-        .and_then(|v| v.split(')').next())
-        .ok_or_else(|| err(format!("no 'shape' in `{text}`")))?;
-    let dims: Vec<&str> = shape.split(',').filter(|s| !s.is_empty()).collect();
-    let parse = |s: &str| {
-        s.parse::<u64>()
-            .map_err(|_| err(format!("shape ({shape}) is not an integer tuple")))
+    let shape = dict.shape.iter().map(u64::to_string).collect::<Vec<_>>().join(", ");
+    let &[rows, columns] = dict.shape.as_slice() else {
+        return Err(err(format!(
+            "shape ({shape}): expected (N, 6) or (N, 8), or with normals (N, 9) or (N, 11)"
+        )));
     };
-    if dims.len() != 2 {
-        return Err(err(format!("shape ({shape}): expected (N, 6) or (N, 8)")));
-    }
-    let (rows, columns) = (parse(dims[0])?, parse(dims[1])?);
     if ![6, 8, 9, MAX_COLUMNS as u64].contains(&columns) {
-        return Err(err(format!("shape ({shape}): expected (N, 6) or (N, 8)")));
+        return Err(err(format!(
+            "shape ({shape}): expected (N, 6) or (N, 8), or with normals (N, 9) or (N, 11)"
+        )));
     }
     Ok(NpyHeader {
         rows,
         columns: columns as usize,
         double,
     })
+}
+
+/// The three entries of an `.npy` header dictionary.
+#[derive(Debug, PartialEq)]
+pub(super) struct HeaderDict {
+    pub(super) descr: String,
+    pub(super) fortran_order: bool,
+    pub(super) shape: Vec<u64>,
+}
+
+/// Parses the header dictionary, a Python literal such as
+/// `{'descr': '<f8', 'fortran_order': False, 'shape': (3, 6), }` followed by padding: exactly the
+/// keys `descr` (a string), `fortran_order` (`True` or `False`) and `shape` (a tuple of
+/// non-negative integers), each once, in any order, strings in single or double quotes, a
+/// trailing comma allowed (in the tuple too: `(3,)`), whitespace anywhere between tokens.
+///
+/// # Errors
+/// Anything else, said in words (what was expected where).
+pub(super) fn parse_header_dict(text: &str) -> Result<HeaderDict, String> {
+    let mut p = Tokens { rest: text };
+    p.expect('{')?;
+    let (mut descr, mut fortran, mut shape) = (None, None, None);
+    loop {
+        if p.eat('}') {
+            break;
+        }
+        let key = p.string()?;
+        p.expect(':')?;
+        match key.as_str() {
+            "descr" if descr.is_none() => descr = Some(p.string()?),
+            "fortran_order" if fortran.is_none() => fortran = Some(p.boolean()?),
+            "shape" if shape.is_none() => shape = Some(p.tuple()?),
+            "descr" | "fortran_order" | "shape" => return Err(format!("key '{key}' given twice")),
+            _ => {
+                return Err(format!(
+                    "unexpected key '{key}' (an .npy header has descr, fortran_order and shape)"
+                ))
+            }
+        }
+        if !p.eat(',') {
+            p.expect('}')?;
+            break;
+        }
+    }
+    if !p.rest.trim().is_empty() {
+        return Err(format!("unexpected `{}` after the dictionary", p.rest.trim()));
+    }
+    Ok(HeaderDict {
+        descr: descr.ok_or("no 'descr'")?,
+        fortran_order: fortran.ok_or("no 'fortran_order'")?,
+        shape: shape.ok_or("no 'shape'")?,
+    })
+}
+
+/// The tokens of a header dictionary, read from the front.
+struct Tokens<'a> {
+    rest: &'a str,
+}
+
+impl Tokens<'_> {
+    fn skip_space(&mut self) {
+        self.rest = self.rest.trim_start();
+    }
+
+    /// Takes `c` if it comes next.
+    fn eat(&mut self, c: char) -> bool {
+        self.skip_space();
+        match self.rest.strip_prefix(c) {
+            Some(rest) => {
+                self.rest = rest;
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn expect(&mut self, c: char) -> Result<(), String> {
+        if self.eat(c) {
+            Ok(())
+        } else {
+            Err(format!("expected `{c}` at `{}`", self.excerpt()))
+        }
+    }
+
+    fn excerpt(&self) -> String {
+        let end = self.rest.char_indices().nth(20).map_or(self.rest.len(), |(i, _)| i);
+        self.rest[..end].to_string()
+    }
+
+    /// A string in single or double quotes (no escapes: none appear in an .npy header).
+    fn string(&mut self) -> Result<String, String> {
+        self.skip_space();
+        let quote = self.rest.chars().next().filter(|c| *c == '\'' || *c == '"');
+        let Some(quote) = quote else {
+            return Err(format!("expected a quoted string at `{}`", self.excerpt()));
+        };
+        let body = &self.rest[1..];
+        let end = body
+            .find(quote)
+            .ok_or_else(|| format!("unterminated string at `{}`", self.excerpt()))?;
+        let value = body[..end].to_string();
+        self.rest = &body[end + 1..];
+        Ok(value)
+    }
+
+    fn boolean(&mut self) -> Result<bool, String> {
+        self.skip_space();
+        for (word, value) in [("True", true), ("False", false)] {
+            if let Some(rest) = self.rest.strip_prefix(word) {
+                if !rest.starts_with(|c: char| c.is_alphanumeric() || c == '_') {
+                    self.rest = rest;
+                    return Ok(value);
+                }
+            }
+        }
+        Err(format!("expected True or False at `{}`", self.excerpt()))
+    }
+
+    /// `(a, b, …)` of non-negative integers, a trailing comma allowed.
+    fn tuple(&mut self) -> Result<Vec<u64>, String> {
+        self.expect('(')?;
+        let mut values = Vec::new();
+        loop {
+            if self.eat(')') {
+                return Ok(values);
+            }
+            self.skip_space();
+            let digits = self.rest.find(|c: char| !c.is_ascii_digit()).unwrap_or(self.rest.len());
+            let value = self.rest[..digits]
+                .parse::<u64>()
+                .map_err(|_| format!("expected a non-negative integer at `{}`", self.excerpt()))?;
+            self.rest = &self.rest[digits..];
+            values.push(value);
+            if !self.eat(',') {
+                self.expect(')')?;
+                return Ok(values);
+            }
+        }
+    }
 }
 
 /// Rays from a NumPy `.npy` array (see the module docs).

@@ -93,7 +93,8 @@ pub fn pixel_rays(text: &str, path: &str, cameras: &[&Camera]) -> Result<Vec<Que
 /// (loaded here), or through `scene`'s own camera when `camera` is `None`.
 pub fn pixel_rays_from_files(scene: &Scene, camera: Option<&Path>, pixels: &Path) -> anyhow::Result<Vec<QueryRay>> {
     use anyhow::Context;
-    let text = std::fs::read_to_string(pixels).with_context(|| format!("reading {}", pixels.display()))?;
+    let text = crate::resources::read_input_to_string(pixels, "pixel file")
+        .with_context(|| format!("reading {}", pixels.display()))?;
     let path = pixels.display().to_string();
     Ok(match camera {
         None => pixel_rays(&text, &path, &scene_cameras(scene))?,

@@ -114,6 +114,12 @@ pub fn ray_from_fields(v: &[f64], setup: &RaySetup) -> Result<(Ray, Interval), S
     checked_ray(origin, dir, tmin, tmax, normal, setup)
 }
 
+/// The smallest accepted largest component of a ray direction, `2⁻⁵¹¹ ≈ 1.5·10⁻¹⁵⁴`. `t` is in
+/// units of `|d|`, so a hit at distance `D` has `t = D/|d|`, which overflows to `+∞` (and could
+/// only be reported as a miss) once `D > |d|·1.8·10³⁰⁸`; from this length on that needs
+/// `D > 2⁵¹²`, beyond any coordinate whose square is finite. Shorter directions are refused.
+pub const MIN_DIRECTION: f64 = f64::from_bits((1023 - 511) << 52);
+
 /// The ray of one line's values, already split into their columns (`normal` where the line has
 /// one): every check of the module docs, the spawned origin and the range convention.
 #[inline(always)]
@@ -130,6 +136,14 @@ fn checked_ray(
     }
     if dir == DVec3::ZERO {
         return Err("direction must be non-zero".into());
+    }
+    if dir.abs().max_element() < MIN_DIRECTION {
+        return Err(format!(
+            "direction ({:e}, {:e}, {:e}) is too short: its largest component is below 2^-511 \
+             ≈ 1.5e-154, where t (in units of |d|) overflows for hits farther than |d|·1.8e308; \
+             scale or normalise the direction",
+            dir.x, dir.y, dir.z
+        ));
     }
     if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
         return Err(format!("invalid t range [{tmin}, {tmax}]"));
@@ -272,9 +286,9 @@ impl<'a> RayColumns<'a> {
         let (origins, directions) = (&self.origins[values.clone()], &self.directions[values]);
         // `|v| ≤ MAX` is false for ±∞ and NaN
         let finite = |column: &[f64]| column.iter().fold(true, |ok, v| ok & (v.abs() <= f64::MAX));
-        let nonzero = directions
-            .chunks_exact(3)
-            .fold(true, |ok, d| ok & ((d[0] != 0.0) | (d[1] != 0.0) | (d[2] != 0.0)));
+        let nonzero = directions.chunks_exact(3).fold(true, |ok, d| {
+            ok & (d[0].abs().max(d[1].abs()).max(d[2].abs()) >= MIN_DIRECTION)
+        });
         let at = |column: &'a [f64]| -> &'a [f64] {
             if column.len() == 1 {
                 column

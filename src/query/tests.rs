@@ -1,4 +1,4 @@
-use super::npy::{read_npy_header, NPY_PREAMBLE_LEN};
+use super::npy::{parse_header_dict, read_npy_header, HeaderDict, NPY_PREAMBLE_LEN};
 use super::order::{packets_pay, sample_may_pay};
 use super::*;
 use glam::DVec3;
@@ -290,6 +290,30 @@ fn chunks_keep_line_numbers_and_order() {
     assert_eq!(err.location, "12");
 }
 
+/// A direction of length 1e-320 would put a hit at distance 5 at t = 5e320 = +∞ (a miss):
+/// refused on a line and in columns (both paths), while 2⁻⁵¹¹ itself is accepted.
+#[test]
+fn directions_whose_t_overflows_are_refused() {
+    assert_eq!(rays::MIN_DIRECTION, 2f64.powi(-511));
+    assert!((5.0 / 1e-320f64).is_infinite());
+    let message = rays::ray_from_fields(&[0.0, 0.0, 5.0, 0.0, 0.0, -1e-320], &rays::RaySetup::default()).unwrap_err();
+    assert!(
+        message.contains("too short") && message.contains("-1e-320"),
+        "{message}"
+    );
+    assert!(rays::ray_from_fields(
+        &[0.0, 0.0, 5.0, 0.0, 0.0, -rays::MIN_DIRECTION],
+        &rays::RaySetup::default()
+    )
+    .is_ok());
+    let origins = [0.0, 0.0, 5.0, 0.0, 0.0, 5.0];
+    let directions = [0.0, 0.0, -1.0, 0.0, 0.0, -1e-320];
+    let columns = rays::RayColumns::new(&origins, &directions, &[0.0], &[f64::INFINITY], None).unwrap();
+    let (index, message) = columns.rays(&rays::RaySetup::default()).unwrap_err();
+    assert_eq!(index, 1);
+    assert!(message.contains("too short"), "{message}");
+}
+
 #[test]
 fn npy_preamble_is_aligned_and_round_trips() {
     let p = npy_preamble(12_345_678_901, NPY_HIT_COLUMNS + 1);
@@ -297,8 +321,81 @@ fn npy_preamble_is_aligned_and_round_trips() {
     assert_eq!(p.len() % 64, 0, "NumPy aligns the data to 64 bytes");
     let header = read_npy_header(&mut p.as_slice(), "h").unwrap_err();
     // 12 columns are not a ray array: the header parses, the shape is refused
-    assert!(header.message.contains("(12345678901,12)"), "{header}");
+    assert!(header.message.contains("(12345678901, 12)"), "{header}");
     let rays = npy_preamble(7, 8);
     let h = read_npy_header(&mut rays.as_slice(), "h").unwrap();
     assert_eq!((h.rows, h.columns, h.double), (7, 8, true));
+}
+
+/// The header dictionary is parsed as the Python literal it is: any key order, either quote,
+/// trailing commas, padding; wrong, missing, repeated or extra keys and trailing text refused.
+#[test]
+fn npy_header_dictionary_is_parsed_not_searched() {
+    let dict = |descr: &str, fortran: bool, shape: &[u64]| HeaderDict {
+        descr: descr.into(),
+        fortran_order: fortran,
+        shape: shape.to_vec(),
+    };
+    for (text, expected) in [
+        (
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (3, 6), }       \n",
+            dict("<f8", false, &[3, 6]),
+        ),
+        (
+            "{\"shape\":(12,8),\"descr\":\"<f4\",\"fortran_order\":True}",
+            dict("<f4", true, &[12, 8]),
+        ),
+        (
+            "{ 'fortran_order' : False , 'shape' : ( 5 , ) , 'descr' : '>f8' }",
+            dict(">f8", false, &[5]),
+        ),
+        (
+            "{'descr': '<f8', 'fortran_order': False, 'shape': ()}",
+            dict("<f8", false, &[]),
+        ),
+    ] {
+        assert_eq!(parse_header_dict(text).unwrap(), expected, "{text}");
+    }
+    for (text, message) in [
+        // a substring search found 'shape': inside the descr string and read (9, 6)
+        (
+            "{'descr': \"'shape': (9, 6)\", 'fortran_order': False, 'shape': (2, 6)}",
+            None,
+        ),
+        ("{'descr': '<f8', 'fortran_order': False}", Some("no 'shape'")),
+        (
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 6), 'shape': (3, 6)}",
+            Some("given twice"),
+        ),
+        (
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 6), 'extra': 1}",
+            Some("unexpected key 'extra'"),
+        ),
+        (
+            "{'descr': '<f8', 'fortran_order': Falsey, 'shape': (2, 6)}",
+            Some("expected True or False"),
+        ),
+        (
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (2, -6)}",
+            Some("non-negative integer"),
+        ),
+        (
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 6)} x",
+            Some("after the dictionary"),
+        ),
+        ("'descr': '<f8'", Some("expected `{`")),
+    ] {
+        match (parse_header_dict(text), message) {
+            (Ok(d), None) => assert_eq!(d, dict("'shape': (9, 6)", false, &[2, 6])),
+            (Err(e), Some(m)) => assert!(e.contains(m), "{text}: {e}"),
+            (other, _) => panic!("{text}: {other:?}"),
+        }
+    }
+    // through the whole preamble: a big-endian dtype is named in the refusal
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    let text = "{'descr': '>f8', 'fortran_order': False, 'shape': (2, 6), }";
+    bytes.extend_from_slice(&(text.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(text.as_bytes());
+    let err = read_npy_header(&mut bytes.as_slice(), "b.npy").unwrap_err();
+    assert!(err.message.contains("dtype '>f8' is not supported"), "{err}");
 }

@@ -19,9 +19,12 @@
 //! thread, which looks again for finished bands before it lets go. No rayon work runs inside a
 //! sink, so a thread that writes cannot be handed a band whose sink it is already writing.
 //!
-//! **Memory.** A band's samples are dropped as soon as every sink has written it: only the bands
-//! traced ahead of the slowest sink are held (at most the frame, when the outputs cannot keep
-//! up; about one band per thread when they can).
+//! **Memory.** A band's samples are dropped (their buffer kept for a later band) as soon as every
+//! sink has written it, and no band is started more than [`bands_held`] bands ahead of the
+//! slowest sink: a thread that would go further first writes what it can, then waits for the
+//! writer. So at most [`bands_held`] band buffers exist at once, whatever the outputs' speed
+//! (a fast trace into a slow disk held 70 bands of a 16000-pixel-wide render, 512 MB, before).
+//! The lowest band not yet written is always being traced or ready to write, so the wait ends.
 //!
 //! **Samples.** Rows are the same rows [`crate::render::render_view`] traces (the same row
 //! function, the same pixels), so a streamed file holds exactly the samples of the in-memory
@@ -33,13 +36,28 @@ use crate::render::{FrameLayout, RenderOptions, TraceStats, Tracer};
 use crate::scene::Scene;
 use anyhow::Result;
 use rayon::iter::{ParallelBridge, ParallelIterator};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 /// Rows per band before alignment: small enough that the last band's writing is a sliver of
 /// the render, large enough that each band is a sizeable task (a 4K band is 61,440 pixels).
 pub const BAND_ROWS: u32 = 16;
+
+/// Most band buffers a streamed render holds at once with `threads` threads tracing: bands are
+/// started at most this many ahead of the slowest sink (see the module docs), two per thread
+/// and two more, so that every thread can trace one band while another waits to be written.
+#[must_use]
+pub fn bands_held(threads: usize) -> usize {
+    2 * threads.max(1) + 2
+}
+
+/// Rows of a band for sinks asking rows in multiples of `alignment`.
+#[must_use]
+pub fn band_rows(alignment: u32) -> u32 {
+    let alignment = alignment.max(1);
+    BAND_ROWS.div_ceil(alignment) * alignment
+}
 
 /// An output that takes the frame's rows band by band, in order.
 ///
@@ -91,7 +109,7 @@ pub fn render_view_to(
     let layout = FrameLayout::new(camera, options);
     let (row_len, height) = (layout.row_len(), layout.window.height());
     let alignment = sinks.iter().map(|s| s.row_alignment().max(1)).max().unwrap_or(1);
-    let band_rows = BAND_ROWS.div_ceil(alignment) * alignment;
+    let band_rows = band_rows(alignment);
     let bands = height.div_ceil(band_rows) as usize;
     let band_range = |b: usize| {
         let y0 = layout.window.y0 + b as u32 * band_rows;
@@ -107,6 +125,10 @@ pub fn render_view_to(
         .collect();
     // each sink's next band to write; holding the lock is being its writer
     let cursors: Vec<Mutex<usize>> = sinks.iter().map(|_| Mutex::new(0)).collect();
+    // the same, readable without waiting for a writer (updated after each band written)
+    let written: Vec<AtomicUsize> = sinks.iter().map(|_| AtomicUsize::new(0)).collect();
+    let slowest = || written.iter().map(|w| w.load(Ordering::Acquire)).min().unwrap_or(bands);
+    let ahead = bands_held(rayon::current_num_threads());
     let failed = AtomicBool::new(false);
     let first_error: Mutex<Option<anyhow::Error>> = Mutex::new(None);
     let fail = |e: anyhow::Error| {
@@ -142,6 +164,7 @@ pub fn render_view_to(
                     spare.lock().unwrap_or_else(PoisonError::into_inner).push(buffer);
                 }
                 *next += 1;
+                written[k].store(*next, Ordering::Release);
             }
             let following = *next;
             drop(next);
@@ -158,6 +181,18 @@ pub fn render_view_to(
     (0..bands).par_bridge().for_each(|b| {
         if failed.load(Ordering::Relaxed) {
             return;
+        }
+        // not more than `ahead` bands past the slowest sink: write what can be written, else wait
+        while b >= slowest() + ahead {
+            if failed.load(Ordering::Relaxed) {
+                return;
+            }
+            for k in 0..sinks.len() {
+                drain(k);
+            }
+            if b >= slowest() + ahead {
+                std::thread::sleep(Duration::from_micros(100));
+            }
         }
         let (y0, y1) = band_range(b);
         // a written band's buffer, whose pages are mapped and likely in cache, rather than fresh

@@ -13,10 +13,11 @@
 
 use crate::scene::desc::TransformDesc;
 use crate::scene::shape_desc::{BuildContext, SceneShape, ShapeDesc};
-use glam::DVec3;
+use glam::{DAffine3, DVec3};
 use serde::Deserialize;
 use std::sync::Arc;
 use zeroset_primitives::expr::excerpt;
+use zeroset_primitives::expr::faces::{negative_faces, FACE_NAMES};
 use zeroset_primitives::{
     Aabb, Csg, CsgOp, Expr, Function, Offset, Primitive, PrimitiveError, RootOptions, SmoothUnion, Transformed,
 };
@@ -28,13 +29,20 @@ struct Operand<'a> {
     desc: &'a ShapeDesc,
 }
 
-/// `desc` with single-operand Booleans unwrapped (`Union(children: [x])` is `x`), and its path.
+/// `desc` with single-operand Booleans (`Union(children: [x])` is `x`) and identity transforms
+/// (`Transformed(shape: x, transform: ())` is `x`) unwrapped, and its path.
 fn unwrap_single(mut desc: &ShapeDesc, mut path: String) -> (&ShapeDesc, String) {
-    while let Some((_, [only])) = desc.shape.boolean_operands() {
-        path = format!("{path}.children[0] ({})", only.name);
-        desc = only;
+    loop {
+        if let Some((_, [only])) = desc.shape.boolean_operands() {
+            path = format!("{path}.children[0] ({})", only.name);
+            desc = only;
+        } else if let Some(inner) = desc.shape.identity_of() {
+            path = format!("{path}.shape ({})", inner.name);
+            desc = inner;
+        } else {
+            return (desc, path);
+        }
     }
-    (desc, path)
 }
 
 /// Appends the operands of `op` over `children` to `out`, splicing nested chains whose meaning
@@ -43,7 +51,9 @@ fn unwrap_single(mut desc: &ShapeDesc, mut path: String) -> (&ShapeDesc, String)
 /// - a `Difference` as the first operand of a `Difference`: `(a − b) − c = a − b − c`;
 /// - a `Union` subtracted by a `Difference`: `a − (b ∪ c) = a − b − c`.
 ///
-/// A left-deep chain of generated `Difference`s thus loads as one flat `Difference`.
+/// Identity transforms are looked through ([`unwrap_single`]). A left-deep chain of generated
+/// `Difference`s thus loads as one flat `Difference`, also where each link is wrapped in a
+/// `Transformed` by the identity.
 fn flatten<'a>(op: CsgOp, children: &'a [ShapeDesc], prefix: &str, out: &mut Vec<Operand<'a>>) {
     for (i, child) in children.iter().enumerate() {
         let (desc, path) = unwrap_single(child, format!("{prefix}children[{i}] ({})", child.name));
@@ -179,12 +189,34 @@ pub struct TransformedDesc {
 }
 
 impl SceneShape for TransformedDesc {
+    /// The shape under the placement, nested `Transformed`s composed into one map (one change of
+    /// coordinates a ray instead of one a level); the shape itself where the map is the identity.
     fn build(&self, context: &BuildContext) -> Result<Arc<dyn Primitive>, PrimitiveError> {
-        let m = self
+        let mut m = self
             .transform
             .to_affine()
             .map_err(|problem| PrimitiveError::new("Transformed", "transform", problem))?;
-        Ok(Arc::new(Transformed::new(self.shape.shape.build(context)?, m)?))
+        let (mut inner, mut field) = (&self.shape, "shape".to_string());
+        while let Some((shape, transform)) = inner.shape.placement() {
+            let inner_map = transform
+                .to_affine()
+                .map_err(|problem| PrimitiveError::new("Transformed", format!("{field}.transform"), problem))?;
+            m *= inner_map;
+            (inner, field) = (shape, format!("{field}.shape"));
+        }
+        let built = inner.shape.build(context)?;
+        if m == DAffine3::IDENTITY {
+            return Ok(built);
+        }
+        Ok(Arc::new(Transformed::new(built, m)?))
+    }
+
+    fn identity_of(&self) -> Option<&ShapeDesc> {
+        (self.transform.to_affine() == Ok(DAffine3::IDENTITY)).then_some(&self.shape)
+    }
+
+    fn placement(&self) -> Option<(&ShapeDesc, &TransformDesc)> {
+        Some((&self.shape, &self.transform))
     }
 }
 
@@ -234,6 +266,9 @@ impl SceneShape for FunctionDesc {
                 .warn("`lipschitz` is not needed (roots are isolated by interval arithmetic); it is only used by a SmoothUnion or Offset around this function that mixes it with a closed-form primitive");
         }
         check_search_box(self.min, self.max)?;
+        if let Some(warning) = box_cut_warning(&expr, self.min, self.max) {
+            context.warn(warning);
+        }
         let defaults = RootOptions::default();
         let options = RootOptions {
             tolerance: self.tolerance.unwrap_or(defaults.tolerance),
@@ -253,6 +288,35 @@ impl SceneShape for FunctionDesc {
         }
         Ok(Arc::new(function))
     }
+}
+
+/// The warning for a search box that cuts its surface: the faces on which Φ < 0 somewhere
+/// (proved by interval evaluation, [`zeroset_primitives::expr::faces`]), each with a point where
+/// it is; `None` where no face is cut.
+fn box_cut_warning(expr: &Expr, min: DVec3, max: DVec3) -> Option<String> {
+    let cuts = negative_faces(expr, min, max);
+    if cuts.is_empty() {
+        return None;
+    }
+    let faces: Vec<String> = cuts
+        .iter()
+        .map(|cut| {
+            let axis = cut.face / 2;
+            let name = ["x", "y", "z"][axis];
+            let at = if cut.face % 2 == 0 { min[axis] } else { max[axis] };
+            let w = cut.witness;
+            format!(
+                "{} ({name} = {at}; Φ < 0 at ({}, {}, {}))",
+                FACE_NAMES[cut.face], w.x, w.y, w.z
+            )
+        })
+        .collect();
+    Some(format!(
+        "the search box cuts the surface: Φ < 0 (inside) on its face{} {}, so the surface is cut open \
+         there (searched only inside the box); widen `min`/`max` until Φ > 0 on every face",
+        if faces.len() == 1 { "" } else { "s" },
+        faces.join(", ")
+    ))
 }
 
 /// A `Function`'s search box must have finite corners and positive thickness on every axis

@@ -76,6 +76,19 @@ pub trait SceneShape: fmt::Debug + Send + Sync {
     fn boolean_operands(&self) -> Option<(CsgOp, &[ShapeDesc])> {
         None
     }
+
+    /// For a wrapper that leaves its shape as it is (a `Transformed` by the identity), that
+    /// shape, so that load-time flattening looks through the wrapper (`combinators`); `None`
+    /// (the default) for everything else.
+    fn identity_of(&self) -> Option<&ShapeDesc> {
+        None
+    }
+
+    /// For a `Transformed`, its shape and placement, so that nested placements are composed into
+    /// one at load; `None` (the default) for everything else.
+    fn placement(&self) -> Option<(&ShapeDesc, &crate::scene::desc::TransformDesc)> {
+        None
+    }
 }
 
 /// A parsed primitive description of any registered type (`Name(field: value, …)` in RON).

@@ -311,18 +311,9 @@ pub fn cuboid(o: DVec3, d: DVec3, lo: DVec3, hi: DVec3, t_min: f64) -> Reference
             ..Reference::MISS
         };
     }
+    // a ray lying on a face at t_min leaves it across the far edge: the exit below, as for a
+    // ray inside the box
     let mut normal = DVec3::ZERO;
-    let in_face = (0..3).find(|&i| d[i] == 0.0 && (o[i] == lo[i] || o[i] == hi[i]));
-    if let Some(i) = in_face {
-        if tn.to_f64() < t_min && tf.to_f64() >= t_min {
-            normal[i] = if o[i] == hi[i] { 1.0 } else { -1.0 };
-            return Reference {
-                t: Some(Dd::new(t_min)),
-                normal,
-                margin,
-            };
-        }
-    }
     let pick = if tn.to_f64() >= t_min {
         normal[an] = sn;
         Some(tn)

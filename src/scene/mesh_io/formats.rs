@@ -63,6 +63,11 @@ fn by_extension(path: &Path) -> Option<Format> {
 /// Reads a mesh file of any supported format (see the module documentation), `node` selecting
 /// the glTF nodes of that name (an error for other formats).
 pub fn read_mesh_report(path: &Path, node: Option<&str>) -> Result<MeshReport, MeshIoError> {
+    // a regular file within the limit, checked before anything opens it (a FIFO would block the
+    // open, a device never end); a missing file is said below, as before
+    if std::fs::metadata(path).is_ok() {
+        super::shared::file_len(path).map_err(|m| error(path, m))?;
+    }
     let Some(format) = by_content(path).or_else(|| by_extension(path)) else {
         if let Err(e) = std::fs::metadata(path) {
             return Err(error(path, e.to_string()));

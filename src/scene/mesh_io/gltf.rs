@@ -22,7 +22,7 @@
 //! - **Refused**: sparse accessors, accessors without a buffer view, quantized positions
 //!   (`KHR_mesh_quantization`), compressed meshes and any other extension the file requires.
 
-use super::shared::{check_size, read_all, reserve, MAX_MESH_FILE_BYTES};
+use super::shared::{check_size, mesh_limit, read_all, reserve};
 use super::MeshData;
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::buffer::Source;
@@ -169,9 +169,7 @@ fn load_buffers(path: &Path, doc: &Document, blob: Option<&[u8]>) -> Result<Vec<
                 if !head.ends_with(";base64") {
                     return Err(format!("buffers[{i}]: data URI `{head}` is not base64"));
                 }
-                if payload.len() as u64 / 4 * 3 > MAX_MESH_FILE_BYTES {
-                    return Err(format!("buffers[{i}]: data URI larger than the mesh file limit"));
-                }
+                check_size(payload.len() as u64 / 4 * 3).map_err(|e| format!("buffers[{i}]: data URI of {e}"))?;
                 let bytes = base64(payload).map_err(|e| format!("buffers[{i}]: data URI: {e}"))?;
                 if (bytes.len() as u64) < want {
                     return Err(format!(
@@ -188,9 +186,9 @@ fn load_buffers(path: &Path, doc: &Document, blob: Option<&[u8]>) -> Result<Vec<
                     ));
                 }
                 let file = path.parent().unwrap_or(Path::new("")).join(percent_decode(uri));
-                let have = std::fs::metadata(&file)
-                    .map_err(|e| format!("buffers[{i}]: {}: {e}", file.display()))?
-                    .len();
+                // a regular file within the limit, checked before it is opened (never a FIFO)
+                let have = crate::resources::check_input_path(&file, "glTF buffer", mesh_limit()?, "mesh files")
+                    .map_err(|e| format!("buffers[{i}]: {}: {e}", file.display()))?;
                 if have < want {
                     return Err(format!(
                         "buffers[{i}]: {}: byteLength {want}, the file has {have} bytes (truncated?)",

@@ -12,32 +12,41 @@ pub const MAX_MESH_FILE_BYTES: u64 = 16 << 30;
 /// (a binary file read as text, or a hostile one), so a line is never read unbounded.
 pub const MAX_LINE_BYTES: usize = 1 << 20;
 
-/// The length of `path`, checked against [`MAX_MESH_FILE_BYTES`]; the error is the message.
-pub(super) fn file_len(path: &Path) -> Result<u64, String> {
-    let len = std::fs::metadata(path).map_err(|e| e.to_string())?.len();
-    check_size(len)?;
-    Ok(len)
+/// The largest mesh file read: [`crate::resources::INPUT_LIMIT_VAR`] where set (the limit of
+/// every input file), else [`MAX_MESH_FILE_BYTES`].
+pub(super) fn mesh_limit() -> Result<u64, String> {
+    crate::resources::input_limit_or(MAX_MESH_FILE_BYTES).map_err(|e| e.to_string())
 }
 
-/// Refuses a size over [`MAX_MESH_FILE_BYTES`].
+/// The length of `path`, checked without opening it (a FIFO is never waited on) to be a regular
+/// file within [`mesh_limit`]; the error is the message (with how to raise the limit).
+pub(super) fn file_len(path: &Path) -> Result<u64, String> {
+    let limit = mesh_limit()?;
+    crate::resources::check_input_path(path, "mesh file", limit, "mesh files").map_err(|e| e.to_string())
+}
+
+/// Refuses a size over [`mesh_limit`].
 pub(super) fn check_size(len: u64) -> Result<(), String> {
-    if len > MAX_MESH_FILE_BYTES {
+    let limit = mesh_limit()?;
+    if len > limit {
         return Err(format!(
-            "{len} bytes: larger than the {} GiB limit of mesh files",
-            MAX_MESH_FILE_BYTES >> 30
+            "{len} bytes: larger than the limit of {} ({limit} bytes) for mesh files; set {} to a larger \
+             number of bytes to read it",
+            crate::resources::human_bytes(limit),
+            crate::resources::INPUT_LIMIT_VAR
         ));
     }
     Ok(())
 }
 
-/// Reads all of `path` (at most [`MAX_MESH_FILE_BYTES`]), reserving the buffer fallibly.
+/// Reads all of `path` (at most [`mesh_limit`]), reserving the buffer fallibly.
 pub(super) fn read_all(path: &Path) -> Result<Vec<u8>, String> {
     let len = file_len(path)?;
     let mut file = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let mut bytes = Vec::new();
     reserve(&mut bytes, len, "the file")?;
     file.by_ref()
-        .take(MAX_MESH_FILE_BYTES + 1)
+        .take(mesh_limit()?.saturating_add(1))
         .read_to_end(&mut bytes)
         .map_err(|e| e.to_string())?;
     check_size(bytes.len() as u64)?;

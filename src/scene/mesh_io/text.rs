@@ -3,7 +3,7 @@
 //! offsets, whitespace-separated tokens, and numbers parsed as `str::parse` does (correctly
 //! rounded), with a fast path for plain decimals.
 
-use super::shared::{file_len, reserve, MAX_LINE_BYTES, MAX_MESH_FILE_BYTES};
+use super::shared::{check_size, file_len, reserve, MAX_LINE_BYTES};
 use std::io::Read;
 use std::path::Path;
 
@@ -72,12 +72,7 @@ pub(super) fn for_each_block(
         }
         eof = read?;
         offset += cut as u64;
-        if offset > MAX_MESH_FILE_BYTES {
-            return Err(format!(
-                "larger than the {} GiB limit of mesh files",
-                MAX_MESH_FILE_BYTES >> 30
-            ));
-        }
+        check_size(offset)?;
         std::mem::swap(&mut current, &mut next);
     }
 }
