@@ -10,8 +10,9 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 pub trait Scalar:
     Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self>
 {
-    /// Whether the arithmetic rounds outward with fused multiply-adds (intervals and jets of
-    /// them): tapes evaluate such types in a copy compiled for the CPU's FMA instruction.
+    /// Whether the arithmetic rounds outward (intervals and jets of them), its quotients and
+    /// square roots by the exact residual of a fused multiply-add: tapes evaluate such types in
+    /// a copy compiled for the CPU's FMA instruction.
     const DIRECTED: bool = false;
     /// The number `c`.
     fn constant(c: f64) -> Self;

@@ -62,19 +62,26 @@ fn add_directed<const DOWN: bool>(a: f64, b: f64) -> f64 {
     directed::<DOWN>(s, e)
 }
 
-/// The exact error `a·b − p` of the nearest product `p = a·b` by one fused multiply-add, or
-/// `None` outside the range where the error is surely representable (no overflow of the
-/// product, no underflow of the error). The tape evaluators that do interval arithmetic run in a
-/// copy compiled for the CPU's FMA instruction where it has one ([`crate::expr::tape`]);
-/// elsewhere `mul_add` calls the C library's `fma`, exact in either case.
+/// The exact error `a·b − p` of the nearest product `p = a·b` by Dekker's two-product (Veltkamp's
+/// split: inline wherever an enclosure is computed, where a fused multiply-add would be a call
+/// into the C library outside the tape evaluators' FMA copy), or `None` outside the range where
+/// the split cannot overflow and the error is representable.
 #[inline(always)]
 fn product_error(a: f64, b: f64, p: f64) -> Option<f64> {
+    const SPLITTER: f64 = 134_217_729.0; // 2^27 + 1
     const BIG: f64 = f64::from_bits((1023 + 996) << 52); // 2^996
     const SMALL: f64 = f64::from_bits((1023 - 969) << 52); // 2^-969
     if !(a.abs() < BIG && b.abs() < BIG && p.abs() < BIG && p.abs() > SMALL) {
         return None;
     }
-    Some(a.mul_add(b, -p))
+    let split = |x: f64| {
+        let c = SPLITTER * x;
+        let hi = c - (c - x);
+        (hi, x - hi)
+    };
+    let (ah, al) = split(a);
+    let (bh, bl) = split(b);
+    Some(((ah * bh - p) + ah * bl + al * bh) + al * bl)
 }
 
 /// `a · b` rounded towards −∞ (`DOWN`) or +∞: the nearest product, moved one ulp to the
