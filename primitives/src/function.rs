@@ -214,12 +214,11 @@ fn monotone_along(gradient: &[Enclosure; 3], dir: DVec3) -> bool {
 }
 
 impl Compiled {
-    /// The octree, built on first use by the calling thread with threads of its own (as many as
-    /// the current pool has): other threads asking for it meanwhile wait, and a build that
-    /// handed work to the pool could find the pool's threads all waiting here.
+    /// The octree, its root made on first use; its other cells are made by the walks that reach
+    /// them ([`CellTree::walk`]).
     fn cells(&self) -> &CellTree {
         self.cells
-            .get_or_init(|| CellTree::new(&self.tape, self.bounds.min, self.bounds.max, true))
+            .get_or_init(|| CellTree::new(&self.tape, self.bounds.min, self.bounds.max))
     }
 
     /// The first root along `ray` in `segment` (clipped to the grown bounds), walking the
@@ -234,63 +233,56 @@ impl Compiled {
         }
         let mut evaluations = 0u32;
         let mut outcome = Isolated::default();
-        let mut found_in = 0u32;
         let mut last = (f64::NAN, 0.0);
         with_scratch(|scratch| {
-            cells.walk(
-                ray.origin,
-                ray.dir,
-                segment.min,
-                segment.max,
-                &mut |number, leaf, lo, hi, ta, tb| {
-                    let mut along = LeafAlong {
-                        ray,
-                        leaf,
-                        full: &self.tape,
-                        cell_lo: lo,
-                        cell_hi: hi,
-                        bounds,
-                        scratch: &mut *scratch,
-                        last: &mut last,
-                    };
-                    if cells.leaf_gradient(number).is_some_and(|g| monotone_along(g, ray.dir)) {
-                        // g is strictly monotone over the whole leaf: its end values decide
-                        found_in = number;
-                        let t = monotone_root(&mut along, ta, tb, options.tolerance, &mut evaluations);
-                        outcome.hit = t.map(|t| (t, false));
-                        return outcome.hit.is_some();
-                    }
-                    let piece = isolate_in(
-                        &mut along,
-                        Interval::new(ta, tb),
-                        options.tolerance,
-                        options.max_evaluations,
-                        &mut evaluations,
-                    );
-                    outcome.undefined_seen |= piece.undefined_seen;
-                    outcome.exhausted = piece.exhausted;
-                    outcome.hit = piece.hit;
-                    found_in = number;
-                    piece.hit.is_some() || piece.exhausted
-                },
-            );
+            cells.walk(ray.origin, ray.dir, segment.min, segment.max, &mut |leaf, ta, tb| {
+                let (lo, hi) = leaf.grown();
+                let mut along = LeafAlong {
+                    ray,
+                    leaf: leaf.tape(),
+                    full: &self.tape,
+                    cell_lo: lo,
+                    cell_hi: hi,
+                    bounds,
+                    scratch: &mut *scratch,
+                    last: &mut last,
+                };
+                if monotone_along(leaf.gradient(), ray.dir) {
+                    // g is strictly monotone over the whole leaf: its end values decide
+                    let t = monotone_root(&mut along, ta, tb, options.tolerance, &mut evaluations);
+                    outcome.hit = t.map(|t| (t, false));
+                    return outcome.hit.is_some();
+                }
+                let piece = isolate_in(
+                    &mut along,
+                    Interval::new(ta, tb),
+                    options.tolerance,
+                    options.max_evaluations,
+                    &mut evaluations,
+                );
+                outcome.undefined_seen |= piece.undefined_seen;
+                outcome.exhausted = piece.exhausted;
+                outcome.hit = piece.hit;
+                piece.hit.is_some() || piece.exhausted
+            });
         });
         let uncertain = count_outcome(outcome.hit, outcome.exhausted, outcome.undefined_seen);
         Some(RootReport {
-            // the leaf's number + 1 (0: found without the octree), for the normal
-            hit: outcome.hit.map(|(t, _)| RawHit::on_feature(t, found_in + 1)),
+            // 1: found in a leaf of the octree (0: without it), for the normal
+            hit: outcome.hit.map(|(t, _)| RawHit::on_feature(t, 1)),
             lipschitz_violated: false,
             evaluations,
             uncertain,
         })
     }
 
-    /// ∇Φ at `p`, from the tape of leaf `feature − 1` where `p` lies in its grown cell (the
-    /// same derivatives, see [`crate::expr::tape`]), else from the full tape.
+    /// ∇Φ at `p`, from the tape of the octree's leaf holding `p` where the hit was found in the
+    /// octree (`feature` 1) and that leaf's grown cell holds `p` (the same derivatives, see
+    /// [`crate::expr::tape`]), else from the full tape.
     fn gradient(&self, p: DVec3, feature: u32) -> DVec3 {
-        let tape = feature
-            .checked_sub(1)
-            .and_then(|leaf| self.cells.get()?.tape_at(leaf, p))
+        let tape = (feature == 1)
+            .then(|| self.cells.get()?.tape_at(p))
+            .flatten()
             .unwrap_or(&self.tape);
         DVec3::from_array(with_scratch(|s| tape.gradient(p.to_array(), &mut s.gradients)))
     }

@@ -1,5 +1,6 @@
 //! An octree of a box that knows, cell by cell, whether Φ may vanish there, and with which
-//! pruned tape: built once, shared by every ray (and point query) that crosses the box.
+//! pruned tape: made as rays first reach its cells, shared by every ray (and point query) that
+//! crosses the box.
 //!
 //! **Built** by interval evaluation (`Tape::eval_choices`) over each cell grown by a margin
 //! `m` on every side: a cell whose enclosure of Φ excludes 0 (and is defined) holds no point of
@@ -8,9 +9,15 @@
 //! "Massively parallel rendering of complex closed-form implicit surfaces"; libfive), down to
 //! [`MIN_LEAF_DEPTH`] levels (or [`MAX_DEPTH`] where the cell's gradients point in too wide a
 //! cone), where a **leaf** keeps the tape pruned over itself and enclosures of
-//! the partial derivatives of Φ over its grown cell ([`CellTree::leaf_gradient`]: a ray whose
+//! the partial derivatives of Φ over its grown cell ([`Leaf::gradient`]: a ray whose
 //! slope `∇Φ·d` they prove non-zero is monotone across the whole leaf). A pruned tape gives
 //! the full tape's values bit for bit inside its grown cell ([`crate::expr::tape`]).
+//!
+//! **Made on demand**: only the root is classified when the tree is made; a cell's eight
+//! children are classified when a walk first reaches it (the first walk does the work, others
+//! reaching it meanwhile wait), so cells no ray reaches (behind the first surface, outside the
+//! view) cost nothing. The cells made are the cells an eager build would make, with the same
+//! tapes and enclosures.
 //!
 //! **Walked** front to back along a ray ([`CellTree::walk`]): the ray's parameter range is cut
 //! at the cells' mid-planes, and every `t` of the range is handed to exactly one leaf or empty
@@ -23,7 +30,7 @@ use super::tape::{Choice, Tape};
 use super::Jet;
 use crate::math::enclosure::Enclosure;
 use glam::DVec3;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// Levels of the octree below its root (a leaf is `1/2^MAX_DEPTH` of the box on each axis).
 pub const MAX_DEPTH: u32 = 7;
@@ -38,14 +45,24 @@ pub const MIN_LEAF_DEPTH: u32 = 6;
 const MARGIN: f64 = 1e-6;
 
 /// A cell of the tree.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Cell {
+#[derive(Debug)]
+enum Cell {
     /// Φ cannot vanish in the (grown) cell.
     Empty,
-    /// Eight children, at this index of the node table (bit 0: upper x half, 1: y, 2: z).
-    Inner(u32),
-    /// A leaf with this index into the leaf table.
-    Leaf(u32),
+    /// An inner cell, its children made on first use.
+    Inner(Node),
+    /// A leaf.
+    Leaf(Box<Leaf>),
+}
+
+/// An inner cell: the tape pruned over it, its depth, and its eight children (bit 0: upper x
+/// half, 1: y, 2: z), classified by the first walk that reaches them (`None` where all eight
+/// are empty).
+#[derive(Debug)]
+struct Node {
+    tape: Arc<Tape>,
+    depth: u32,
+    children: OnceLock<Option<Box<[Cell; 8]>>>,
 }
 
 /// The octree (see the module docs).
@@ -55,26 +72,36 @@ pub struct CellTree {
     hi: DVec3,
     margin: f64,
     root: Cell,
-    nodes: Vec<[Cell; 8]>,
-    tapes: Vec<Arc<Tape>>,
-    leaves: Vec<Leaf>,
 }
 
-/// A leaf: its cell grown by the margin, its tape's index, and enclosures of the partial
+/// A leaf: its cell grown by the margin, the tape pruned over it, and enclosures of the partial
 /// derivatives `∂Φ/∂x, ∂Φ/∂y, ∂Φ/∂z` over the grown cell.
-#[derive(Clone, Copy, Debug)]
-struct Leaf {
+#[derive(Debug)]
+pub struct Leaf {
     lo: DVec3,
     hi: DVec3,
-    tape: u32,
+    tape: Arc<Tape>,
     gradient: [Enclosure; 3],
 }
 
-/// A cell as built, before the tables are laid out.
-enum Built {
-    Empty,
-    Leaf(Arc<Tape>, DVec3, DVec3, [Enclosure; 3]),
-    Inner(Box<[Built; 8]>),
+impl Leaf {
+    /// The tape pruned over the leaf: the full tape's values bit for bit inside its grown cell.
+    #[must_use]
+    pub fn tape(&self) -> &Tape {
+        &self.tape
+    }
+
+    /// The leaf's cell grown by the margin, `(lo, hi)`.
+    #[must_use]
+    pub fn grown(&self) -> (DVec3, DVec3) {
+        (self.lo, self.hi)
+    }
+
+    /// Enclosures of `∂Φ/∂x, ∂Φ/∂y, ∂Φ/∂z` over the grown cell (from the pruned tape).
+    #[must_use]
+    pub fn gradient(&self) -> &[Enclosure; 3] {
+        &self.gradient
+    }
 }
 
 fn child_box(lo: DVec3, hi: DVec3, bits: usize) -> (DVec3, DVec3) {
@@ -124,15 +151,14 @@ fn enclose_gradient(
         .slope
 }
 
-fn build(
-    tape: &Arc<Tape>,
-    lo: DVec3,
-    hi: DVec3,
-    margin: f64,
-    depth: u32,
-    parallel: bool,
-    scratch: &mut Scratch,
-) -> Built {
+thread_local! {
+    static BUILD_SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+/// The cell `[lo, hi]` at `depth`, classified with `tape` (pruned over its parent) by interval
+/// evaluation over the cell grown by `margin`: empty, a leaf, or an inner cell whose children
+/// are left for later.
+fn classify(tape: &Arc<Tape>, lo: DVec3, hi: DVec3, margin: f64, depth: u32, scratch: &mut Scratch) -> Cell {
     let vars = [
         Enclosure::new(lo.x - margin, hi.x + margin),
         Enclosure::new(lo.y - margin, hi.y + margin),
@@ -140,7 +166,7 @@ fn build(
     ];
     let value = tape.eval_choices(vars, &mut scratch.slots, &mut scratch.choices);
     if !value.undefined() && !value.contains_zero() {
-        return Built::Empty;
+        return Cell::Empty;
     }
     let pruned = match tape.pruned(&scratch.choices) {
         Some(shorter) => Arc::new(shorter),
@@ -149,119 +175,68 @@ fn build(
     if depth >= MIN_LEAF_DEPTH {
         let gradient = enclose_gradient(&pruned, vars, &mut scratch.jets);
         if depth == MAX_DEPTH || narrow_cone(&gradient) {
-            return Built::Leaf(pruned, lo, hi, gradient);
+            let m = DVec3::splat(margin);
+            return Cell::Leaf(Box::new(Leaf {
+                lo: lo - m,
+                hi: hi + m,
+                tape: pruned,
+                gradient,
+            }));
         }
     }
-    let child = |bits: usize, scratch: &mut Scratch| {
-        let (l, h) = child_box(lo, hi, bits);
-        build(&pruned, l, h, margin, depth + 1, parallel, scratch)
-    };
-    let built: Box<[Built; 8]> = if parallel && depth == 0 {
-        Box::new(build_children_on_threads(&|bits, scratch| child(bits, scratch)))
-    } else {
-        Box::new(std::array::from_fn(|bits| child(bits, scratch)))
-    };
-    if built.iter().all(|c| matches!(c, Built::Empty)) {
-        return Built::Empty;
-    }
-    Built::Inner(built)
+    Cell::Inner(Node {
+        tape: pruned,
+        depth,
+        children: OnceLock::new(),
+    })
 }
 
-/// The eight children of the root, built on as many threads of their own as the current rayon
-/// pool has (plain threads that wait for nothing but their work: a pool's threads, while they
-/// wait for stolen work, may run other jobs that need this very tree), each taking the next
-/// child not yet taken; on the calling thread alone where no thread can be started.
-fn build_children_on_threads(child: &(dyn Fn(usize, &mut Scratch) -> Built + Sync)) -> [Built; 8] {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    use std::sync::Mutex;
-    let workers = rayon::current_num_threads().clamp(1, 8);
-    let next = AtomicUsize::new(0);
-    let done: Mutex<Vec<(usize, Built)>> = Mutex::new(Vec::with_capacity(8));
-    let work = || {
-        let mut scratch = Scratch::default();
-        loop {
-            let bits = next.fetch_add(1, Ordering::Relaxed);
-            if bits >= 8 {
-                break;
-            }
-            let built = child(bits, &mut scratch);
-            done.lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .push((bits, built));
+impl Node {
+    /// The children of this node, whose cell is `[lo, hi]` (`None`: all empty), classified by
+    /// the first caller (other callers meanwhile wait; the work calls no thread pool).
+    #[inline]
+    fn children(&self, lo: DVec3, hi: DVec3, margin: f64) -> Option<&[Cell; 8]> {
+        match self.children.get() {
+            Some(made) => made.as_deref(),
+            None => self.make_children(lo, hi, margin),
         }
-    };
-    std::thread::scope(|scope| {
-        for _ in 1..workers {
-            // a thread that cannot be started leaves its share to the others
-            let _ = std::thread::Builder::new().spawn_scoped(scope, work);
-        }
-        work();
-    });
-    let mut slots: [Option<Built>; 8] = Default::default();
-    for (bits, built) in done.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
-        slots[bits] = Some(built);
     }
-    slots.map(|slot| slot.unwrap_or(Built::Empty))
+
+    #[cold]
+    #[inline(never)]
+    fn make_children(&self, lo: DVec3, hi: DVec3, margin: f64) -> Option<&[Cell; 8]> {
+        self.children
+            .get_or_init(|| {
+                let make = |scratch: &mut Scratch| {
+                    let children: Box<[Cell; 8]> = Box::new(std::array::from_fn(|bits| {
+                        let (l, h) = child_box(lo, hi, bits);
+                        classify(&self.tape, l, h, margin, self.depth + 1, scratch)
+                    }));
+                    (!children.iter().all(|c| matches!(c, Cell::Empty))).then_some(children)
+                };
+                BUILD_SCRATCH.with(|cell| match cell.try_borrow_mut() {
+                    Ok(mut scratch) => make(&mut scratch),
+                    Err(_) => make(&mut Scratch::default()),
+                })
+            })
+            .as_deref()
+    }
 }
 
 impl CellTree {
-    /// The tree of `tape` over the box `[lo, hi]` (finite, non-empty), its upper levels built
-    /// on threads of its own if `parallel` (the root's eight children shared among as many
-    /// threads as the current rayon pool has).
+    /// The tree of `tape` over the box `[lo, hi]` (finite, non-empty): its root classified now,
+    /// every other cell by the first walk that reaches it (cells no ray reaches cost nothing).
     #[must_use]
-    pub fn new(tape: &Tape, lo: DVec3, hi: DVec3, parallel: bool) -> Self {
+    pub fn new(tape: &Tape, lo: DVec3, hi: DVec3) -> Self {
         let margin = MARGIN * (hi - lo).length();
-        let built = build(
-            &Arc::new(tape.clone()),
-            lo,
-            hi,
-            margin,
-            0,
-            parallel,
-            &mut Scratch::default(),
-        );
-        let mut tree = Self {
-            lo,
-            hi,
-            margin,
-            root: Cell::Empty,
-            nodes: Vec::new(),
-            tapes: Vec::new(),
-            leaves: Vec::new(),
-        };
-        let mut seen = std::collections::HashMap::new();
-        tree.root = tree.lay_out(built, &mut seen);
-        tree
-    }
-
-    fn lay_out(&mut self, built: Built, seen: &mut std::collections::HashMap<*const Tape, u32>) -> Cell {
-        match built {
-            Built::Empty => Cell::Empty,
-            Built::Leaf(tape, lo, hi, gradient) => {
-                let key = Arc::as_ptr(&tape);
-                let index = *seen.entry(key).or_insert_with(|| {
-                    self.tapes.push(Arc::clone(&tape));
-                    (self.tapes.len() - 1) as u32
-                });
-                let m = DVec3::splat(self.margin);
-                self.leaves.push(Leaf {
-                    lo: lo - m,
-                    hi: hi + m,
-                    tape: index,
-                    gradient,
-                });
-                Cell::Leaf((self.leaves.len() - 1) as u32)
+        let root = BUILD_SCRATCH.with(|cell| {
+            let tape = Arc::new(tape.clone());
+            match cell.try_borrow_mut() {
+                Ok(mut scratch) => classify(&tape, lo, hi, margin, 0, &mut scratch),
+                Err(_) => classify(&tape, lo, hi, margin, 0, &mut Scratch::default()),
             }
-            Built::Inner(children) => {
-                let index = self.nodes.len();
-                self.nodes.push([Cell::Empty; 8]);
-                for (bits, child) in children.into_iter().enumerate() {
-                    let cell = self.lay_out(child, seen);
-                    self.nodes[index][bits] = cell;
-                }
-                Cell::Inner(index as u32)
-            }
-        }
+        });
+        Self { lo, hi, margin, root }
     }
 
     /// The margin each cell was grown by (absolute).
@@ -279,51 +254,71 @@ impl CellTree {
         64.0 * f64::EPSILON * scale < self.margin
     }
 
-    /// The tape that gives Φ at `p`, knowing `p` was found in leaf `leaf` (a number handed
-    /// to [`CellTree::walk`]'s visitor): that leaf's pruned tape if `p` lies in its grown cell,
-    /// else `None` (the full tape is then the one to use).
+    /// The tape that gives Φ at `p`: the pruned tape of a leaf made so far whose grown cell
+    /// holds `p`, else `None` (the full tape is then the one to use).
     #[must_use]
-    pub fn tape_at(&self, leaf: u32, p: DVec3) -> Option<&Tape> {
-        let leaf = self.leaves.get(leaf as usize)?;
-        (p.cmpge(leaf.lo) & p.cmple(leaf.hi))
-            .all()
-            .then(|| &*self.tapes[leaf.tape as usize])
+    pub fn tape_at(&self, p: DVec3) -> Option<&Tape> {
+        let (mut lo, mut hi, mut cell) = (self.lo, self.hi, &self.root);
+        loop {
+            match cell {
+                Cell::Empty => return None,
+                Cell::Leaf(leaf) => {
+                    return (p.cmpge(leaf.lo) & p.cmple(leaf.hi)).all().then(|| leaf.tape());
+                }
+                Cell::Inner(node) => {
+                    let children = node.children.get()?.as_deref()?;
+                    let mid = 0.5 * (lo + hi);
+                    let upper = p.cmpge(mid);
+                    let bits = usize::from(upper.x) | usize::from(upper.y) << 1 | usize::from(upper.z) << 2;
+                    (lo, hi) = child_box_at(lo, mid, hi, bits);
+                    cell = &children[bits];
+                }
+            }
+        }
     }
 
-    /// Enclosures of `∂Φ/∂x, ∂Φ/∂y, ∂Φ/∂z` over the grown cell of leaf `leaf` (a number handed
-    /// to [`CellTree::walk`]'s visitor), from its pruned tape; `None` for no such leaf.
-    #[must_use]
-    pub fn leaf_gradient(&self, leaf: u32) -> Option<&[Enclosure; 3]> {
-        self.leaves.get(leaf as usize).map(|l| &l.gradient)
-    }
-
-    /// Number of leaves' distinct tapes and of inner nodes (for reports and tests).
+    /// Number of distinct tapes and of inner cells made so far (for reports and tests).
     #[must_use]
     pub fn sizes(&self) -> (usize, usize) {
-        (self.tapes.len(), self.nodes.len())
+        let mut tapes = std::collections::HashSet::new();
+        let mut inner = 0;
+        let mut stack = vec![&self.root];
+        while let Some(cell) = stack.pop() {
+            match cell {
+                Cell::Empty => {}
+                Cell::Leaf(leaf) => {
+                    tapes.insert(Arc::as_ptr(&leaf.tape));
+                }
+                Cell::Inner(node) => {
+                    inner += 1;
+                    stack.extend(node.children.get().into_iter().flatten().flat_map(|c| c.iter()));
+                }
+            }
+        }
+        (tapes.len(), inner)
     }
 
     /// Hands each leaf the ray `origin + t·dir` passes through, front to back, for `t` in
-    /// `[t0, t1]` (already clipped to the box): `visit(leaf, tape, grown_lo, grown_hi, ta, tb)`
-    /// with the leaf's number, its tape and its cell grown by the margin, the pieces `[ta, tb]`
-    /// covering `[t0, t1]` less the pieces in empty cells. Stops when `visit` returns `true`,
-    /// and then returns `true`.
+    /// `[t0, t1]` (already clipped to the box): `visit(leaf, ta, tb)` with the leaf (its tape,
+    /// its cell grown by the margin, its gradient) and the pieces `[ta, tb]` covering `[t0, t1]`
+    /// less the pieces in empty cells, making the cells it reaches that were not made yet.
+    /// Stops when `visit` returns `true`, and then returns `true`.
     pub fn walk(
         &self,
         origin: DVec3,
         dir: DVec3,
         t0: f64,
         t1: f64,
-        visit: &mut impl FnMut(u32, &Tape, DVec3, DVec3, f64, f64) -> bool,
+        visit: &mut impl FnMut(&Leaf, f64, f64) -> bool,
     ) -> bool {
         let inv = dir.recip();
-        self.walk_cell(self.root, self.lo, self.hi, origin, dir, inv, t0, t1, visit)
+        self.walk_cell(&self.root, self.lo, self.hi, origin, dir, inv, t0, t1, visit)
     }
 
     #[allow(clippy::too_many_arguments)]
     fn walk_cell(
         &self,
-        cell: Cell,
+        cell: &Cell,
         lo: DVec3,
         hi: DVec3,
         origin: DVec3,
@@ -331,15 +326,15 @@ impl CellTree {
         inv: DVec3,
         t0: f64,
         t1: f64,
-        visit: &mut impl FnMut(u32, &Tape, DVec3, DVec3, f64, f64) -> bool,
+        visit: &mut impl FnMut(&Leaf, f64, f64) -> bool,
     ) -> bool {
         match cell {
             Cell::Empty => false,
-            Cell::Leaf(index) => {
-                let leaf = &self.leaves[index as usize];
-                visit(index, &self.tapes[leaf.tape as usize], leaf.lo, leaf.hi, t0, t1)
-            }
+            Cell::Leaf(leaf) => visit(leaf, t0, t1),
             Cell::Inner(node) => {
+                let Some(children) = node.children(lo, hi, self.margin) else {
+                    return false;
+                };
                 let mid = 0.5 * (lo + hi);
                 // where the ray crosses each mid-plane (never, along an axis it does not move on)
                 let mut cut = [f64::INFINITY; 3];
@@ -359,7 +354,6 @@ impl CellTree {
                         bits |= 1 << axis;
                     }
                 }
-                let children = &self.nodes[node as usize];
                 let mut t = t0;
                 loop {
                     let mut next = t1;
@@ -368,8 +362,8 @@ impl CellTree {
                             next = c;
                         }
                     }
-                    let child = children[bits];
-                    if child != Cell::Empty {
+                    let child = &children[bits];
+                    if !matches!(child, Cell::Empty) {
                         let (l, h) = child_box_at(lo, mid, hi, bits);
                         if self.walk_cell(child, l, h, origin, dir, inv, t, next, visit) {
                             return true;
@@ -402,9 +396,8 @@ mod tests {
         let e = Expr::parse("min(sqrt(x^2 + y^2 + z^2) - 0.5, sqrt((x - 0.8)^2 + y^2 + z^2) - 0.2)").unwrap();
         let tape = e.compile();
         let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
-        let tree = CellTree::new(&tape, lo, hi, true);
-        let (tapes, nodes) = tree.sizes();
-        assert!(tapes > 2 && nodes > 8, "{tapes} {nodes}");
+        let tree = CellTree::new(&tape, lo, hi);
+        assert_eq!(tree.sizes(), (0, 1), "only the root is made before a walk");
         let mut rng = 0x1234_5678_u64;
         let mut next = || {
             rng ^= rng << 13;
@@ -421,15 +414,23 @@ mod tests {
                 continue;
             };
             let mut pieces: Vec<(f64, f64)> = Vec::new();
-            tree.walk(o, d, range.min, range.max, &mut |number, leaf, l, h, ta, tb| {
+            tree.walk(o, d, range.min, range.max, &mut |leaf, ta, tb| {
                 assert!(ta <= tb);
+                let (l, h) = leaf.grown();
                 for t in [ta, 0.5 * (ta + tb), tb] {
                     let p = ray.at(t);
                     assert!((p.cmpge(l) & p.cmple(h)).all(), "{p} outside {l} {h}");
-                    assert!(std::ptr::eq(tree.tape_at(number, p).unwrap(), leaf));
-                    // the leaf's tape has the full tape's value here
+                    // the leaf's tape, and the tape found for the point, have the full tape's
+                    // value here
+                    // (the ends lie on cell faces, where the point may be found in a neighbour)
                     let mut s = Vec::new();
-                    assert_eq!(leaf.eval_f64(p.to_array(), &mut s).to_bits(), e.eval(p).to_bits());
+                    let found = tree.tape_at(p);
+                    if t > ta && t < tb && tb - ta > 1e-9 {
+                        assert!(found.is_some(), "no leaf found for {p} inside a piece");
+                    }
+                    for tape in std::iter::once(leaf.tape()).chain(found) {
+                        assert_eq!(tape.eval_f64(p.to_array(), &mut s).to_bits(), e.eval(p).to_bits());
+                    }
                 }
                 pieces.push((ta, tb));
                 false
@@ -454,5 +455,7 @@ mod tests {
                 prev = v;
             }
         }
+        let (tapes, nodes) = tree.sizes();
+        assert!(tapes > 2 && nodes > 8, "{tapes} {nodes}");
     }
 }

@@ -312,16 +312,17 @@ impl Tape {
     #[inline]
     pub fn eval<T: Scalar>(&self, vars: [T; 3], slots: &mut Vec<T>) -> T {
         #[cfg(target_arch = "x86_64")]
-        if T::DIRECTED && std::arch::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU has the FMA instructions (checked just above).
+        if T::DIRECTED && crate::cpu::has_avx2_fma() {
+            // SAFETY: the CPU has AVX2 and FMA (checked just above).
             return unsafe { self.eval_fma(vars, slots) };
         }
         self.eval_here(vars, slots)
     }
 
-    /// [`Tape::eval`] compiled for the FMA instructions.
+    /// [`Tape::eval`] compiled for AVX2 and FMA: the generic counterpart of
+    /// [`crate::with_fma!`] (whose copies are monomorphic).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "fma")]
+    #[target_feature(enable = "avx2,fma")]
     unsafe fn eval_fma<T: Scalar>(&self, vars: [T; 3], slots: &mut Vec<T>) -> T {
         self.eval_here(vars, slots)
     }
@@ -354,16 +355,16 @@ impl Tape {
         choices: &mut Vec<Choice>,
     ) -> Enclosure {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU has the FMA instructions (checked just above).
+        if crate::cpu::has_avx2_fma() {
+            // SAFETY: the CPU has AVX2 and FMA (checked just above).
             return unsafe { self.eval_choices_fma(vars, slots, choices) };
         }
         self.eval_choices_here(vars, slots, choices)
     }
 
-    /// [`Tape::eval_choices`] compiled for the FMA instructions.
+    /// [`Tape::eval_choices`] compiled for AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "fma")]
+    #[target_feature(enable = "avx2,fma")]
     unsafe fn eval_choices_fma(
         &self,
         vars: [Enclosure; 3],
