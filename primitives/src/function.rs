@@ -10,8 +10,8 @@
 //! - **Closure** ([`Function::new`]): only point values; the sampling / sphere-tracing finder of
 //!   [`crate::root`] (with an optional Lipschitz bound) and central-difference normals.
 //!
-//! Where an expression is undefined at a point (`√` of a negative, `ln` of a number ≤ 0, `÷ 0`),
-//! Φ there is `+∞` (outside). [`Function::from_expr`] looks for such points at construction:
+//! Where an expression is undefined at a point (`√` of a negative, `ln` of a number ≤ 0, `0 ÷ 0`:
+//! a NaN), Φ there is `+∞` (outside); a value that overflows to `±∞` keeps its sign. [`Function::from_expr`] looks for such points at construction:
 //! interval evaluation over the whole box decides whether any can exist
 //! ([`Function::may_be_undefined`]), and if so a 17³ grid of point evaluations over the box
 //! turns a found one into an error naming the operation's column and the point.
@@ -70,12 +70,14 @@ fn with_scratch<R>(f: impl FnOnce(&mut Scratch) -> R) -> R {
     })
 }
 
-/// Φ as [`Function::phi`] reports it: `+∞` where the expression is not finite.
-fn finite_or_outside(v: f64) -> f64 {
-    if v.is_finite() {
-        v
-    } else {
+/// Φ as [`Function::phi`] reports it: `+∞` (outside) where the expression is NaN; an
+/// overflow to `±∞` keeps its sign (a huge value on that side of the surface, so a crossing
+/// from `+∞` to `−∞` is a sign change like any other).
+fn defined_or_outside(v: f64) -> f64 {
+    if v.is_nan() {
         f64::INFINITY
+    } else {
+        v
     }
 }
 
@@ -136,7 +138,7 @@ impl AlongRay for LeafAlong<'_> {
         } else {
             self.full
         };
-        let g = finite_or_outside(tape.eval_f64(p.to_array(), &mut self.scratch.points));
+        let g = defined_or_outside(tape.eval_f64(p.to_array(), &mut self.scratch.points));
         *self.last = (t, g);
         g
     }
@@ -181,7 +183,7 @@ impl AlongRay for LeafAlong<'_> {
         let d = self.ray.dir;
         let seed = |a: usize| Jet::new(p[a], d[a]);
         let jet = tape.eval([seed(0), seed(1), seed(2)], &mut self.scratch.slopes);
-        let g = finite_or_outside(jet.value);
+        let g = defined_or_outside(jet.value);
         *self.last = (t, g);
         (g, jet.slope)
     }
@@ -440,11 +442,10 @@ impl Function {
 }
 
 impl Implicit for Function {
-    /// Φ at `p`; `+∞` where an expression is undefined or a closure returns a non-finite value
-    /// from an expression.
+    /// Φ at `p`; `+∞` where an expression is undefined (NaN), `±∞` where it overflows.
     fn phi(&self, p: DVec3) -> f64 {
         match &self.phi {
-            Phi::Expression(e) => finite_or_outside(with_scratch(|s| e.tape.eval_f64(p.to_array(), &mut s.points))),
+            Phi::Expression(e) => defined_or_outside(with_scratch(|s| e.tape.eval_f64(p.to_array(), &mut s.points))),
             Phi::Closure(f) => f(p),
         }
     }
@@ -553,6 +554,25 @@ mod tests {
 
     /// The plain-f64 slope test certifies only what outward-rounded interval arithmetic
     /// certifies, and almost everything it does (pseudo-random enclosures and directions).
+    /// Φ that overflows to ±∞ on either side of its zero set (the plane x = 0 of
+    /// `x·10³⁰⁸·10³⁰⁸`) is hit where the plane is, like `x` itself, on every ray through the box.
+    #[test]
+    fn overflowing_phi_keeps_its_sign() {
+        let bounds = Aabb::new(DVec3::splat(-1.0), DVec3::splat(1.0));
+        let huge = build("x*1e308*1e308", bounds).unwrap();
+        for k in 0..200 {
+            let f = f64::from(k);
+            let origin = DVec3::new(3.0, (0.37 * f).sin() * 0.9, (0.61 * f).cos() * 0.9);
+            let target = DVec3::new(-1.0, (0.23 * f).cos() * 0.9, (0.11 * f).sin() * 0.9);
+            let ray = Ray::new(origin, target - origin);
+            let (hit, uncertain) = crate::root::uncertain_while(|| huge.intersect(&ray, Interval::POSITIVE));
+            let expected = origin.x / (origin.x - target.x);
+            let t = hit.expect("the plane x = 0 is crossed").t;
+            assert!((t - expected).abs() <= 1e-6, "ray {k}: {t} vs {expected}");
+            assert!(!uncertain, "ray {k}");
+        }
+    }
+
     #[test]
     fn monotone_test_agrees_with_interval_arithmetic() {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;

@@ -384,6 +384,7 @@ mod tests {
             ("sqrt", 1, "needs its arguments"),
             ("", 1, "empty"),
             ("1..2", 1, "malformed number"),
+            ("1e400*x + y", 1, "beyond the largest double"),
         ];
         for (text, column, message) in cases {
             let e = Expr::parse(text).unwrap_err();

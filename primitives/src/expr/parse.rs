@@ -61,6 +61,13 @@ fn tokenize(text: &str) -> Result<Vec<Lexed>, ParseError> {
                 column,
                 message: format!("malformed number `{literal}`"),
             })?;
+            if !value.is_finite() {
+                // `1e400` rounds to ∞, and `∞·0` is undefined right where the surface lies
+                return Err(ParseError {
+                    column,
+                    message: format!("number `{literal}` is beyond the largest double (about 1.8e308)"),
+                });
+            }
             out.push(Lexed {
                 token: Token::Number(value),
                 column,
