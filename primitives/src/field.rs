@@ -45,6 +45,7 @@
 
 use crate::bounds::Aabb;
 use crate::expr::{coordinates_along, jets_along, Jet, Scalar};
+use crate::hit::RawHit;
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use crate::root::RootOptions;
@@ -126,6 +127,13 @@ impl<F: ScalarField> Implicit for FieldSurface<F> {
 impl<F: ScalarField> Intersect for FieldSurface<F> {
     fn root_options(&self) -> RootOptions {
         self.field.root_options()
+    }
+
+    /// The rounding bound plus the root finder's tolerance along the ray: a hit is within the
+    /// tolerance of a root, so secondary rays start beyond it (no shadow acne).
+    fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
+        let magnitude = crate::offset::magnitude(&self.field.bounds());
+        crate::offset::root_error_bound(ray, raw.t, magnitude, self.field.root_options().tolerance)
     }
 }
 

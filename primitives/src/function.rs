@@ -527,15 +527,8 @@ impl Intersect for Function {
     /// the tolerance (in units of `t`) of a root along the ray, so within `tolerance·|dir|` of
     /// the surface. Secondary rays ([`crate::SurfaceHit::secondary_origin`]) start beyond it.
     fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
-        // |dir| without overflow for huge components
-        let largest = ray.dir.abs().max_element();
-        let length = if largest > 0.0 {
-            largest * (ray.dir / largest).length()
-        } else {
-            0.0
-        };
-        crate::offset::point_error_bound(ray, raw.t, crate::offset::magnitude(&self.bounds))
-            + self.options.tolerance * length
+        let magnitude = crate::offset::magnitude(&self.bounds);
+        crate::offset::root_error_bound(ray, raw.t, magnitude, self.options.tolerance)
     }
 }
 

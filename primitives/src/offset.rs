@@ -69,6 +69,20 @@ pub fn point_error_bound(ray: &Ray, t: f64, magnitude: f64) -> f64 {
     gamma(OFFSET_GAMMA) * (ray.origin.abs().max_element() + (t * ray.dir).abs().max_element() + magnitude)
 }
 
+/// [`point_error_bound`] plus `tolerance·|d|`: a bound for a point found by a root finder that
+/// stops within `tolerance` (in `t`) of the root (a `Function`, a `FieldSurface`).
+#[must_use]
+pub fn root_error_bound(ray: &Ray, t: f64, magnitude: f64, tolerance: f64) -> f64 {
+    // |d| without overflow for huge components
+    let largest = ray.dir.abs().max_element();
+    let length = if largest > 0.0 {
+        largest * (ray.dir / largest).length()
+    } else {
+        0.0
+    };
+    point_error_bound(ray, t, magnitude) + tolerance * length
+}
+
 /// The next representable value after `x` away from zero direction `towards` (by sign).
 fn step_towards(x: f64, towards: f64) -> f64 {
     if towards == 0.0 || !x.is_finite() {

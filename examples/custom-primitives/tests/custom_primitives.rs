@@ -247,3 +247,55 @@ fn generic_torus_has_no_holes_and_exact_normals() {
     }
     assert_eq!(holes, 0, "{holes} of 2000 rays through the thin tube missed it");
 }
+
+/// Shadow rays from the gyroid example's hits, started where `SurfaceHit::secondary_origin`
+/// puts them and aimed at the scene's two lights where they face them, never re-hit their own
+/// surface at the start (a re-hit within ten tolerances of the origin is shadow acne: the
+/// offset did not cover the root finder's tolerance).
+#[test]
+fn gyroid_shadow_rays_do_not_hit_their_own_surface() {
+    use rand::{Rng, SeedableRng};
+    use zeroset_custom_primitives::Gyroid;
+    use zeroset_primitives::{FieldSurface, HitRequest, Intersect, Interval, Ray, SurfaceHit};
+    let surface = FieldSurface::new(Gyroid {
+        frequency: 6.0,
+        thickness: 0.4,
+        half_size: 1.0,
+    });
+    let tolerance = surface.root_options().tolerance;
+    let lights = [glam::DVec3::new(1.0, 2.0, -1.0), glam::DVec3::new(-1.0, -0.5, -1.0)].map(|d| d.normalize());
+    let eye = glam::DVec3::new(2.2, 2.0, -3.2);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let (mut shadow_rays, mut self_hits) = (0, 0);
+    for _ in 0..3000 {
+        let target = glam::DVec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let ray = Ray::new(eye, target - eye);
+        let Some(raw) = surface.intersect(&ray, Interval::POSITIVE) else {
+            continue;
+        };
+        let hit = SurfaceHit::complete(&surface, &ray, &raw, HitRequest::ALL);
+        let n = hit.facing_normal(ray.dir).expect("a normal at every hit");
+        for light in lights {
+            if n.dot(light) <= 0.0 {
+                continue;
+            }
+            shadow_rays += 1;
+            let shadow = Ray::new(hit.secondary_origin(ray.dir), light);
+            if surface
+                .intersect(&shadow, Interval::POSITIVE)
+                .is_some_and(|h| h.t < 10.0 * tolerance)
+            {
+                self_hits += 1;
+            }
+        }
+    }
+    assert!(shadow_rays > 1000, "{shadow_rays}");
+    assert_eq!(
+        self_hits, 0,
+        "{self_hits} of {shadow_rays} shadow rays hit their own surface"
+    );
+}
