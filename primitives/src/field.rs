@@ -95,14 +95,10 @@ impl<F: ScalarField> Implicit for FieldSurface<F> {
         self.field.bounds()
     }
 
-    /// The exact gradient by forward-mode differentiation (one pass per axis).
+    /// The exact gradient by forward-mode differentiation (the three partial derivatives in one
+    /// pass, the same bits as one pass per axis).
     fn gradient(&self, p: DVec3) -> DVec3 {
-        let along = |axis: usize| {
-            let mut v = [Jet::new(p.x, 0.0), Jet::new(p.y, 0.0), Jet::new(p.z, 0.0)];
-            v[axis].slope = 1.0;
-            self.field.phi(v).slope
-        };
-        DVec3::new(along(0), along(1), along(2))
+        DVec3::from_array(self.field.phi(Jet::axes(p.to_array())).slope)
     }
 
     /// Enclosures of Φ and of `dΦ/dt` over the points of the segment inside the box (`+∞`,

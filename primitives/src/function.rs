@@ -11,10 +11,11 @@
 //!   [`crate::root`] (with an optional Lipschitz bound) and central-difference normals.
 //!
 //! Where an expression is undefined at a point (`√` of a negative, `ln` of a number ≤ 0, `0 ÷ 0`:
-//! a NaN), Φ there is `+∞` (outside); a value that overflows to `±∞` keeps its sign. [`Function::from_expr`] looks for such points at construction:
-//! interval evaluation over the whole box decides whether any can exist
-//! ([`Function::may_be_undefined`]), and if so a 17³ grid of point evaluations over the box
-//! turns a found one into an error naming the operation's column and the point.
+//! a NaN), Φ there is `+∞` (outside); a value that overflows to `±∞` keeps its sign.
+//! [`Function::from_expr`] looks for such points at construction: interval evaluation over the
+//! whole box decides whether any can exist ([`Function::may_be_undefined`]), and if so a 17³ grid
+//! of point evaluations over the box turns a found one into an error naming the operation's
+//! column and the point.
 
 use crate::bounds::Aabb;
 use crate::error::PrimitiveError;
@@ -97,6 +98,15 @@ struct LeafAlong<'a> {
 }
 
 impl<'a> LeafAlong<'a> {
+    /// The leaf's tape where the point `p` lies in its grown cell, the full tape elsewhere.
+    fn tape_at(&self, p: DVec3) -> &'a Tape {
+        if (p.cmpge(self.cell_lo) & p.cmple(self.cell_hi)).all() {
+            self.leaf
+        } else {
+            self.full
+        }
+    }
+
     fn tape_for(&self, c: &[Enclosure; 3]) -> &'a Tape {
         let inside = (0..3).all(|a| c[a].lo >= self.cell_lo[a] && c[a].hi <= self.cell_hi[a]);
         if inside {
@@ -133,12 +143,7 @@ impl AlongRay for LeafAlong<'_> {
             return self.last.1;
         }
         let p = self.ray.at(t);
-        let tape = if (p.cmpge(self.cell_lo) & p.cmple(self.cell_hi)).all() {
-            self.leaf
-        } else {
-            self.full
-        };
-        let g = defined_or_outside(tape.eval_f64(p.to_array(), &mut self.scratch.points));
+        let g = defined_or_outside(self.tape_at(p).eval_f64(p.to_array(), &mut self.scratch.points));
         *self.last = (t, g);
         g
     }
@@ -175,14 +180,11 @@ impl AlongRay for LeafAlong<'_> {
 
     fn point_slope(&mut self, t: f64) -> (f64, f64) {
         let p = self.ray.at(t);
-        let tape = if (p.cmpge(self.cell_lo) & p.cmple(self.cell_hi)).all() {
-            self.leaf
-        } else {
-            self.full
-        };
         let d = self.ray.dir;
         let seed = |a: usize| Jet::new(p[a], d[a]);
-        let jet = tape.eval([seed(0), seed(1), seed(2)], &mut self.scratch.slopes);
+        let jet = self
+            .tape_at(p)
+            .eval([seed(0), seed(1), seed(2)], &mut self.scratch.slopes);
         let g = defined_or_outside(jet.value);
         *self.last = (t, g);
         (g, jet.slope)
@@ -545,8 +547,6 @@ mod tests {
         Function::from_expr(Expr::parse(text).unwrap(), bounds, RootOptions::default())
     }
 
-    /// The plain-f64 slope test certifies only what outward-rounded interval arithmetic
-    /// certifies, and almost everything it does (pseudo-random enclosures and directions).
     /// Φ that overflows to ±∞ on either side of its zero set (the plane x = 0 of
     /// `x·10³⁰⁸·10³⁰⁸`) is hit where the plane is, like `x` itself, on every ray through the box.
     #[test]
@@ -566,6 +566,8 @@ mod tests {
         }
     }
 
+    /// The plain-f64 slope test certifies only what outward-rounded interval arithmetic
+    /// certifies, and almost everything it does (pseudo-random enclosures and directions).
     #[test]
     fn monotone_test_agrees_with_interval_arithmetic() {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;

@@ -317,9 +317,15 @@ pub(crate) fn convex_root<P: AlongRay>(
         (sign * g, sign * dg)
     };
     let (da, db) = (slope(along, a, evaluations).1, slope(along, b, evaluations).1);
-    let mut pieces = vec![(a, ha, da, b, hb, db)];
+    // pieces (t0, h0, h′0, t1, h1, h′1), the front one last; each step replaces one by two, so
+    // at most STEPS + 1 are held
+    let mut pieces = [(0.0, 0.0, 0.0, 0.0, 0.0, 0.0); STEPS as usize + 1];
+    pieces[0] = (a, ha, da, b, hb, db);
+    let mut held = 1;
     let mut steps = 0;
-    while let Some((t0, h0, d0, t1, h1, d1)) = pieces.pop() {
+    while held > 0 {
+        held -= 1;
+        let (t0, h0, d0, t1, h1, d1) = pieces[held];
         if !(d0.is_finite() && d1.is_finite()) {
             return Curved::Undecided;
         }
@@ -348,8 +354,9 @@ pub(crate) fn convex_root<P: AlongRay>(
                 if hm == 0.0 {
                     return if dm < 0.0 { Curved::Root(tm) } else { Curved::Undecided };
                 }
-                pieces.push((tm, hm, dm, t1, h1, d1));
-                pieces.push((t0, h0, d0, tm, hm, dm));
+                pieces[held] = (tm, hm, dm, t1, h1, d1);
+                pieces[held + 1] = (t0, h0, d0, tm, hm, dm);
+                held += 2;
                 continue;
             }
         }

@@ -146,9 +146,7 @@ fn enclose_gradient(
     vars: [Enclosure; 3],
     slots: &mut Vec<Jet<Enclosure, [Enclosure; 3]>>,
 ) -> [Enclosure; 3] {
-    let unit = |axis: usize| std::array::from_fn(|a| Enclosure::point(if a == axis { 1.0 } else { 0.0 }));
-    tape.eval([0, 1, 2].map(|axis| Jet::new(vars[axis], unit(axis))), slots)
-        .slope
+    tape.eval(Jet::axes(vars), slots).slope
 }
 
 thread_local! {

@@ -394,6 +394,16 @@ impl<T: Scalar, S: Tangent<T>> Jet<T, S> {
     }
 }
 
+impl<T: Scalar> Jet<T, [T; 3]> {
+    /// The coordinates `p` as variables whose slopes are the unit axes: evaluated through Φ,
+    /// they give Φ and its gradient in one pass.
+    #[inline]
+    pub fn axes(p: [T; 3]) -> [Self; 3] {
+        let (zero, one) = (T::constant(0.0), T::constant(1.0));
+        std::array::from_fn(|axis| Self::new(p[axis], std::array::from_fn(|a| if a == axis { one } else { zero })))
+    }
+}
+
 impl<T: Scalar, S: Tangent<T>> Add for Jet<T, S> {
     type Output = Self;
     #[inline(always)]

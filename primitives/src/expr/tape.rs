@@ -521,9 +521,7 @@ impl Tape {
     /// ∇Φ at a point (forward mode, the three partial derivatives in one pass) with `slots` as
     /// scratch space.
     pub fn gradient(&self, p: [f64; 3], slots: &mut Vec<Jet<f64, [f64; 3]>>) -> [f64; 3] {
-        let unit = |axis: usize| std::array::from_fn(|a| if a == axis { 1.0 } else { 0.0 });
-        let vars = [0, 1, 2].map(|axis| Jet::new(p[axis], unit(axis)));
-        self.eval(vars, slots).slope
+        self.eval(Jet::axes(p), slots).slope
     }
 }
 
@@ -678,9 +676,7 @@ mod tests {
                 let got = t.gradient(p, &mut Vec::new());
                 let w = 0.01 * (f + 1.0);
                 let boxed: [Enclosure; 3] = std::array::from_fn(|a| Enclosure::new(p[a] - w, p[a] + w));
-                let unit = |axis: usize| std::array::from_fn(|a| Enclosure::point(if a == axis { 1.0 } else { 0.0 }));
-                let vars: [Jet<Enclosure, [Enclosure; 3]>; 3] = std::array::from_fn(|a| Jet::new(boxed[a], unit(a)));
-                let enclosed = t.eval(vars, &mut Vec::new()).slope;
+                let enclosed = t.eval(Jet::axes(boxed), &mut Vec::new()).slope;
                 for axis in 0..3 {
                     let seed = |a: usize| Jet::new(p[a], if a == axis { 1.0 } else { 0.0 });
                     let one = t.eval([seed(0), seed(1), seed(2)], &mut Vec::new()).slope;
