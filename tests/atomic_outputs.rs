@@ -13,16 +13,10 @@ use exr::prelude::*;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-use support::{bin, write_file};
+use support::{bin, write_file, FOUR_K_SPHERE_AND_PLANE};
 
 /// A cheap scene (one sphere, one plane, no shadows) so the 4K frame traces in about a second.
-const SCENE: &str = "Scene(
-    camera: (eye: (0, 1, -6), look_at: (0, 0.5, 0), vfov_deg: 40, width: 3840, height: 2160),
-    objects: [
-        (shape: Sphere(center: (0, 1, 0), radius: 1)),
-        (shape: Plane(normal: (0, 1, 0), offset: 0)),
-    ],
-)";
+const SCENE: &str = FOUR_K_SPHERE_AND_PLANE;
 
 const AOVS: &str = "Beauty,Alpha,Depth,Distance,Normal,Position,PrimitiveId";
 

@@ -11,17 +11,11 @@ use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-use support::{bin, write_file};
+use support::{bin, write_file, FOUR_K_SPHERE_AND_PLANE};
 
-/// A 4K frame at 4 spp: several seconds of tracing on two threads, so a signal sent once the
-/// temporary EXR exists finds the render still running.
-const SCENE: &str = "Scene(
-    camera: (eye: (0, 1, -6), look_at: (0, 0.5, 0), vfov_deg: 40, width: 3840, height: 2160),
-    objects: [
-        (shape: Sphere(center: (0, 1, 0), radius: 1)),
-        (shape: Plane(normal: (0, 1, 0), offset: 0)),
-    ],
-)";
+/// A 4K frame (rendered at 4 spp here): several seconds of tracing on two threads, so a signal
+/// sent once the temporary EXR exists finds the render still running.
+const SCENE: &str = FOUR_K_SPHERE_AND_PLANE;
 
 /// The outputs of a render of `scene.ron` other than `scene.cameras.json` (which is written,
 /// whole, before the trace starts).

@@ -15,6 +15,16 @@ use zeroset::aov::Aov;
 use zeroset::render::Frame;
 use zeroset::scene::Scene;
 
+/// A 4K frame of one sphere on a plane, no lights: cheap per pixel, long enough as a whole for
+/// a signal or a kill to land while its outputs are being written.
+pub const FOUR_K_SPHERE_AND_PLANE: &str = "Scene(
+    camera: (eye: (0, 1, -6), look_at: (0, 0.5, 0), vfov_deg: 40, width: 3840, height: 2160),
+    objects: [
+        (shape: Sphere(center: (0, 1, 0), radius: 1)),
+        (shape: Plane(normal: (0, 1, 0), offset: 0)),
+    ],
+)";
+
 /// The `zeroset` binary, run from the repository root (so `scenes/…` paths resolve).
 pub fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_zeroset"));

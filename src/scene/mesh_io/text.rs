@@ -691,51 +691,45 @@ mod tests {
         }
     }
 
+    /// Every token `tokens` hands out, as strings.
+    fn all_tokens(mut tokens: Tokens<'_>) -> Vec<String> {
+        let mut out = Vec::new();
+        while let Some(token) = tokens.next_token() {
+            out.push(std::str::from_utf8(token).unwrap().to_string());
+        }
+        out
+    }
+
+    /// The standard library's split of `line` into words before its first `#`.
+    fn words_before_comment(line: &str) -> Vec<String> {
+        line.split('#')
+            .next()
+            .unwrap()
+            .split_ascii_whitespace()
+            .map(str::to_string)
+            .collect()
+    }
+
     #[test]
     fn lines_and_tokens_split_as_the_standard_library_does() {
         let text = "a b\r\n\n  c\t d \r\r\nlast#x y";
         let mut lines = TextLines::new(text.as_bytes(), 0, 0);
         let mut got = Vec::new();
         while let Some(line) = lines.next_line().unwrap() {
-            let mut tokens = Tokens::new(line);
-            let mut t = Vec::new();
-            while let Some(tok) = tokens.next_token() {
-                t.push(std::str::from_utf8(tok).unwrap().to_string());
-            }
             let want: Vec<_> = line.split_ascii_whitespace().map(str::to_string).collect();
-            assert_eq!(t, want);
-            let mut tokens = Tokens::before_comment(line);
-            let mut t = Vec::new();
-            while let Some(tok) = tokens.next_token() {
-                t.push(std::str::from_utf8(tok).unwrap().to_string());
-            }
-            let want: Vec<_> = line
-                .split('#')
-                .next()
-                .unwrap()
-                .split_ascii_whitespace()
-                .map(str::to_string)
-                .collect();
-            assert_eq!(t, want);
+            assert_eq!(all_tokens(Tokens::new(line)), want);
+            assert_eq!(all_tokens(Tokens::before_comment(line)), words_before_comment(line));
             got.push((lines.line, lines.offset, line.to_string()));
         }
         assert_eq!(lines.line, 5);
         assert_eq!(got[2], (3, 6, "  c\t d ".to_string()));
         assert_eq!(got[3], (4, 16, "last#x y".to_string()));
         for line in ["#", "a#b c", " a #b", "a b#", "##", " x  y "] {
-            let mut tokens = Tokens::before_comment(line);
-            let mut t = Vec::new();
-            while let Some(tok) = tokens.next_token() {
-                t.push(std::str::from_utf8(tok).unwrap().to_string());
-            }
-            let want: Vec<_> = line
-                .split('#')
-                .next()
-                .unwrap()
-                .split_ascii_whitespace()
-                .map(str::to_string)
-                .collect();
-            assert_eq!(t, want, "{line}");
+            assert_eq!(
+                all_tokens(Tokens::before_comment(line)),
+                words_before_comment(line),
+                "{line}"
+            );
         }
     }
 }
