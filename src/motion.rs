@@ -74,6 +74,12 @@ impl Implicit for Borrowed<'_> {
     fn within_boundary(&self, p: DVec3) -> bool {
         self.0.within_boundary(p)
     }
+    fn closest(&self, p: DVec3) -> Option<zeroset_primitives::Closest> {
+        self.0.closest(p)
+    }
+    fn contains(&self, p: DVec3, method: zeroset_primitives::SignMethod) -> bool {
+        self.0.contains(p, method)
+    }
 }
 
 impl Intersect for Borrowed<'_> {

@@ -9,6 +9,7 @@ use crate::bounds::Aabb;
 use crate::expr::Jet;
 use crate::math::central_difference;
 use crate::math::enclosure::Enclosure;
+use crate::proximity::{Closest, SignMethod};
 use crate::ray::{Interval, Ray};
 use glam::DVec3;
 
@@ -83,5 +84,22 @@ pub trait Implicit {
     fn within_boundary(&self, p: DVec3) -> bool {
         let _ = p;
         true
+    }
+
+    /// The surface point nearest to `p` and the distance to it, or guaranteed bounds on the
+    /// distance where the type cannot be exact (see [`Closest`] and [`crate::proximity`]).
+    /// `None` where the type cannot bound the distance at all: the default, since Φ alone says
+    /// nothing certain about it (a Φ value is never a distance unless the type proves it).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let _ = p;
+        None
+    }
+
+    /// Whether `p` lies inside the solid the surface bounds, decided by `method` where the type
+    /// offers a choice (a mesh, see [`SignMethod`]). The default, for every method, is the sign
+    /// of Φ: `Φ(p) < 0`. Open surfaces call the side behind their normal inside, as Φ does.
+    fn contains(&self, p: DVec3, method: SignMethod) -> bool {
+        let _ = method;
+        self.phi(p) < 0.0
     }
 }

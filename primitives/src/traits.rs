@@ -14,6 +14,7 @@ use crate::expr::Jet;
 use crate::hit::RawHit;
 use crate::hit::{HitRequest, SurfaceHit};
 use crate::math::enclosure::Enclosure;
+use crate::proximity::{Closest, SignMethod};
 use crate::ray::{Interval, Ray};
 use crate::root::{self, RootOptions};
 use glam::{DVec2, DVec3, Vec3};
@@ -275,6 +276,8 @@ macro_rules! forward_through_pointer {
             fn gradient(&self, p: DVec3) -> DVec3 { (**self).gradient(p) }
             fn lipschitz(&self) -> Option<f64> { (**self).lipschitz() }
             fn within_boundary(&self, p: DVec3) -> bool { (**self).within_boundary(p) }
+            fn closest(&self, p: DVec3) -> Option<Closest> { (**self).closest(p) }
+            fn contains(&self, p: DVec3, method: SignMethod) -> bool { (**self).contains(p, method) }
             fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> { (**self).enclose_along(ray, segment) }
             fn enclose_value_along(&self, ray: &Ray, segment: Interval) -> Option<Enclosure> { (**self).enclose_value_along(ray, segment) }
         }

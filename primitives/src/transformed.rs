@@ -17,6 +17,7 @@ use crate::error::PrimitiveError;
 use crate::expr::Jet;
 use crate::hit::RawHit;
 use crate::math::enclosure::Enclosure;
+use crate::proximity::{Closest, SignMethod};
 use crate::ray::{Interval, Ray};
 use crate::root::RootOptions;
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
@@ -29,10 +30,42 @@ pub struct Transformed<P> {
     world_from_local: DAffine3,
     local_from_world: DAffine3,
     normal_from_local: DMat3,
+    /// `(σ_min, σ_max)`: a lower bound of the smallest and an upper bound of the largest factor
+    /// by which `world_from_local` stretches lengths, equal for a similarity (see [`stretch`]).
+    stretch: (f64, f64),
 }
 
 fn frobenius(m: &DMat3) -> f64 {
     (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared()).sqrt()
+}
+
+/// Bounds `(σ_min, σ_max)` on the singular values of `m` (`inverse` its inverse): by how much
+/// the map can shorten or lengthen a segment. Where `mᵀm = s²·I` to within `10⁻¹³·s²` (a rigid
+/// motion times a uniform scale, up to the rounding of its entries) both are `s`, and distances
+/// map exactly. Otherwise the eigenvalues of `mᵀm` by Smith's closed form (1961), each widened
+/// by `64ε·λ_max` for its rounding, and the Frobenius norms (`σ_max ≤ ‖m‖_F`,
+/// `σ_min ≥ 1/‖m⁻¹‖_F`) as a second bound: the tighter of the two valid bounds is kept.
+fn stretch(m: &DMat3, inverse: &DMat3) -> (f64, f64) {
+    let a = m.transpose() * *m;
+    let s2 = (a.x_axis.x + a.y_axis.y + a.z_axis.z) / 3.0;
+    let off = (a - DMat3::from_diagonal(DVec3::splat(s2))).to_cols_array();
+    if off.iter().all(|e| e.abs() <= 1e-13 * s2) {
+        let s = s2.sqrt();
+        return (s, s);
+    }
+    let (a00, a11, a22) = (a.x_axis.x, a.y_axis.y, a.z_axis.z);
+    let (a01, a02, a12) = (a.y_axis.x, a.z_axis.x, a.z_axis.y);
+    let p1 = a01 * a01 + a02 * a02 + a12 * a12;
+    let p2 = (a00 - s2).powi(2) + (a11 - s2).powi(2) + (a22 - s2).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    let b = (a - DMat3::from_diagonal(DVec3::splat(s2))) * (1.0 / p);
+    let phi = (b.determinant() / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
+    let largest = s2 + 2.0 * p * phi.cos();
+    let smallest = s2 + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
+    let slack = 64.0 * f64::EPSILON * largest;
+    let upper = (largest + slack).sqrt().min(frobenius(m));
+    let lower = (smallest - slack).max(0.0).sqrt().max(1.0 / frobenius(inverse));
+    (lower, upper)
 }
 
 impl<P> Transformed<P> {
@@ -57,6 +90,7 @@ impl<P> Transformed<P> {
             world_from_local,
             local_from_world,
             normal_from_local: local_from_world.matrix3.transpose(),
+            stretch: stretch(&m, &local_from_world.matrix3),
         })
     }
 
@@ -120,6 +154,21 @@ impl<P: Implicit> Implicit for Transformed<P> {
 
     fn within_boundary(&self, p: DVec3) -> bool {
         self.inner.within_boundary(self.local_point(p))
+    }
+
+    /// The inner answer at the local point, mapped back: exact under a similarity (rigid motion
+    /// and uniform scale, distances times `s`); under any other map the inner witness mapped to
+    /// the world bounds the distance from above and `σ_min ×` the inner lower bound from below
+    /// (no world point is nearer than that, since no local segment shrinks by more than
+    /// `σ_min`).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let local = self.inner.closest(self.local_point(p))?;
+        let (lower, upper) = self.stretch;
+        Some(local.mapped(|q| self.world_from_local.transform_point3(q), p, lower, upper))
+    }
+
+    fn contains(&self, p: DVec3, method: SignMethod) -> bool {
+        self.inner.contains(self.local_point(p), method)
     }
 
     /// The inner enclosures along the local ray (the same `t`).

@@ -8,6 +8,7 @@ use super::storage::{v64, Mesh};
 use super::walk::single_ray;
 use crate::bounds::Aabb;
 use crate::hit::RawHit;
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect};
 use glam::{DVec2, DVec3};
@@ -30,6 +31,16 @@ impl Implicit for Mesh {
 
     fn bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// The nearest point of the nearest triangle, in f64 (see `phi.rs`); its triangle is the
+    /// feature, numbered as the mesh's input triangles. `None` for a mesh without triangles.
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        if self.tris.is_empty() {
+            return None;
+        }
+        let (q, k) = self.nearest(p);
+        Some(Closest::exact(p, q, self.leaf_to_file[k]))
     }
 
     /// The boxes [`PART_LEVELS`] levels below the hierarchy's root (at most `4^PART_LEVELS`; a
