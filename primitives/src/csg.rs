@@ -31,6 +31,7 @@ use crate::crossings::{step_past, Crossing, Crossings};
 use crate::expr::{Jet, Scalar};
 use crate::hit::RawHit;
 use crate::math::enclosure::Enclosure;
+use crate::proximity::{Closest, SignMethod};
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Primitive};
 use glam::{DVec2, DVec3};
@@ -273,6 +274,85 @@ impl Implicit for Csg {
             .iter()
             .map(|c| c.lipschitz())
             .try_fold(0.0f64, |m, l| l.map(|l| m.max(l)))
+    }
+
+    /// The combination's surface lies in the union of its children's surfaces, so the smallest
+    /// of the children's lower bounds is a lower bound. A child's nearest point `qᵢ` lies on the
+    /// combination's surface when the other children's signs at `qᵢ` make the membership change
+    /// across child `i` ([`Csg::keeps_point`]); the nearest such point bounds the distance from
+    /// above, and is the nearest point (exact) when no child's lower bound is below it. Where no
+    /// child's nearest point is kept (a sphere's nearest part cut away), rays from `p` towards
+    /// each `qᵢ` find points of the combination's surface, the nearest of which bounds the
+    /// distance from above: the answer is then a guaranteed interval, not exact. `None` if a
+    /// child cannot bound its distance.
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let answers = self
+            .children
+            .iter()
+            .map(|c| c.closest(p))
+            .collect::<Option<Vec<Closest>>>()?;
+        let lower = answers.iter().map(|a| a.lower).fold(f64::INFINITY, f64::min);
+        let mut best: Option<Closest> = None;
+        for (i, a) in answers.iter().enumerate() {
+            let Some(q) = a.point else { continue };
+            if self.keeps_point(i, q) && best.is_none_or(|b| a.upper < b.upper) {
+                best = Some(*a);
+            }
+        }
+        if best.is_none() {
+            for a in &answers {
+                let Some(q) = a.point else { continue };
+                let dir = q - p;
+                if dir == DVec3::ZERO {
+                    continue;
+                }
+                let ray = Ray::new(p, dir);
+                if let Some(hit) = self.intersect(&ray, Interval::new(0.0, f64::INFINITY)) {
+                    let point = ray.at(hit.t);
+                    let upper = (point - p).length();
+                    if best.is_none_or(|b| upper < b.upper) {
+                        best = Some(Closest {
+                            point: Some(point),
+                            feature: hit.feature,
+                            lower: 0.0,
+                            upper,
+                        });
+                    }
+                }
+            }
+        }
+        Some(match best {
+            Some(b) if b.is_exact() && b.upper <= lower => b,
+            Some(b) => Closest {
+                lower: lower.min(b.upper),
+                ..b
+            },
+            None => Closest {
+                point: None,
+                feature: 0,
+                lower,
+                upper: f64::INFINITY,
+            },
+        })
+    }
+
+    /// Inside the combination by the children's own tests (`method` for meshes).
+    fn contains(&self, p: DVec3, method: SignMethod) -> bool {
+        let inside: Vec<bool> = self.children.iter().map(|c| c.contains(p, method)).collect();
+        Membership::new(self.op, &inside).inside()
+    }
+}
+
+impl Csg {
+    /// Whether a point `q` of child `child`'s surface is a point of the combination's surface:
+    /// the membership, with the other children's sides at `q` by the sign of their Φ, differs
+    /// between just inside and just outside child `child`.
+    fn keeps_point(&self, child: usize, q: DVec3) -> bool {
+        let mut inside: Vec<bool> = self.children.iter().map(|c| c.phi(q) < 0.0).collect();
+        inside[child] = true;
+        let within = Membership::new(self.op, &inside).inside();
+        inside[child] = false;
+        within != Membership::new(self.op, &inside).inside()
     }
 }
 

@@ -25,6 +25,7 @@ use crate::expr::{coordinates_along, jets_along, Expr, Jet};
 use crate::hit::RawHit;
 use crate::isolation::{count_outcome, isolate_in, monotone_root, AlongRay, Isolated};
 use crate::math::enclosure::Enclosure;
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::root::{RootOptions, RootReport};
 use crate::traits::{Implicit, Intersect};
@@ -292,6 +293,13 @@ impl Compiled {
     }
 }
 
+/// The width, relative to the box's diagonal, to which [`Implicit::closest`] narrows its
+/// distance bounds.
+pub const DISTANCE_TOLERANCE: f64 = 1e-9;
+
+/// The most boxes one [`Implicit::closest`] query examines.
+pub const DISTANCE_BUDGET: usize = 20_000;
+
 /// Φ given by an expression or a closure inside an explicit box (the surface outside the box is
 /// ignored).
 #[derive(Clone)]
@@ -467,6 +475,25 @@ impl Implicit for Function {
 
     fn lipschitz(&self) -> Option<f64> {
         self.lipschitz
+    }
+
+    /// For an expression, guaranteed bounds on the distance to its zero set inside the box, by
+    /// branch and bound over boxes with interval arithmetic ([`crate::expr::distance`]), to
+    /// within [`DISTANCE_TOLERANCE`] × the box's diagonal (or wider where the search's budget of
+    /// [`DISTANCE_BUDGET`] boxes runs out; the bounds stay valid). A closure's Φ cannot be
+    /// bounded: `None`.
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        match &self.phi {
+            Phi::Expression(e) => Some(crate::expr::distance::distance_bounds(
+                &e.tape,
+                self.bounds.min,
+                self.bounds.max,
+                p,
+                DISTANCE_TOLERANCE * self.bounds.diagonal_length(),
+                DISTANCE_BUDGET,
+            )),
+            Phi::Closure(_) => None,
+        }
     }
 
     fn enclose_along(&self, ray: &Ray, segment: Interval) -> Option<Jet<Enclosure>> {

@@ -9,6 +9,8 @@
 //! - [`scene`]: the `_Scene` class, the objects added from Python, every method Python calls;
 //! - [`rays`]: ray batches in and answers out (`cast_rays`, `test_occlusions`,
 //!   `count_intersections`), and `rays_pinhole`;
+//! - [`points`]: point queries (`point_query`: Φ, nearest points, distances, signs) and every
+//!   crossing along rays (`list_intersections`);
 //! - [`render`]: `Scene.render`, into new planes or the caller's arrays, in bands;
 //! - [`exr`]: `write_exr`, `read_exr`, `aov_channels`;
 //! - [`guards`]: `ZerosetError`, and what keeps a call from killing the interpreter: the memory
@@ -23,6 +25,7 @@ mod exr;
 mod guards;
 mod hits;
 mod pages;
+mod points;
 mod rays;
 mod render;
 mod scene;

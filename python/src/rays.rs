@@ -92,7 +92,7 @@ fn bad_ray((index, message): (usize, String)) -> PyErr {
 /// Every ray of the columns (range convention alone), built in parallel without the GIL, each by
 /// `zeroset query`'s own [`zeroset::query::rays::ray_from_fields`], into a vector reserved
 /// fallibly for them and for `answer_bytes` a ray of what `what` makes of them.
-fn query_rays(
+pub(crate) fn query_rays(
     py: Python<'_>,
     columns: &Columns<'_>,
     closed: bool,
@@ -247,18 +247,7 @@ impl PyScene {
         let mut counts = try_with_capacity::<i64>(rays.len(), "count_intersections: the answers")?;
         self.with(py, |state| {
             let scene = state.built();
-            counts.par_extend(rays.par_iter().map(|q| {
-                let mut range = q.range;
-                let mut count = 0;
-                while let Some((_, hit)) = scene.intersect(&q.ray, range) {
-                    count += 1;
-                    if hit.t >= range.max {
-                        break;
-                    }
-                    range.min = hit.t.next_up();
-                }
-                count
-            }));
+            counts.par_extend(rays.par_iter().map(|q| scene.count_crossings(&q.ray, q.range) as i64));
         });
         Ok(PyArray1::from_vec(py, counts))
     }

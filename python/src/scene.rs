@@ -303,6 +303,36 @@ impl PyScene {
         self.crossings(py, &columns, closed)
     }
 
+    /// The rows of `zeroset points --query QUERY --sign SIGN` at each of `points` (`(N, 3)`):
+    /// an `(N, columns)` array (see `zeroset.Scene.compute_distance` and its neighbours).
+    #[pyo3(signature = (points, query, sign = "fast-winding"))]
+    fn point_query<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+        query: &str,
+        sign: &str,
+    ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        self.point_rows(py, &points, query, sign)
+    }
+
+    /// Every crossing along each ray within its range, in Open3D's flat layout (see
+    /// `zeroset.Scene.list_intersections`).
+    #[pyo3(signature = (origins, directions, tmin, tmax, closed = false))]
+    fn list_intersections<'py>(
+        &self,
+        py: Python<'py>,
+        origins: PyReadonlyArray2<'py, f64>,
+        directions: PyReadonlyArray2<'py, f64>,
+        tmin: PyReadonlyArray1<'py, f64>,
+        tmax: PyReadonlyArray1<'py, f64>,
+        closed: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let columns = Columns::new(&origins, &directions, &tmin, &tmax, None)?;
+        let rays = crate::rays::query_rays(py, &columns, closed, "list_intersections", 64)?;
+        self.crossing_lists(py, rays)
+    }
+
     /// Renders the scene's camera (see `zeroset.Scene.render`), on `threads` threads (default:
     /// rayon's global pool, one thread per core or `RAYON_NUM_THREADS`; capped at 4 per core with
     /// a `RuntimeWarning`). With `out` (`{AOV name: writable float32 array}`, each shaped as the

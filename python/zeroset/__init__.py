@@ -312,6 +312,84 @@ class Scene:
         return self._core.count_intersections(o, d, _range(tmin, lead, "tmin"), _range(tmax, lead, "tmax"),
                                               bool(closed)).reshape(lead)
 
+    def _points(self, points: Any, query: str, sign: str = "fast-winding") -> Tuple[np.ndarray, Tuple[int, ...]]:
+        p = np.asarray(points, dtype=np.float64)
+        if p.shape[-1:] != (3,):
+            raise ZerosetError(f"points must end in a dimension of 3, got {p.shape}")
+        lead = p.shape[:-1]
+        rows = self._core.point_query(np.ascontiguousarray(p.reshape(-1, 3)), query, str(sign))
+        return rows, lead
+
+    def compute_closest_points(self, query_points: Any) -> Dict[str, np.ndarray]:
+        """The nearest surface point to each of ``query_points`` (``(..., 3)``), over every
+        object (Open3D's ``RaycastingScene.compute_closest_points``): a dict of arrays shaped like
+        the leading dimensions, ``points`` ``(..., 3)``, ``geometry_ids`` (object index, uint32),
+        ``primitive_ids`` (the part: a mesh's triangle, a box's face; uint32), ``distance``, and
+        ``lower``/``upper``, bounds on the distance: equal where it is exact (closed forms,
+        meshes, similarity transforms, in float64), a guaranteed interval otherwise (CSG,
+        general affine maps), ``distance`` then being ``upper``, reached by ``points``."""
+        rows, lead = self._points(query_points, "closest")
+        return {
+            "points": rows[:, 0:3].reshape(lead + (3,)),
+            "distance": rows[:, 3].reshape(lead),
+            "lower": rows[:, 4].reshape(lead),
+            "upper": rows[:, 5].reshape(lead),
+            "geometry_ids": rows[:, 6].astype(np.uint32).reshape(lead),
+            "primitive_ids": rows[:, 7].astype(np.uint32).reshape(lead),
+        }
+
+    def compute_distance(self, query_points: Any, bounds: bool = False) -> Any:
+        """Distance from each of ``query_points`` (``(..., 3)``) to the nearest surface, float64,
+        shaped like the leading dimensions. Exact (to rounding) where the objects are; where one
+        is not (see ``compute_closest_points``) the value is the upper bound, reached by a real
+        surface point: ``bounds=True`` returns ``(distance, lower, upper)``."""
+        rows, lead = self._points(query_points, "distance")
+        if bounds:
+            return tuple(rows[:, k].reshape(lead) for k in range(3))
+        return rows[:, 0].reshape(lead)
+
+    def compute_signed_distance(self, query_points: Any, sign: str = "fast-winding", bounds: bool = False) -> Any:
+        """``compute_distance``, negative inside. ``sign``: how a mesh decides inside —
+        ``"fast-winding"`` (default; hierarchical generalized winding number, right on open
+        meshes, holes and duplicated faces), ``"winding"`` (exact winding number),
+        ``"pseudonormal"`` (angle-weighted pseudo-normal; closed consistently oriented meshes) or
+        ``"parity"`` (ray crossings, re-cast where a ray grazes an edge). Analytic solids use the
+        sign of Φ. ``bounds=True`` returns ``(signed, lower, upper)``."""
+        rows, lead = self._points(query_points, "signed", sign)
+        if bounds:
+            return tuple(rows[:, k].reshape(lead) for k in range(3))
+        return rows[:, 0].reshape(lead)
+
+    def compute_occupancy(self, query_points: Any, sign: str = "fast-winding") -> np.ndarray:
+        """1.0 where a point is inside any object, 0.0 outside (float32, as Open3D's); ``sign``
+        as for ``compute_signed_distance``. No distance is computed."""
+        rows, lead = self._points(query_points, "occupancy", sign)
+        return rows[:, 0].astype(np.float32).reshape(lead)
+
+    def phi(self, query_points: Any) -> np.ndarray:
+        """Φ of the scene (the smallest of its objects' Φ) at each point, float64."""
+        rows, lead = self._points(query_points, "phi")
+        return rows[:, 0].reshape(lead)
+
+    def gradient(self, query_points: Any) -> np.ndarray:
+        """∇Φ of the scene at each point (the gradient of the object of smallest Φ), ``(..., 3)``."""
+        rows, lead = self._points(query_points, "phi")
+        return rows[:, 1:4].reshape(lead + (3,))
+
+    def list_intersections(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf,
+                           closed: bool = False) -> Dict[str, np.ndarray]:
+        """Every surface crossing along each ray with ``tmin < t ≤ tmax`` (``closed=True``:
+        ``tmin ≤ t``), in increasing ``t`` per ray, in Open3D's flat layout: ``ray_splits``
+        (``N + 1`` offsets: ray ``i``'s crossings are ``ray_splits[i]:ray_splits[i+1]``),
+        ``ray_ids``, ``t_hit``, ``geometry_ids``, ``primitive_ids``, ``primitive_uvs`` (NaN where
+        the primitive has none), plus ``normals`` (outward unit ∇Φ) and ``entering`` (the ray
+        enters the solid there). A crossing at an edge shared by triangles is reported once;
+        ``count_intersections`` is the count per ray. Rays are flattened over the leading
+        dimensions."""
+        o, d, lead = _rays(origins, directions)
+        return self._core.list_intersections(o, d, _range(tmin, lead, "tmin").reshape(-1),
+                                             _range(tmax, lead, "tmax").reshape(-1), bool(closed))
+
     def render(self, aovs: Optional[Sequence[str]] = None, width: Optional[int] = None,
                height: Optional[int] = None, crop: Optional[Tuple[int, int, int, int]] = None,
                spp: Optional[int] = None, depth_miss: float = float("inf"),

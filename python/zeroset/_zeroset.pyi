@@ -30,6 +30,11 @@ class _Scene:
     def count_intersections(self, origins: npt.NDArray[np.float64], directions: npt.NDArray[np.float64],
                             tmin: npt.NDArray[np.float64], tmax: npt.NDArray[np.float64],
                             closed: bool = False) -> npt.NDArray[np.int64]: ...
+    def point_query(self, points: npt.NDArray[np.float64], query: str,
+                    sign: str = "fast-winding") -> npt.NDArray[np.float64]: ...
+    def list_intersections(self, origins: npt.NDArray[np.float64], directions: npt.NDArray[np.float64],
+                           tmin: npt.NDArray[np.float64], tmax: npt.NDArray[np.float64],
+                           closed: bool = False) -> Dict[str, npt.NDArray[Any]]: ...
     def render(self, aovs: Optional[List[str]] = None, width: Optional[int] = None, height: Optional[int] = None,
                crop: Optional[Tuple[int, int, int, int]] = None, spp: Optional[int] = None,
                depth_miss: float = ..., view: Optional[Tuple[Sequence[float], Sequence[float], Sequence[float]]] = None,

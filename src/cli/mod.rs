@@ -1,9 +1,11 @@
 //! The `zeroset` command line. [`main`] is public so a user's own binary can register its
 //! primitive types and then run the same CLI (see `docs/adding-a-primitive.md`).
 
+mod points;
 mod query;
 mod render;
 
+use points::points_command;
 use query::query_command;
 use render::render_command;
 
@@ -29,8 +31,12 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene to EXR (all requested AOVs) and PNG previews.
     Render(RenderArgs),
-    /// First hits of a batch of rays (CSV or NumPy .npy in and out, streamed).
+    /// First hits of a batch of rays (CSV or NumPy .npy in and out, streamed); every crossing
+    /// with `--all-hits`.
     Query(QueryArgs),
+    /// Point queries: nearest surface point, distance, signed distance, occupancy or Φ at each
+    /// point of a file (CSV or NumPy .npy in and out, streamed).
+    Points(PointsArgs),
     /// Assemble crops (renders with `--crop`) into the full frame, bit for bit.
     Merge(MergeArgs),
     /// List the primitive names scene files may use.
@@ -170,6 +176,51 @@ pub struct QueryArgs {
     /// out of its evaluation budget, or a `Function` root could not be decided exactly).
     #[arg(long)]
     pub uncertain: bool,
+    /// Every crossing along each ray instead of the first hit: one row per crossing,
+    /// `ray,t,px,py,pz,nx,ny,nz,id,primitive,u,v,entering` (`ray` the 0-based input row,
+    /// `entering` 1 where the ray enters the solid), rays in input order, crossings in
+    /// increasing `t`; a crossing at an edge shared by triangles is reported once.
+    #[arg(long, conflicts_with = "uncertain")]
+    pub all_hits: bool,
+}
+
+/// `zeroset points`.
+#[derive(Debug, clap::Args)]
+pub struct PointsArgs {
+    /// Scene file (RON).
+    pub scene: PathBuf,
+    /// Points: CSV `x,y,z` per line, or a `.npy` array of shape (N, 3); `-` for stdin.
+    #[arg(long)]
+    pub points: PathBuf,
+    /// Input format (default: from the extension, `.npy` or CSV).
+    #[arg(long, value_enum, ignore_case = true)]
+    pub points_format: Option<BatchFormat>,
+    /// What to compute: `closest` (x,y,z,distance,lower,upper,id,primitive), `distance`
+    /// (distance,lower,upper), `signed` (signed_distance,lower,upper; negative inside),
+    /// `occupancy` (1 inside, 0 outside) or `phi` (phi,gx,gy,gz). `lower == upper` where the
+    /// distance is exact; otherwise they bound it and `distance` is the upper end.
+    #[arg(long, value_enum, ignore_case = true)]
+    pub query: crate::query::point_table::PointQuery,
+    /// How a mesh decides inside from outside (signed, occupancy): fast-winding (default),
+    /// winding, pseudonormal or parity. Analytic solids use the sign of Φ.
+    #[arg(long, default_value = "fast-winding", value_parser = parse_sign_method)]
+    pub sign: zeroset_primitives::SignMethod,
+    /// Output file (`.npy` or CSV by extension), or `-` for stdout (CSV unless `--format npy`).
+    #[arg(short, long, default_value = "-")]
+    pub output: PathBuf,
+    /// Output format (default: from the output's extension).
+    #[arg(long, value_enum, ignore_case = true)]
+    pub format: Option<BatchFormat>,
+    /// Worker threads (default: all cores).
+    #[arg(short = 't', long)]
+    pub threads: Option<usize>,
+}
+
+fn parse_sign_method(name: &str) -> Result<zeroset_primitives::SignMethod, String> {
+    zeroset_primitives::SignMethod::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = zeroset_primitives::SignMethod::ALL.iter().map(|m| m.name()).collect();
+        format!("unknown sign method `{name}`; one of {}", names.join(", "))
+    })
 }
 
 /// Runs the CLI on the process arguments; prints errors to stderr and returns a failing exit
@@ -195,6 +246,7 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => with_threads(args.threads, || render_command(&args)),
         Command::Query(args) => with_threads(args.threads, || query_command(&args)),
+        Command::Points(args) => with_threads(args.threads, || points_command(&args)),
         Command::Merge(args) => {
             merge_crops(&args.crops, &args.output)?;
             eprintln!("wrote {}", args.output.display());

@@ -51,6 +51,9 @@ pub(super) fn query_command(args: &QueryArgs) -> Result<()> {
     };
     let to_stdout = args.output.as_os_str() == "-";
     let format = args.format.unwrap_or_else(|| BatchFormat::of(&args.output));
+    if args.all_hits {
+        return all_hits_command(args, &scene, source.as_mut(), format, wall);
+    }
     let counts = if to_stdout {
         // `Stdout`, not its lock: the rows are written on whichever thread of the pool is free
         let stdout = BufWriter::with_capacity(1 << 20, std::io::stdout());
@@ -91,6 +94,51 @@ pub(super) fn query_command(args: &QueryArgs) -> Result<()> {
         counts.rays,
         counts.hits,
         counts.rays as f64 / elapsed.max(1e-12) / 1e6
+    );
+    Ok(())
+}
+
+/// `zeroset query --all-hits`: every crossing of every ray, one row each
+/// ([`crate::query::all_hits`]).
+fn all_hits_command(
+    args: &QueryArgs,
+    scene: &Scene,
+    source: &mut (dyn RaySource + Send),
+    format: BatchFormat,
+    wall: Instant,
+) -> Result<()> {
+    use crate::query::all_hits::{run_all_hits, ALL_HITS_COLUMNS};
+    use crate::query::point_table::TableSink;
+    let (rays, crossings) = if args.output.as_os_str() == "-" {
+        if format == BatchFormat::Npy {
+            bail!("--all-hits writes .npy to a file only (the row count is known at the end); use -o FILE.npy");
+        }
+        let mut sink = TableSink::csv(BufWriter::with_capacity(1 << 20, std::io::stdout()), &ALL_HITS_COLUMNS);
+        let counts = run_all_hits(scene, source, &mut sink)?;
+        sink.finish()?;
+        counts
+    } else {
+        check_destination(&crate::output::atomic::parent_dir(&args.output), 0)?;
+        let mut file = AtomicFile::create(&args.output)?;
+        let counts = {
+            let writer = BufWriter::with_capacity(1 << 20, WritebackFile::new(file.file()));
+            let mut sink = match format {
+                BatchFormat::Csv => TableSink::csv(writer, &ALL_HITS_COLUMNS),
+                BatchFormat::Npy => TableSink::npy(writer, ALL_HITS_COLUMNS.len(), None),
+            };
+            let counts =
+                run_all_hits(scene, source, &mut sink).with_context(|| format!("writing {}", args.output.display()))?;
+            sink.finish_seekable()
+                .with_context(|| format!("writing {}", args.output.display()))?;
+            counts
+        };
+        file.commit()?;
+        counts
+    };
+    let elapsed = wall.elapsed().as_secs_f64();
+    eprintln!(
+        "{rays} rays, {crossings} crossings in {elapsed:.3} s end to end ({:.2} Mrays/s)",
+        rays as f64 / elapsed.max(1e-12) / 1e6
     );
     Ok(())
 }

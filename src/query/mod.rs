@@ -38,11 +38,14 @@
 //! `hit,t,px,py,pz,nx,ny,nz,id,u,v[,uncertain]` (no name), NaN where the CSV has an empty field. Writing `.npy` to stdout needs `.npy` input
 //! (the row count goes in the header, before the rows).
 
+pub mod all_hits;
 pub mod batch;
 pub mod csv;
 pub mod npy;
 pub mod order;
 pub mod pixels;
+pub mod point_table;
+pub mod points;
 pub mod rays;
 #[cfg(test)]
 mod tests;

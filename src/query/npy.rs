@@ -10,15 +10,31 @@ use std::io::{Read, Seek, SeekFrom, Write};
 
 /// The parts of an `.npy` header zeroset reads.
 #[derive(Debug)]
-pub(super) struct NpyHeader {
-    pub(super) rows: u64,
-    pub(super) columns: usize,
+pub(crate) struct NpyHeader {
+    pub(crate) rows: u64,
+    pub(crate) columns: usize,
     /// `true` for `f8`, `false` for `f4`.
-    pub(super) double: bool,
+    pub(crate) double: bool,
 }
 
-/// Parses the `.npy` preamble (magic, version, header dictionary) from `reader`.
+/// Parses the `.npy` preamble (magic, version, header dictionary) of a ray array from `reader`.
 pub(super) fn read_npy_header(reader: &mut impl Read, path: &str) -> Result<NpyHeader, QueryError> {
+    read_npy_table_header(
+        reader,
+        path,
+        &[6, 8, 9, MAX_COLUMNS as u64],
+        "(N, 6) or (N, 8), or with normals (N, 9) or (N, 11)",
+    )
+}
+
+/// Parses the `.npy` preamble of a two-dimensional `f8` or `f4` array whose column count is one
+/// of `columns` (`expected` says them in words, for errors).
+pub(crate) fn read_npy_table_header(
+    reader: &mut impl Read,
+    path: &str,
+    columns: &[u64],
+    expected: &str,
+) -> Result<NpyHeader, QueryError> {
     let err = |message: String| QueryError {
         path: path.to_string(),
         location: "header".into(),
@@ -68,19 +84,15 @@ pub(super) fn read_npy_header(reader: &mut impl Read, path: &str) -> Result<NpyH
         ));
     }
     let shape = dict.shape.iter().map(u64::to_string).collect::<Vec<_>>().join(", ");
-    let &[rows, columns] = dict.shape.as_slice() else {
-        return Err(err(format!(
-            "shape ({shape}): expected (N, 6) or (N, 8), or with normals (N, 9) or (N, 11)"
-        )));
+    let &[rows, width] = dict.shape.as_slice() else {
+        return Err(err(format!("shape ({shape}): expected {expected}")));
     };
-    if ![6, 8, 9, MAX_COLUMNS as u64].contains(&columns) {
-        return Err(err(format!(
-            "shape ({shape}): expected (N, 6) or (N, 8), or with normals (N, 9) or (N, 11)"
-        )));
+    if !columns.contains(&width) {
+        return Err(err(format!("shape ({shape}): expected {expected}")));
     }
     Ok(NpyHeader {
         rows,
-        columns: columns as usize,
+        columns: width as usize,
         double,
     })
 }

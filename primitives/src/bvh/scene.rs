@@ -141,6 +141,38 @@ impl Bvh {
         Self { tree, items }
     }
 
+    /// Nearest-item search from the point `p`: visits leaves nearest box first, calling
+    /// `test(id, bound)` for their items with `bound` a lower bound of the distance from `p` to
+    /// the item (the distance to its leaf's stored f32 box, which is rounded outward from the
+    /// items' boxes); `test` returns a distance beyond which nothing need be visited (its best
+    /// upper bound so far, `+∞` while it has none). Nodes farther than the smallest value
+    /// returned so far are skipped.
+    pub fn nearest(&self, p: glam::DVec3, mut test: impl FnMut(u32, f64) -> f64) {
+        if self.items.is_empty() {
+            return;
+        }
+        let best = std::cell::Cell::new(f64::INFINITY);
+        // the walk asks for a node's bound right before visiting it as a leaf
+        let last_bound = std::cell::Cell::new(0.0);
+        self.tree.nearest(
+            |node| {
+                let lo = glam::DVec3::from_array(node.lo.map(f64::from));
+                let hi = glam::DVec3::from_array(node.hi.map(f64::from));
+                let d = (lo - p).max(p - hi).max(glam::DVec3::ZERO).length();
+                last_bound.set(d);
+                (d <= best.get()).then_some(d)
+            },
+            |first, count| {
+                let bound = last_bound.get();
+                for &id in &self.items[first as usize..(first + count) as usize] {
+                    if bound <= best.get() {
+                        best.set(best.get().min(test(id, bound)));
+                    }
+                }
+            },
+        );
+    }
+
     /// Number of 4-wide nodes.
     #[must_use]
     pub fn node_count(&self) -> usize {

@@ -26,6 +26,7 @@
 //! - [`Expr::domain_error`]: the first operation undefined at a point, with its column.
 
 pub mod cells;
+pub(crate) mod distance;
 pub mod faces;
 mod parse;
 pub use parse::excerpt;
