@@ -53,6 +53,17 @@
 //!   anywhere. (A ray running exactly along a generator, `A = B = C = 0`, lies in the surface and
 //!   is reported only where it meets the apex or a cap.) Features: `0` side,
 //!   `1` bottom cap (or apex), `2` top cap (or apex).
+//! - **Closest point**: a surface of revolution's nearest point to `p` lies in `p`'s meridian
+//!   half-plane (for a surface point at angle `Δφ` from it, `|p − q|² = (h − h′)² + ρ² + ρ′² −
+//!   2ρρ′·cos Δφ`, smallest at `Δφ = 0`), so it is the nearest point `(ρ′, h′)` of the meridian
+//!   profile to `(ρ, h)`, mapped back as `b + ρ′·ρ̂ + h′·a`. The profile is the side segment
+//!   `(r₀, 0) → (r₁, H)`, and capped also the bottom `(0, 0) → (r₀, 0)` and top
+//!   `(0, H) → (r₁, H)` segments (the axis is no part of the surface); on each the nearest point
+//!   is the clamped projection `s + clamp(⟨m − s, e⟩/|e|², 0, 1)·e`, and the nearest of them
+//!   wins (the side on ties, as in Φ). Exact to rounding. On the axis (`ρ = 0`) every meridian
+//!   is nearest and `ρ̂ = e₁` is taken. The feature is the segment's part, and an apex (the
+//!   nearest point the pointed end `ρ′ = 0` of the side) takes that end's cap feature, as hits
+//!   there do.
 
 use crate::bounds::Aabb;
 use crate::error::{
@@ -63,6 +74,7 @@ use crate::hit::RawHit;
 use crate::math::{
     difference_of_products, is_square_safe, orthonormal_basis, power_of_two_scale, solve_quadratic, sum_of_products,
 };
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
@@ -233,6 +245,47 @@ impl Cone {
         (sign * dist, part, gradient)
     }
 
+    /// The point of the meridian profile nearest to `m = (ρ, h)` and its feature (module docs:
+    /// the side segment, and capped also the two cap segments; clamped projections, the side
+    /// first on ties, an apex reported with its end's cap feature).
+    fn meridian_nearest(&self, m: DVec2) -> (DVec2, u32) {
+        let (r0, r1, big_h) = (self.r0, self.r1, self.height);
+        let side = (SIDE, DVec2::new(r0, 0.0), DVec2::new(r1, big_h));
+        let caps = [
+            (BOTTOM, DVec2::ZERO, DVec2::new(r0, 0.0)),
+            (TOP, DVec2::new(0.0, big_h), DVec2::new(r1, big_h)),
+        ];
+        let count = if self.capped { 3 } else { 1 };
+        let mut best = (f64::INFINITY, m, SIDE);
+        for (part, start, end) in std::iter::once(side).chain(caps).take(count) {
+            let edge = end - start;
+            let len2 = edge.length_squared();
+            let tau = if len2 > 0.0 {
+                ((m - start).dot(edge) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            // the end points exactly (a rim keeps its height and radius)
+            let q = if tau == 0.0 {
+                start
+            } else if tau == 1.0 {
+                end
+            } else {
+                start + tau * edge
+            };
+            let d2 = (m - q).length_squared();
+            if d2 < best.0 {
+                best = (d2, q, part);
+            }
+        }
+        let (_, q, mut part) = best;
+        if q.x == 0.0 && part == SIDE {
+            // the apex of a pointed end
+            part = if q.y == 0.0 { BOTTOM } else { TOP };
+        }
+        (q, part)
+    }
+
     /// `(ρ, h, ∂ρ/∂v, ∂h/∂v)` of the profile at `v` (module docs).
     fn profile(&self, v: f64) -> (f64, f64, f64, f64) {
         if self.capped && v < 0.0 {
@@ -287,6 +340,20 @@ impl Implicit for Cone {
 
     fn within_boundary(&self, p: DVec3) -> bool {
         self.capped || (0.0..=self.height).contains(&self.local(p).z)
+    }
+
+    /// The nearest point of the meridian profile in `p`'s meridian half-plane, mapped back
+    /// (module docs).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let l = self.local(p);
+        let rho = l.truncate().length();
+        let (m, part) = self.meridian_nearest(DVec2::new(rho, l.z));
+        let radial = if rho > 0.0 {
+            (l.x * self.e1 + l.y * self.e2) / rho
+        } else {
+            self.e1
+        };
+        Some(Closest::exact(p, self.base + m.x * radial + m.y * self.axis, part))
     }
 }
 

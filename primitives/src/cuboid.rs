@@ -29,10 +29,19 @@
 //!   the box would give, whatever `t_min` is (answering `t_min` itself gave `t = 5·10⁻³²⁴` for an
 //!   open range starting at 0, which flipped under any perturbation).
 //!   Returns the entry `t_near` if it is in the query interval, else the exit `t_far`.
+//! - **Closest point**: outside or on the surface (some `dᵢ ≥ 0`), `p` clamped to the box,
+//!   `qᵢ = clamp(pᵢ, minᵢ, maxᵢ)`, at distance `|max(d, 0)|` (the box is convex; clamping is the
+//!   projection onto a product of intervals). Inside (every `dᵢ < 0`), the foot on the nearest
+//!   face: `p` with the coordinate of the axis of the largest `dᵢ` replaced by that face's bound,
+//!   at distance `−maxᵢ dᵢ` (any point of another face is at least its own `−dⱼ` away). Exact:
+//!   the point copies `p`'s coordinates and the box's bounds, no arithmetic. The feature is the
+//!   face of the largest `dᵢ` (as the gradient's, ties to the lower axis): the face `q` lies on
+//!   (outside, the face across whose plane `p` is farthest).
 
 use crate::bounds::Aabb;
 use crate::error::{require_finite, PrimitiveError};
 use crate::hit::RawHit;
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
@@ -149,6 +158,22 @@ impl Implicit for Cuboid {
 
     fn lipschitz(&self) -> Option<f64> {
         Some(1.0)
+    }
+
+    /// `p` clamped to the box from outside, its foot on the nearest face from inside (module
+    /// docs).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let face = self.nearest_face(p);
+        let (d, _) = self.slabs(p);
+        let q = if d.max_element() >= 0.0 {
+            p.clamp(self.min, self.max)
+        } else {
+            let mut q = p;
+            let axis = (face / 2) as usize;
+            q[axis] = if face % 2 == 1 { self.max[axis] } else { self.min[axis] };
+            q
+        };
+        Some(Closest::exact(p, q, face))
     }
 }
 

@@ -30,6 +30,10 @@
 //!   (capped only) are the planes `h = 0`, `h = H` with `ρ ≤ r`, the rim included. Features: `0`
 //!   side, `1` bottom cap, `2` top cap ([`crate::cone::SIDE`], [`crate::cone::BOTTOM`],
 //!   [`crate::cone::TOP`]).
+//! - **Closest point**: the cone's with `r₀ = r₁` (exact to rounding): in `p`'s meridian
+//!   half-plane, the nearest point of the side segment `ρ′ = r, 0 ≤ h′ ≤ H` (`(r, clamp(h, 0,
+//!   H))`) and, capped, of the cap segments `0 ≤ ρ′ ≤ r` at `h′ = 0` and `h′ = H`
+//!   (`(min(ρ, r), 0)`, `(min(ρ, r), H)`), the nearest of them, mapped back as `b + ρ′·ρ̂ + h′·a`.
 
 use crate::bounds::Aabb;
 use crate::cone::Cone;
@@ -38,6 +42,7 @@ use crate::error::{
     PrimitiveError, MAX_MAGNITUDE,
 };
 use crate::hit::RawHit;
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
@@ -114,6 +119,11 @@ impl Implicit for Cylinder {
 
     fn within_boundary(&self, p: DVec3) -> bool {
         self.cone.within_boundary(p)
+    }
+
+    /// The cone's nearest point (module docs).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        self.cone.closest(p)
     }
 }
 

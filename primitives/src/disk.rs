@@ -15,6 +15,11 @@
 //! - **Intersection**: the plane hit `t = ⟨c − o, n⟩ / ⟨dir, n⟩`, then the radius test on the
 //!   hit's plane coordinates, which are kept in [`RawHit::local`]. A ray parallel to the plane
 //!   (`⟨dir, n⟩ = 0`), including one lying in it, misses.
+//! - **Closest point**: with `h = Φ(p)` and `w = (p − c) − h·n` the in-plane offset of `p` from
+//!   the centre (`ρ = |w|`), the projection `q = c + w` where `ρ ≤ r` (distance `|h|`), else
+//!   the rim point `q = c + r·w/ρ` (distance `√(h² + (ρ − r)²)`): the disk is convex, so the
+//!   nearest point of the disk to `p` is the nearest one to `p`'s projection on its plane. Exact
+//!   to rounding; from a point on the axis (`ρ = 0`) the centre is the nearest point.
 
 use crate::bounds::Aabb;
 use crate::error::{
@@ -24,6 +29,7 @@ use crate::error::{
 use crate::hit::RawHit;
 use crate::math::dot_minus;
 use crate::math::orthonormal_basis;
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
@@ -110,6 +116,18 @@ impl Implicit for Disk {
 
     fn within_boundary(&self, p: DVec3) -> bool {
         self.plane_coordinates(p).length_squared() <= self.radius * self.radius
+    }
+
+    /// The projection on the plane, moved onto the rim where it falls outside (module docs).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let uv = self.plane_coordinates(p);
+        let rho = uv.length();
+        let uv = if rho > self.radius {
+            uv * (self.radius / rho)
+        } else {
+            uv
+        };
+        Some(Closest::exact(p, self.point(uv), 0))
     }
 }
 

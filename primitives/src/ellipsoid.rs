@@ -21,6 +21,36 @@
 //!   cancellation-free quadratic ([`Sphere::roots`]: discriminant `|d′|² − |o′ × d′|²`, roots
 //!   `q/a`, `c₀/q`) then gives the hits. The normal at a hit is computed from the unit-space
 //!   point `o′ + t·d′` directly, `R(s ⊘ r)`, normalised.
+//! - **Closest point** (`nearest_in_octant`), after D. Eberly, "Distance from a Point to an
+//!   Ellipse, an Ellipsoid, or a Hyperellipsoid" (2013): by symmetry in each local axis the
+//!   problem is solved for `y = |q|` (the first octant) with the semi-axes sorted,
+//!   `e₀ ≥ e₁ ≥ e₂`, and the answer permuted back and given `q`'s signs. A nearest point `x` is
+//!   a stationary point of `|x − y|²` on `Σ xᵢ²/eᵢ² = 1`: `xᵢ = eᵢ²yᵢ/(t + eᵢ²)` for a Lagrange
+//!   parameter `t`. Where every `yᵢ > 0`, the nearest one has `t > −e₂²` (each `xᵢ` of `yᵢ`'s
+//!   sign), the unique root of `F(t) = Σ (eᵢyᵢ/(t + eᵢ²))² − 1`, which decreases strictly from
+//!   `+∞` to `−1` there. With `σ = (t + e₂²)/e₂² > 0`, `zᵢ = yᵢ/eᵢ`, `ρᵢ = eᵢ²/e₂² ≥ 1` and
+//!   `δᵢ = ρᵢ − 1 = (eᵢ − e₂)(eᵢ + e₂)/e₂² ≥ 0`, it is the root of
+//!   `G(σ) = Σ (ρᵢzᵢ/(σ + δᵢ))² − 1` in `[z₂, |ρ ⊙ z|]` (`G ≥ 0` at the left end, from its last
+//!   term alone; `G ≤ 0` at the right end since `σ + δᵢ ≥ |ρ ⊙ z|`), or in `[z₂, 1]` from inside
+//!   (`G(1) = |z|² − 1 < 0`), found by bisection to the last bit (until the midpoint rounds to
+//!   an end), and `xᵢ = ρᵢyᵢ/(σ + δᵢ)`. Eberly's `s = σ − 1` would lose `σ`'s relative precision
+//!   near the medial surface (`σ ≈ z₂` tiny, where `x₂ = y₂/σ` is a ratio of two small
+//!   numbers): `σ` itself keeps it. The degenerate cases, where the root is not inside that
+//!   bracket:
+//!   - `y₂ > 0` with some other `yᵢ = 0` (a point in a coordinate plane through the smallest
+//!     axis, or on that axis): `xᵢ = 0` (`t = −eᵢ² ≤ −e₂²` would flip `x₂`'s sign), and the
+//!     remaining axes, the smallest among them, are solved as above (on the smallest axis alone,
+//!     `x₂ = e₂`);
+//!   - `y₂ = 0` (the plane of the two larger axes, which holds the medial surface): if
+//!     `t = −e₂²` is feasible, that is `xᵢ/eᵢ = eᵢyᵢ/(eᵢ² − e₂²) < 1` for each `yᵢ > 0` (`i < 2`,
+//!     which needs `eᵢ > e₂`) with `Σ (xᵢ/eᵢ)² < 1`, the nearest points leave the plane:
+//!     `x₂ = e₂·√(1 − Σ (xᵢ/eᵢ)²)` (the two mirror images are equally near, the `+` one is
+//!     returned); otherwise `x₂ = 0` and the ellipse of the two larger axes is solved the same
+//!     way (down to one axis, `x₀ = e₀`).
+//!
+//!   At the centre, on an axis or on the medial surface the nearest point is not unique and one
+//!   of them is returned; the distance is exact to rounding in every case. Computed in f64 in
+//!   the local frame, then mapped back: `c + R·x`.
 
 use crate::bounds::Aabb;
 use crate::error::{
@@ -28,6 +58,7 @@ use crate::error::{
     MAX_MAGNITUDE,
 };
 use crate::hit::RawHit;
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::sphere::Sphere;
 use crate::traits::{Implicit, Intersect, Parametric};
@@ -136,6 +167,126 @@ impl Implicit for Ellipsoid {
 
     fn lipschitz(&self) -> Option<f64> {
         Some(1.0)
+    }
+
+    /// The nearest point by the Lagrange root in the first octant (module docs).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let q = self.local_from_world * (p - self.center);
+        // axes by decreasing semi-axis (stable: equal semi-axes keep their order)
+        let mut order = [0usize, 1, 2];
+        order.sort_by(|&i, &j| self.radii[j].total_cmp(&self.radii[i]));
+        let e = order.map(|i| self.radii[i]);
+        let y = order.map(|i| q[i].abs());
+        let mut x = [0.0; 3];
+        nearest_in_octant(&e, &y, &mut x);
+        let mut local = DVec3::ZERO;
+        for (k, &i) in order.iter().enumerate() {
+            local[i] = x[k].copysign(q[i]);
+        }
+        Some(Closest::exact(p, self.center + self.world_from_local * local, 0))
+    }
+}
+
+/// The nearest point `x` (written to `x`) of the ellipsoid (ellipse, or pair of points, by the
+/// length of the slices) with semi-axes `e`, sorted decreasing, to `y ≥ 0` componentwise, in
+/// the first octant: the case analysis of the module docs.
+fn nearest_in_octant(e: &[f64], y: &[f64], x: &mut [f64]) {
+    let last = e.len() - 1;
+    if last == 0 {
+        x[0] = e[0];
+        return;
+    }
+    if y[last] > 0.0 {
+        // the axes with yᵢ = 0 have xᵢ = 0; the others (the smallest axis among them) by the root
+        let mut es = [0.0; 3];
+        let mut ys = [0.0; 3];
+        let mut at = [0usize; 3];
+        let mut n = 0;
+        for i in 0..=last {
+            x[i] = 0.0;
+            if y[i] > 0.0 {
+                (es[n], ys[n], at[n]) = (e[i], y[i], i);
+                n += 1;
+            }
+        }
+        let mut xs = [0.0; 3];
+        lagrange_root_point(&es[..n], &ys[..n], &mut xs[..n]);
+        for k in 0..n {
+            x[at[k]] = xs[k];
+        }
+        return;
+    }
+    // y on the plane of the larger axes: off it where t = −e_last² is feasible
+    let e_last = e[last];
+    let mut sum = 0.0;
+    let mut feasible = true;
+    for i in 0..last {
+        x[i] = 0.0;
+        if y[i] > 0.0 {
+            let (numer, denom) = (e[i] * y[i], (e[i] - e_last) * (e[i] + e_last));
+            if !(numer < denom) {
+                feasible = false;
+                break;
+            }
+            let ratio = numer / denom;
+            x[i] = e[i] * ratio;
+            sum += ratio * ratio;
+        }
+    }
+    if feasible && sum < 1.0 {
+        x[last] = e_last * (1.0 - sum).sqrt();
+        return;
+    }
+    x[last] = 0.0;
+    nearest_in_octant(&e[..last], &y[..last], &mut x[..last]);
+}
+
+/// `xᵢ = ρᵢyᵢ/(σ + δᵢ)` at the root `σ` of `G(σ) = Σ (ρᵢzᵢ/(σ + δᵢ))² − 1` (module docs), for
+/// semi-axes `e` sorted decreasing and every `yᵢ > 0`; bisection on the bracket until the
+/// midpoint rounds to one of its ends.
+fn lagrange_root_point(e: &[f64], y: &[f64], x: &mut [f64]) {
+    let n = e.len();
+    let e_min = e[n - 1];
+    if n == 1 {
+        x[0] = e[0];
+        return;
+    }
+    let (mut z, mut ratio, mut delta, mut rz) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
+    for i in 0..n {
+        z[i] = y[i] / e[i];
+        let r = e[i] / e_min;
+        ratio[i] = r * r;
+        delta[i] = (e[i] - e_min) / e_min * ((e[i] + e_min) / e_min);
+        rz[i] = ratio[i] * z[i];
+    }
+    let length = |v: &[f64]| {
+        let big = v.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+        if big == 0.0 || !big.is_finite() {
+            return big;
+        }
+        v.iter().map(|a| (a / big) * (a / big)).sum::<f64>().sqrt() * big
+    };
+    let g = |sigma: f64| (0..n).map(|i| (rz[i] / (sigma + delta[i])).powi(2)).sum::<f64>() - 1.0;
+    let mut lo = z[n - 1];
+    let mut hi = if length(&z[..n]) < 1.0 { 1.0 } else { length(&rz[..n]) };
+    let mut sigma = lo;
+    // at most ~2100 halvings reach adjacent doubles from any finite bracket
+    for _ in 0..2200 {
+        sigma = 0.5 * (lo + hi);
+        if sigma == lo || sigma == hi {
+            break;
+        }
+        let value = g(sigma);
+        if value > 0.0 {
+            lo = sigma;
+        } else if value < 0.0 {
+            hi = sigma;
+        } else {
+            break;
+        }
+    }
+    for i in 0..n {
+        x[i] = ratio[i] * y[i] / (sigma + delta[i]);
     }
 }
 

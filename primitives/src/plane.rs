@@ -12,12 +12,15 @@
 //! - **Intersection**: `t = (d − ⟨o, n⟩) / ⟨dir, n⟩` with the normal and offset as given
 //!   (not normalised) and both sums of products compensated ([`crate::math::sum_of_products`]). A ray parallel to the plane
 //!   (`⟨dir, n⟩ = 0`), including one lying in it, misses.
+//! - **Closest point**: the orthogonal projection `q = p − Φ(p)·n`, at distance `|Φ(p)|`, exact
+//!   to rounding.
 
 use crate::bounds::Aabb;
 use crate::error::{require_direction, PrimitiveError};
 use crate::hit::RawHit;
 use crate::math::dot_minus;
 use crate::math::orthonormal_basis;
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
@@ -90,6 +93,11 @@ impl Implicit for Plane {
 
     fn lipschitz(&self) -> Option<f64> {
         Some(1.0)
+    }
+
+    /// The orthogonal projection `p − Φ(p)·n` (module docs).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        Some(Closest::exact(p, p - self.phi(p) * self.normal, 0))
     }
 }
 

@@ -25,6 +25,14 @@
 //!   [`point_in_convex_polygon`] when the polygon is convex without holes (decided exactly at
 //!   construction), else [`point_in_polygon`]; both give the same answer. A ray parallel to the
 //!   plane, including one lying in it, misses.
+//! - **Closest point**: with `h = Φ(p)` and `w` the plane coordinates of `p`'s projection, the
+//!   distance is `√(h² + δ²)` with `δ` the 2-D distance from `w` to the region, since every
+//!   polygon point lies in the plane. Where `w` is inside by the region's own rule
+//!   ([`Implicit::within_boundary`]: even-odd over all rings, exact predicates) `δ = 0` and the
+//!   projection `o + w₁e₁ + w₂e₂` is nearest; otherwise the nearest region point lies on the
+//!   boundary, and it is the nearest of the clamped projections of `w` on every edge of every
+//!   ring (outer ring and holes). For a point whose projection lies on the boundary both give
+//!   `δ = 0`, so the rule's choice for boundary points does not matter. Exact to rounding.
 
 use crate::bounds::Aabb;
 use crate::error::PrimitiveError;
@@ -32,6 +40,7 @@ use crate::hit::RawHit;
 use crate::math::dot_minus;
 use crate::math::orthonormal_basis;
 use crate::math::polygon2d::{orient2d, point_in_convex_polygon, point_in_polygon, ConvexRing};
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric, UvDomain};
 use glam::{DVec2, DVec3};
@@ -251,6 +260,42 @@ impl Implicit for Polygon {
     fn within_boundary(&self, p: DVec3) -> bool {
         point_in_polygon(self.uv(p), &self.rings)
     }
+
+    /// The projection on the plane where it is inside, else the nearest point of any ring's
+    /// edges (module docs).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let w = self.uv(p);
+        let q = if self.contains_2d(w) {
+            w
+        } else {
+            nearest_on_rings(&self.rings, w)
+        };
+        Some(Closest::exact(p, self.point(q), 0))
+    }
+}
+
+/// The point of the rings' edges (each ring closed) nearest to `w`: the clamped projection of
+/// `w` on each edge `a → b`, `a + clamp(⟨w − a, b − a⟩ / |b − a|², 0, 1)·(b − a)`, the nearest
+/// of them (the first on ties; `a` for a zero-length edge).
+fn nearest_on_rings(rings: &[Vec<DVec2>], w: DVec2) -> DVec2 {
+    let mut best = (f64::INFINITY, w);
+    for ring in rings {
+        for (i, &a) in ring.iter().enumerate() {
+            let edge = ring[(i + 1) % ring.len()] - a;
+            let len2 = edge.length_squared();
+            let tau = if len2 > 0.0 {
+                ((w - a).dot(edge) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let q = a + tau * edge;
+            let d2 = (w - q).length_squared();
+            if d2 < best.0 {
+                best = (d2, q);
+            }
+        }
+    }
+    best.1
 }
 
 /// `(k, s)` where `normal` is `s·e_k` with `s = ±1` (its other components zero).

@@ -18,6 +18,9 @@
 //!   (`b`, `c₀ = |f|² − r²` and the discriminant, [`crate::math::sum_of_products`]) and an
 //!   accurate cross product, so neither a far tiny sphere, nor an origin close to a huge one, nor
 //!   a grazing ray loses more than a few f64 ulp (measured in `tests/hard_cases.rs`).
+//! - **Closest point**: the radial projection `q = c + r·(p − c)/|p − c|`, at distance
+//!   `| |p − c| − r |`, exact to rounding. At the centre every surface point is nearest (at
+//!   distance `r`); the north pole `c + r·ŷ` is returned.
 
 use crate::bounds::Aabb;
 use crate::error::{require_finite, require_positive, PrimitiveError};
@@ -25,6 +28,7 @@ use crate::hit::RawHit;
 use crate::math::{
     cross_accurate, is_square_safe, length_scaled, normalize_scaled, power_of_two_scale, sum_of_products, two_sum,
 };
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric};
 use glam::{DVec2, DVec3};
@@ -211,6 +215,18 @@ impl Implicit for Sphere {
 
     fn lipschitz(&self) -> Option<f64> {
         Some(1.0)
+    }
+
+    /// The radial projection of `p` (module docs); the north pole from the centre.
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let v = p - self.center;
+        let len = length_scaled(v);
+        let q = if len > 0.0 {
+            self.center + v * (self.radius / len)
+        } else {
+            self.center + DVec3::new(0.0, self.radius, 0.0)
+        };
+        Some(Closest::exact(p, q, 0))
     }
 }
 

@@ -32,11 +32,17 @@
 //!   no area: never hit ([`Triangle::is_degenerate`]). Their Φ is the unsigned distance to the
 //!   segment (or point) they collapse to, so Φ ≥ 0 everywhere and its zero set has no interior.
 //!   Triangles of any positive area, slivers included, are regular triangles.
+//! - **Closest point**: `closest_on_triangle` (Ericson's Voronoi-region walk: a vertex, the
+//!   projection on an edge, or the projection on the plane, whichever region of the triangle's
+//!   Voronoi diagram `p` lies in), exact to rounding; the same function the mesh uses. A
+//!   degenerate triangle's surface is the segment it collapses to (its Φ's zero set), and its
+//!   nearest point is the clamped projection on that segment.
 
 use crate::bounds::Aabb;
 use crate::error::{require_finite, PrimitiveError};
 use crate::hit::RawHit;
 use crate::math::{cross_accurate, dot_minus};
+use crate::proximity::Closest;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect, Parametric};
 use glam::{DVec2, DVec3};
@@ -62,6 +68,48 @@ fn closest_on_segment(a: DVec3, b: DVec3, p: DVec3) -> DVec3 {
         return a;
     }
     a + ((p - a).dot(ab) / len2).clamp(0.0, 1.0) * ab
+}
+
+/// The point of triangle `(a, b, c)` nearest to `p` (Ericson, "Real-Time Collision Detection",
+/// §5.1.5, by Voronoi regions): the vertex regions by the signs of the edge projections
+/// `d₁ … d₆`, the edge regions by the signs of the sub-triangles' areas `va, vb, vc` (scaled by
+/// the area), the face region last, where `q = a + (vb·ab + vc·ac)/(va + vb + vc)`. The mesh's
+/// nearest-point query and [`Triangle`]'s `closest` both use it.
+pub(crate) fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
 }
 
 impl Triangle {
@@ -187,6 +235,17 @@ impl Implicit for Triangle {
         }
         let l = self.barycentric(p);
         l.x >= 0.0 && l.y >= 0.0 && l.z >= 0.0
+    }
+
+    /// `closest_on_triangle`, or the nearest point of the segment a degenerate triangle
+    /// collapses to (module docs).
+    fn closest(&self, p: DVec3) -> Option<Closest> {
+        let q = if self.is_degenerate() {
+            self.closest_on_degenerate(p)
+        } else {
+            closest_on_triangle(p, self.a, self.b, self.c)
+        };
+        Some(Closest::exact(p, q, 0))
     }
 }
 
