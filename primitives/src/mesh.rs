@@ -55,6 +55,9 @@
 //! - `walk.rs`: the single-ray walk over the 8-wide nodes;
 //! - `stream.rs`: a batch's single-ray walks interleaved; `packet.rs`: packets walking together;
 //! - `pieces.rs`: the hierarchy's leaves as pieces; `phi.rs`: Φ's nearest-point query;
+//! - `winding.rs`: the exact and the fast (hierarchical) generalized winding numbers;
+//! - `inside.rs`: inside / outside by a [`SignMethod`](crate::SignMethod) (winding numbers,
+//!   the nearest feature's pseudo-normal, ray parity);
 //! - `impls.rs`: the `Implicit` and `Intersect` implementations.
 
 /// `$mesh.$method::<KX, KY, KZ>(args…)` for the watertight test's axes `$k` (`[KX, KY, KZ]`,
@@ -74,6 +77,7 @@ macro_rules! by_axes {
 }
 
 mod impls;
+mod inside;
 mod packet;
 mod phi;
 mod pieces;
@@ -83,6 +87,7 @@ mod storage;
 mod stream;
 mod walk;
 mod watertight;
+mod winding;
 
 pub use storage::{is_degenerate_triangle, Mesh};
 

@@ -8,7 +8,7 @@ use super::storage::{v64, Mesh};
 use super::walk::single_ray;
 use crate::bounds::Aabb;
 use crate::hit::RawHit;
-use crate::proximity::Closest;
+use crate::proximity::{Closest, SignMethod};
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect};
 use glam::{DVec2, DVec3};
@@ -52,6 +52,13 @@ impl Implicit for Mesh {
         }
         let boxes = self.bvh.boxes_below(PART_LEVELS);
         parts.extend(boxes.into_iter().map(|(lo, hi)| Aabb::new(v64(lo), v64(hi))));
+    }
+
+    /// Inside by `method` (see [`SignMethod`]'s table and `mesh/inside.rs`): the exact or the
+    /// fast generalized winding number (`|w| > ½`), the nearest feature's angle-weighted
+    /// pseudo-normal, or the parity of a ray's crossings.
+    fn contains(&self, p: DVec3, method: SignMethod) -> bool {
+        self.contains_by(p, method)
     }
 
     /// `±(p − q)/|p − q|` towards `Φ > 0`, or the nearest triangle's normal on the surface.

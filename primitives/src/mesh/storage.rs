@@ -9,7 +9,9 @@
 //! f32 corners, exact differences) through `a`; its `t` along an f64 ray is `n·(a − o) / n·d`
 //! ([`plane_t`]).
 
+use super::inside::PseudoNormals;
 use super::rows::{leaf_places, leaf_rows, LeafRows, ROW_PAD};
+use super::winding::WindingNodes;
 use crate::bounds::Aabb;
 use crate::bvh::build::{Bb, BuildItem, Leaves};
 use crate::bvh::oct::Octs;
@@ -57,6 +59,12 @@ pub struct Mesh {
     /// on memory for, see `bvh/oct.rs`). Made when a single ray first needs it ([`Mesh::octs`]):
     /// a render whose camera rays all travel in packets never pays for it.
     pub(super) octs: std::sync::OnceLock<Octs>,
+    /// The fast winding number's per-node moments ([`Mesh::fast_winding_number`], `winding.rs`),
+    /// made when first asked for.
+    pub(super) winding_nodes: std::sync::OnceLock<WindingNodes>,
+    /// The angle-weighted pseudo-normals of vertices and edges (`inside.rs`), made when
+    /// [`SignMethod::PseudoNormal`](crate::SignMethod::PseudoNormal) first needs them.
+    pub(super) pseudo_normals: std::sync::OnceLock<PseudoNormals>,
     pub(super) bounds: Aabb,
     pub(super) center: DVec3,
     pub(super) radius: f64,
@@ -297,6 +305,8 @@ impl Mesh {
             leaf_places,
             unit_normals,
             octs: std::sync::OnceLock::new(),
+            winding_nodes: std::sync::OnceLock::new(),
+            pseudo_normals: std::sync::OnceLock::new(),
             bvh,
             bounds,
         })
@@ -351,7 +361,8 @@ impl Mesh {
     }
 
     /// Bytes of heap memory held (vertices, normals, triangles, order maps, BVH nodes; the
-    /// 8-wide nodes once a single ray has made them, about 40 bytes a triangle more).
+    /// 8-wide nodes once a single ray has made them, about 40 bytes a triangle more; the winding
+    /// numbers' and pseudo-normals' data once made).
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
         self.vertices.capacity() * 12
@@ -363,6 +374,8 @@ impl Mesh {
             + (self.leaf_to_file.capacity() + self.file_to_leaf.capacity()) * 4
             + self.bvh.memory_bytes()
             + self.octs.get().map_or(0, Octs::memory_bytes)
+            + self.winding_nodes.get().map_or(0, WindingNodes::memory_bytes)
+            + self.pseudo_normals.get().map_or(0, PseudoNormals::memory_bytes)
     }
 
     /// Number of 4-wide BVH nodes.
