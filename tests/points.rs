@@ -324,7 +324,7 @@ fn the_points_command_writes_one_row_per_point_in_csv_and_npy() {
         .chunks_exact(8)
         .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
         .collect();
-    assert_eq!(values, [1.0, 1.0, 0.0, 0.0]);
+    assert_eq!(values, [1.0, 0.0, 0.0, 0.0]);
 
     std::fs::write(&points, "0,0,0\n1,2\n").unwrap();
     let o = run(&[

@@ -23,16 +23,34 @@ pub struct Crossing {
 
 /// The crossings of one primitive along one ray, in increasing `t`.
 pub struct Crossings<'a> {
-    /// Whether the ray starts inside (`Φ(ray.at(range.min)) < 0`).
-    pub starts_inside: bool,
+    start: Start<'a>,
     rest: Box<dyn Iterator<Item = Crossing> + 'a>,
+}
+
+/// Whether a stream starts inside: known, or worked out when first asked.
+enum Start<'a> {
+    Known(bool),
+    Later(Box<dyn FnOnce() -> bool + 'a>),
 }
 
 impl<'a> Crossings<'a> {
     /// A stream that starts inside or outside and then yields `rest` (which must be sorted by `t`).
     pub fn new(starts_inside: bool, rest: impl Iterator<Item = Crossing> + 'a) -> Self {
         Self {
-            starts_inside,
+            start: Start::Known(starts_inside),
+            rest: Box::new(rest),
+        }
+    }
+
+    /// [`Crossings::new`] with whether the ray starts inside worked out by `starts_inside` only
+    /// if someone asks ([`Crossings::starts_inside`]): a consumer that wants the crossings alone
+    /// (every hit along a ray) does not pay for it.
+    pub fn with_lazy_start(
+        starts_inside: impl FnOnce() -> bool + 'a,
+        rest: impl Iterator<Item = Crossing> + 'a,
+    ) -> Self {
+        Self {
+            start: Start::Later(Box::new(starts_inside)),
             rest: Box::new(rest),
         }
     }
@@ -42,12 +60,27 @@ impl<'a> Crossings<'a> {
     pub fn constant(inside: bool) -> Self {
         Self::new(inside, std::iter::empty())
     }
+
+    /// Whether the ray starts inside (`Φ(ray.at(range.min)) < 0`, or the primitive's own
+    /// inside test where it states one).
+    pub fn starts_inside(&mut self) -> bool {
+        let inside = match std::mem::replace(&mut self.start, Start::Known(false)) {
+            Start::Known(inside) => inside,
+            Start::Later(decide) => decide(),
+        };
+        self.start = Start::Known(inside);
+        inside
+    }
 }
 
 impl std::fmt::Debug for Crossings<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let start = match self.start {
+            Start::Known(inside) => Some(inside),
+            Start::Later(_) => None,
+        };
         f.debug_struct("Crossings")
-            .field("starts_inside", &self.starts_inside)
+            .field("starts_inside", &start)
             .finish_non_exhaustive()
     }
 }

@@ -375,7 +375,7 @@ impl Intersect for Csg {
     /// "outside" when the start lies outside its finite bounds (children are closed, their inside
     /// is within their bounds) and else the sign of its Φ.
     fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> {
-        let streams: Vec<Crossings<'a>> = self
+        let mut streams: Vec<Crossings<'a>> = self
             .children
             .iter()
             .zip(&self.child_bounds)
@@ -386,7 +386,7 @@ impl Intersect for Csg {
                 None => Crossings::constant(child.phi(ray.at(range.min)) < 0.0),
             })
             .collect();
-        let inside: Vec<bool> = streams.iter().map(|s| s.starts_inside).collect();
+        let inside: Vec<bool> = streams.iter_mut().map(Crossings::starts_inside).collect();
         let membership = Membership::new(self.op, &inside);
         let mut merged = MergedCrossings {
             heads: vec![None; streams.len()],

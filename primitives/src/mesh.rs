@@ -76,12 +76,14 @@ macro_rules! by_axes {
     };
 }
 
+mod crossings;
 mod impls;
 mod inside;
 mod packet;
 mod phi;
 mod pieces;
 mod query;
+mod regions;
 mod rows;
 mod storage;
 mod stream;

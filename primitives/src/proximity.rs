@@ -91,9 +91,9 @@ impl Closest {
 /// | method | inside when | right on | fails on |
 /// |---|---|---|---|
 /// | `Winding` | `|w(p)| > ½`, `w` the exact generalized winding number (Jacobson et al. 2013) | open meshes, holes, duplicated or inner faces, wholly flipped orientation | inconsistently oriented faces |
-/// | `FastWinding` (default) | the same with `w` by the hierarchy's dipole expansion (Barill et al. 2018), exact sums for nearby boxes | as `Winding`, error below `10⁻³` at β = 2 | as `Winding`, and points whose `w` is within its error of `½` |
+/// | `FastWinding` (default) | the same with `w` by the hierarchy's dipole expansion (Barill et al. 2018), exact sums for nearby boxes | as `Winding`, error below `3·10⁻³` at β = 2 (second-order expansion) | as `Winding`, and points whose `w` is within its error of `½` |
 /// | `PseudoNormal` | the angle-weighted pseudo-normal at the nearest feature points away (Bærentzen & Aanæs 2005) | closed, consistently oriented, manifold meshes | open meshes, duplicated faces, flipped orientation |
-/// | `Parity` | an odd number of crossings along a ray, each counted once at shared edges, re-cast when a ray grazes an edge | closed meshes of any orientation | open meshes, self-intersections |
+/// | `Parity` | an odd number of crossings along a ray, each counted once at shared edges, re-cast when a ray grazes an edge | closed meshes of any orientation | open meshes, duplicated (coincident) faces, self-intersections |
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum SignMethod {
     /// The exact generalized winding number.

@@ -311,7 +311,6 @@ forward_through_pointer!(Box);
 /// ~2,100 queries instead of one ulp at a time.
 pub fn repeated_intersection<'a, P: Intersect + ?Sized>(primitive: &'a P, ray: &Ray, range: Interval) -> Crossings<'a> {
     let ray = *ray;
-    let starts_inside = primitive.phi(ray.at(range.min)) < 0.0;
     let mut from = range.min;
     let mut step = 0.0f64;
     let mut done = false;
@@ -343,7 +342,8 @@ pub fn repeated_intersection<'a, P: Intersect + ?Sized>(primitive: &'a P, ray: &
             });
         }
     });
-    Crossings::new(starts_inside, rest)
+    let start = ray.at(range.min);
+    Crossings::with_lazy_start(move || primitive.phi(start) < 0.0, rest)
 }
 
 /// The second stage of a hit, written here beside [`Intersect`] (whose methods it calls).

@@ -70,46 +70,54 @@ fn closest_on_segment(a: DVec3, b: DVec3, p: DVec3) -> DVec3 {
     a + ((p - a).dot(ab) / len2).clamp(0.0, 1.0) * ab
 }
 
-/// The point of triangle `(a, b, c)` nearest to `p` (Ericson, "Real-Time Collision Detection",
-/// §5.1.5, by Voronoi regions): the vertex regions by the signs of the edge projections
-/// `d₁ … d₆`, the edge regions by the signs of the sub-triangles' areas `va, vb, vc` (scaled by
-/// the area), the face region last, where `q = a + (vb·ab + vc·ac)/(va + vb + vc)`. The mesh's
-/// nearest-point query and [`Triangle`]'s `closest` both use it.
+/// The barycentrics `[wₐ, w_b, w_c]` of the point of triangle `(a, b, c)` nearest to `p`
+/// (the Voronoi-region walk of Ericson, "Real-Time Collision Detection", §5.1.5):
+/// `p` is projected into the Voronoi region of a corner, an edge or the face, tested in that
+/// order with the dot products of `p − corner` and the two edges from `a`. A corner's region
+/// gives exactly `1` there, an edge's exactly `0` at the corner opposite.
+pub(crate) fn closest_barycentrics(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
+    let (e, f) = (b - a, c - a);
+    let from_a = p - a;
+    let (ea, fa) = (e.dot(from_a), f.dot(from_a));
+    if ea <= 0.0 && fa <= 0.0 {
+        return [1.0, 0.0, 0.0];
+    }
+    let from_b = p - b;
+    let (eb, fb) = (e.dot(from_b), f.dot(from_b));
+    if eb >= 0.0 && fb <= eb {
+        return [0.0, 1.0, 0.0];
+    }
+    // the area coordinate of `c` (times the squared area): ≤ 0 beyond edge `a b`
+    let wc = ea * fb - eb * fa;
+    if wc <= 0.0 && ea >= 0.0 && eb <= 0.0 {
+        let t = ea / (ea - eb);
+        return [1.0 - t, t, 0.0];
+    }
+    let from_c = p - c;
+    let (ec, fc) = (e.dot(from_c), f.dot(from_c));
+    if fc >= 0.0 && ec <= fc {
+        return [0.0, 0.0, 1.0];
+    }
+    let wb = ec * fa - ea * fc;
+    if wb <= 0.0 && fa >= 0.0 && fc <= 0.0 {
+        let t = fa / (fa - fc);
+        return [1.0 - t, 0.0, t];
+    }
+    let wa = eb * fc - ec * fb;
+    if wa <= 0.0 && (fb - eb) >= 0.0 && (ec - fc) >= 0.0 {
+        let t = (fb - eb) / ((fb - eb) + (ec - fc));
+        return [0.0, 1.0 - t, t];
+    }
+    let sum = wa + wb + wc;
+    let (v, w) = (wb / sum, wc / sum);
+    [1.0 - v - w, v, w]
+}
+
+/// The point of triangle `(a, b, c)` nearest to `p`: [`closest_barycentrics`]' point. The
+/// mesh's nearest-point query and [`Triangle`]'s `closest` both use them.
 pub(crate) fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(ap);
-    let d2 = ac.dot(ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let d3 = ab.dot(bp);
-    let d4 = ac.dot(bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let d5 = ab.dot(cp);
-    let d6 = ac.dot(cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    a + ab * (vb * denom) + ac * (vc * denom)
+    let w = closest_barycentrics(p, a, b, c);
+    w[0] * a + w[1] * b + w[2] * c
 }
 
 impl Triangle {

@@ -10,7 +10,7 @@ use pyo3::types::PyDict;
 use rayon::prelude::*;
 use zeroset::primitives::SignMethod;
 use zeroset::query::all_hits::RayCrossing;
-use zeroset::query::point_table::PointQuery;
+use zeroset::query::point_table::{answer_points, PointQuery};
 use zeroset::query::QueryRay;
 
 use crate::guards::{ensure_memory, error, try_vec};
@@ -60,70 +60,66 @@ impl PyScene {
         let width = query.columns().len();
         let flat = points.as_slice().map_err(|_| error("points must be C-contiguous"))?;
         let what = format!("{} of {n} points", query.columns()[0]);
-        ensure_memory(&what, (n as u64).saturating_mul(8 * width as u64))?;
+        // the rows, and their copy in Morton order with the order itself (see `answer_points`)
+        ensure_memory(&what, (n as u64).saturating_mul(16 * width as u64 + 8))?;
         let mut values = try_vec(n * width, 0.0f64, &what)?;
         let failed = self.with(py, |state| {
-            let scene = state.built();
-            values
-                .par_chunks_mut(width.max(1))
-                .zip(flat.par_chunks(3))
-                .enumerate()
-                .with_min_len(256)
-                .find_map_first(|(i, (row, p))| {
-                    let p = DVec3::new(p[0], p[1], p[2]);
-                    query.answer(scene, p, sign, row).err().map(|e| (i, e))
-                })
+            let point = |i: usize| DVec3::new(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]);
+            answer_points(state.built(), n, point, query, sign, &mut values)
         });
-        if let Some((i, e)) = failed {
+        if let Err((i, e)) = failed {
             return Err(error(format!("point {i}: {e}")));
         }
         let array = PyArray1::from_vec(py, values);
-        Ok(array.reshape([n, width])?)
+        array.reshape([n, width])
     }
 
     /// Every crossing of each ray (see `Scene.list_intersections`): a dict of flat arrays in
     /// Open3D's layout, `ray_splits` (`N + 1` offsets) and per crossing `ray_ids`, `t_hit`,
     /// `geometry_ids`, `primitive_ids`, `primitive_uvs`, `normals`, `entering`.
     pub fn crossing_lists<'py>(&self, py: Python<'py>, rays: Vec<QueryRay>) -> PyResult<Bound<'py, PyDict>> {
-        let per_ray: Vec<Vec<RayCrossing>> = self.with(py, |state| {
+        // each chunk of rays flattened on its own thread, the chunks then joined in order
+        let chunks: Vec<Flat> = self.with(py, |state| {
             let scene = state.built();
-            rays.par_iter()
-                .map_init(Vec::new, |found, q| {
-                    scene.all_hits(&q.ray, q.range, found);
-                    found.clone()
+            rays.par_chunks(2048)
+                .map(|chunk| {
+                    let mut flat = Flat::default();
+                    let mut found = Vec::new();
+                    for q in chunk {
+                        scene.all_hits(&q.ray, q.range, &mut found);
+                        flat.push(&found);
+                    }
+                    flat
                 })
                 .collect()
         });
-        let total: usize = per_ray.iter().map(Vec::len).sum();
-        ensure_memory("list_intersections: the crossings", (total as u64).saturating_mul(72))?;
-        let mut splits = Vec::with_capacity(per_ray.len() + 1);
-        let (mut ray_ids, mut t, mut geometry, mut primitive) = (
-            Vec::with_capacity(total),
-            Vec::with_capacity(total),
-            Vec::with_capacity(total),
-            Vec::with_capacity(total),
-        );
-        let (mut uvs, mut normals, mut entering) = (
-            Vec::with_capacity(2 * total),
-            Vec::with_capacity(3 * total),
-            Vec::with_capacity(total),
-        );
-        splits.push(0u64);
-        for (i, crossings) in per_ray.iter().enumerate() {
-            for c in crossings {
-                ray_ids.push(i as u64);
-                t.push(c.hit.t);
-                geometry.push(c.object);
-                primitive.push(c.hit.feature);
-                uvs.extend_from_slice(&c.hit.uv.map_or([f64::NAN; 2], |uv| uv.to_array()));
-                normals.extend_from_slice(&c.hit.normal.map_or([f64::NAN; 3], |n| n.to_array()));
-                entering.push(c.entering);
+        let total: usize = chunks.iter().map(|c| c.t.len()).sum();
+        ensure_memory("list_intersections: the crossings", (total as u64).saturating_mul(80))?;
+        let mut splits = Vec::with_capacity(rays.len() + 1);
+        let mut all = Flat::default();
+        splits.push(0i64);
+        for chunk in chunks {
+            for count in &chunk.counts {
+                let ray = (splits.len() - 1) as i64;
+                all.ray_ids.extend(std::iter::repeat_n(ray, *count as usize));
+                splits.push(splits[splits.len() - 1] + i64::from(*count));
             }
-            splits.push(ray_ids.len() as u64);
+            all.append(chunk);
         }
+        let Flat {
+            ray_ids,
+            t,
+            geometry,
+            primitive,
+            uvs,
+            normals,
+            entering,
+            ..
+        } = all;
         let dict = PyDict::new(py);
         dict.set_item("ray_splits", PyArray1::from_vec(py, splits))?;
         dict.set_item("ray_ids", PyArray1::from_vec(py, ray_ids))?;
+        let total = t.len();
         dict.set_item("t_hit", PyArray1::from_vec(py, t))?;
         dict.set_item("geometry_ids", PyArray1::from_vec(py, geometry))?;
         dict.set_item("primitive_ids", PyArray1::from_vec(py, primitive))?;
@@ -131,5 +127,43 @@ impl PyScene {
         dict.set_item("normals", PyArray1::from_vec(py, normals).reshape([total, 3])?)?;
         dict.set_item("entering", PyArray1::from_vec(py, entering))?;
         Ok(dict)
+    }
+}
+
+/// Crossings of a run of rays, flattened: per ray its count, per crossing its values.
+#[derive(Default)]
+struct Flat {
+    counts: Vec<u32>,
+    ray_ids: Vec<i64>,
+    t: Vec<f64>,
+    geometry: Vec<u32>,
+    primitive: Vec<u32>,
+    uvs: Vec<f64>,
+    normals: Vec<f64>,
+    entering: Vec<bool>,
+}
+
+impl Flat {
+    /// Appends one ray's crossings.
+    fn push(&mut self, crossings: &[RayCrossing]) {
+        self.counts.push(crossings.len() as u32);
+        for c in crossings {
+            self.t.push(c.hit.t);
+            self.geometry.push(c.object);
+            self.primitive.push(c.hit.feature);
+            self.uvs.extend_from_slice(&c.hit.uv.map_or([f64::NAN; 2], |uv| uv.to_array()));
+            self.normals.extend_from_slice(&c.hit.normal.map_or([f64::NAN; 3], |n| n.to_array()));
+            self.entering.push(c.entering);
+        }
+    }
+
+    /// Appends another run's crossings (its counts are the caller's to place).
+    fn append(&mut self, mut other: Flat) {
+        self.t.append(&mut other.t);
+        self.geometry.append(&mut other.geometry);
+        self.primitive.append(&mut other.primitive);
+        self.uvs.append(&mut other.uvs);
+        self.normals.append(&mut other.normals);
+        self.entering.append(&mut other.entering);
     }
 }

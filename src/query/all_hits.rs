@@ -36,7 +36,7 @@ impl Scene {
     /// module docs), appended to `out` (cleared first).
     pub fn all_hits(&self, ray: &Ray, range: Interval, out: &mut Vec<RayCrossing>) {
         out.clear();
-        for id in self.crossed_boxes(ray, range) {
+        self.each_crossed_object(ray, range, |id| {
             let primitive = &*self.objects[id as usize].primitive;
             for crossing in primitive.crossings(ray, range) {
                 if !range.contains(crossing.hit.t) {
@@ -48,28 +48,36 @@ impl Scene {
                     entering: crossing.inside_after,
                 });
             }
+        });
+        if out
+            .windows(2)
+            .any(|w| w[1].hit.t < w[0].hit.t || (w[1].hit.t == w[0].hit.t && w[1].object < w[0].object))
+        {
+            out.sort_by(|a, b| a.hit.t.total_cmp(&b.hit.t).then(a.object.cmp(&b.object)));
         }
-        out.sort_by(|a, b| a.hit.t.total_cmp(&b.hit.t).then(a.object.cmp(&b.object)));
     }
 
     /// The number of crossings [`Scene::all_hits`] reports, without completing them.
     #[must_use]
     pub fn count_crossings(&self, ray: &Ray, range: Interval) -> usize {
-        self.crossed_boxes(ray, range)
-            .into_iter()
-            .map(|id| {
-                self.objects[id as usize]
-                    .primitive
-                    .crossings(ray, range)
-                    .filter(|c| range.contains(c.hit.t))
-                    .count()
-            })
-            .sum()
+        let mut count = 0;
+        self.each_crossed_object(ray, range, |id| {
+            count += self.objects[id as usize]
+                .primitive
+                .crossings(ray, range)
+                .filter(|c| range.contains(c.hit.t))
+                .count();
+        });
+        count
     }
 
-    /// The objects the ray may cross within `range`: those tested by every ray, and those whose
-    /// box in the hierarchy it enters, in increasing index.
-    fn crossed_boxes(&self, ray: &Ray, range: Interval) -> Vec<u32> {
+    /// Calls `visit` with each object the ray may cross within `range`, each once: those tested
+    /// by every ray, and those whose box in the hierarchy it enters.
+    fn each_crossed_object(&self, ray: &Ray, range: Interval, mut visit: impl FnMut(u32)) {
+        if self.hierarchy.bvh.is_empty() {
+            self.hierarchy.unbounded.iter().for_each(|&id| visit(id));
+            return;
+        }
         let mut candidates = self.hierarchy.unbounded.clone();
         // a closest-hit walk that never finds a hit visits every box the ray enters
         self.hierarchy.bvh.closest(ray, range, |id, _| {
@@ -78,7 +86,7 @@ impl Scene {
         });
         candidates.sort_unstable();
         candidates.dedup();
-        candidates
+        candidates.into_iter().for_each(visit);
     }
 }
 

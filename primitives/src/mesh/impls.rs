@@ -7,6 +7,7 @@ use super::packet;
 use super::storage::{v64, Mesh};
 use super::walk::single_ray;
 use crate::bounds::Aabb;
+use crate::crossings::Crossings;
 use crate::hit::RawHit;
 use crate::proximity::{Closest, SignMethod};
 use crate::ray::{Interval, Ray};
@@ -116,6 +117,20 @@ impl Intersect for Mesh {
     /// values as `normal_at(…).as_vec3()`); without one (a large mesh), `normal_at` rounded.
     fn normal_at_f32(&self, _ray: &Ray, raw: &RawHit) -> glam::Vec3 {
         self.unit_normal_f32(raw.feature, || self.hit_plane(raw).map(|(n, _)| n))
+    }
+
+    /// Every crossing in one walk of the hierarchy (`mesh/crossings.rs`); a crossing at an edge
+    /// or vertex shared by triangles is reported once. Whether the ray starts inside is decided
+    /// by the default sign method ([`SignMethod::FastWinding`], a lookup for most points of a
+    /// closed mesh), not by Φ's nearest face.
+    fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> {
+        #[inline(always)]
+        fn collect(mesh: &Mesh, ray: &Ray, range: Interval) -> Vec<crate::crossings::Crossing> {
+            super::crossings::all_crossings(mesh, ray, range)
+        }
+        let found = crate::with_fma!(collect(mesh: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Vec<crate::crossings::Crossing>);
+        let start = ray.at(range.min);
+        Crossings::with_lazy_start(move || self.contains(start, SignMethod::FastWinding), found.into_iter())
     }
 
     /// The barycentrics `(u, v)` of the hit (see the module docs).

@@ -32,15 +32,13 @@
 //! the surface (the ray starts from `p` rounded to f32) may go either way.
 
 use super::query::MeshQuery;
-use super::rows::LeafRows;
 use super::storage::{v64, Mesh};
 use super::watertight::watertight_lanes;
 use crate::bvh::lanes::lanes_of;
-use crate::bvh::walk::{LeafTest, QUAD_STACK};
+use crate::bvh::walk::LeafTest;
 use crate::proximity::SignMethod;
 use crate::ray::{Interval, Ray};
 use glam::DVec3;
-use std::mem::MaybeUninit;
 
 /// The directions parity rays are cast in, in turn (normalised when used): fixed, with no
 /// component zero or a simple ratio of another, so that a ray rarely runs along a mesh's edges
@@ -99,48 +97,6 @@ impl Feature {
     }
 }
 
-/// The barycentrics `[wₐ, w_b, w_c]` of the point of triangle `(a, b, c)` nearest to `p`:
-/// `p` is projected into the Voronoi region of a corner, an edge or the face, tested in that
-/// order with the dot products of `p − corner` and the two edges from `a`. A corner's region
-/// gives exactly `1` there, an edge's exactly `0` at the corner opposite.
-pub(super) fn nearest_barycentrics(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
-    let (e, f) = (b - a, c - a);
-    let from_a = p - a;
-    let (ea, fa) = (e.dot(from_a), f.dot(from_a));
-    if ea <= 0.0 && fa <= 0.0 {
-        return [1.0, 0.0, 0.0];
-    }
-    let from_b = p - b;
-    let (eb, fb) = (e.dot(from_b), f.dot(from_b));
-    if eb >= 0.0 && fb <= eb {
-        return [0.0, 1.0, 0.0];
-    }
-    // the area coordinate of `c` (times the squared area): ≤ 0 beyond edge `a b`
-    let wc = ea * fb - eb * fa;
-    if wc <= 0.0 && ea >= 0.0 && eb <= 0.0 {
-        let t = ea / (ea - eb);
-        return [1.0 - t, t, 0.0];
-    }
-    let from_c = p - c;
-    let (ec, fc) = (e.dot(from_c), f.dot(from_c));
-    if fc >= 0.0 && ec <= fc {
-        return [0.0, 0.0, 1.0];
-    }
-    let wb = ec * fa - ea * fc;
-    if wb <= 0.0 && fa >= 0.0 && fc <= 0.0 {
-        let t = fa / (fa - fc);
-        return [1.0 - t, 0.0, t];
-    }
-    let wa = eb * fc - ec * fb;
-    if wa <= 0.0 && (fb - eb) >= 0.0 && (ec - fc) >= 0.0 {
-        let t = (fb - eb) / ((fb - eb) + (ec - fc));
-        return [0.0, 1.0 - t, t];
-    }
-    let sum = wa + wb + wc;
-    let (v, w) = (wb / sum, wc / sum);
-    [1.0 - v - w, v, w]
-}
-
 /// The pseudo-normals, made once per mesh ([`Mesh::pseudo_normals`]): for each vertex the
 /// angle-weighted sum of the unit normals of the faces around its position, for each triangle
 /// (leaf position) and edge (`a b`, `b c`, `c a`) the sum of the unit normals of the faces
@@ -158,23 +114,19 @@ impl PseudoNormals {
     }
 }
 
-/// The corners of the `i`-th triangle of a leaf, from its rows, in f64.
-#[inline(always)]
-fn leaf_corners(rows: &LeafRows<'_>, count: usize, i: usize) -> [DVec3; 3] {
-    let at = |r: usize| f64::from(rows.block[r * count + i]);
-    [
-        DVec3::new(at(0), at(1), at(2)),
-        DVec3::new(at(3), at(4), at(5)),
-        DVec3::new(at(6), at(7), at(8)),
-    ]
-}
-
-/// A pending child of the nearest-point walk: `(child, count, squared distance to its box)`.
-type Near = (u32, u32, f64);
-
 impl Mesh {
     /// Whether `p` is inside by `method` (see [`SignMethod`] and the module docs).
     pub(super) fn contains_by(&self, p: DVec3, method: SignMethod) -> bool {
+        // a closed mesh's grid decides most points by their cell (`regions.rs`)
+        if method != SignMethod::PseudoNormal {
+            if let Some(w) = self.regions().and_then(|r| r.winding(p)) {
+                return if method == SignMethod::Parity {
+                    w % 2 != 0
+                } else {
+                    w != 0
+                };
+            }
+        }
         match method {
             SignMethod::Winding => self.winding_number(p).abs() > 0.5,
             SignMethod::FastWinding => self.fast_winding_number(p).abs() > 0.5,
@@ -190,19 +142,7 @@ impl Mesh {
 
     fn make_pseudo_normals(&self) -> PseudoNormals {
         let nv = self.vertices.len();
-        // each vertex's first vertex at the same position (−0 as +0)
-        let key = |i: u32| self.vertices[i as usize].map(|x| (x + 0.0).to_bits());
-        let mut order: Vec<u32> = (0..nv as u32).collect();
-        order.sort_unstable_by_key(|&i| (key(i), i));
-        let mut canon = vec![0u32; nv];
-        let mut start = 0;
-        for (j, &i) in order.iter().enumerate() {
-            if key(i) != key(order[start]) {
-                start = j;
-            }
-            canon[i as usize] = order[start];
-        }
-        drop(order);
+        let canon = super::regions::welded(&self.vertices);
         let tris = &self.tris[..self.in_bvh];
         let unit = |k: usize| {
             let (n, _) = self.plane(k);
@@ -235,69 +175,11 @@ impl Mesh {
         PseudoNormals { vertex, edge }
     }
 
-    /// The surface point nearest to `p`: `(q, leaf position of its triangle, q's barycentrics
-    /// there)`, by a depth-first walk of the 4-wide hierarchy (see the module docs). Of
-    /// triangles equally near, the first met.
-    pub(super) fn nearest_feature(&self, p: DVec3) -> (DVec3, usize, [f64; 3]) {
-        let quads = self.bvh.quads();
-        let mut best_d2 = f64::INFINITY;
-        let mut best = (p, 0usize, [1.0, 0.0, 0.0]);
-        // uninitialised: only entries below `top`, written before, are ever read
-        let mut stack = [const { MaybeUninit::<Near>::uninit() }; QUAD_STACK];
-        let mut top = 0usize;
-        let mut q = 0usize;
-        loop {
-            let quad = &quads[q];
-            let mut near = [(0u32, 0u32, f64::INFINITY); 4];
-            let mut len = 0;
-            for s in 0..quad.len as usize {
-                let (lo, hi) = quad.slot_bounds(s);
-                let d = (v64(lo) - p).max(p - v64(hi)).max(DVec3::ZERO);
-                let d2 = d.length_squared();
-                if d2 <= best_d2 {
-                    near[len] = (quad.child[s], u32::from(quad.count[s]), d2);
-                    len += 1;
-                }
-            }
-            // farthest pushed first, so the nearest is popped next
-            near[..len].sort_unstable_by(|a, b| b.2.total_cmp(&a.2));
-            for &item in &near[..len] {
-                stack[top].write(item);
-                top += 1;
-            }
-            let next = loop {
-                if top == 0 {
-                    return best;
-                }
-                top -= 1;
-                // SAFETY: `stack[top]` was written by the push that raised `top` above it
-                let (child, count, d2) = unsafe { stack[top].assume_init() };
-                if d2 > best_d2 {
-                    continue;
-                }
-                if count == 0 {
-                    break child as usize;
-                }
-                let rows = self.leaf(child, count);
-                for i in 0..count as usize {
-                    let [a, b, c] = leaf_corners(&rows, count as usize, i);
-                    let w = nearest_barycentrics(p, a, b, c);
-                    let x = w[0] * a + w[1] * b + w[2] * c;
-                    let d2 = (p - x).length_squared();
-                    if d2 < best_d2 {
-                        best_d2 = d2;
-                        best = (x, child as usize + i, w);
-                    }
-                }
-            };
-            q = next;
-        }
-    }
-
     /// Inside by the angle-weighted pseudo-normal of the nearest feature (see the module docs).
     fn pseudo_normal_inside(&self, p: DVec3) -> bool {
         let normals = self.pseudo_normals();
-        let (q, k, w) = self.nearest_feature(p);
+        let found = self.nearest_feature(p);
+        let (q, k, w) = (found.point, found.k, found.barycentrics);
         let n = match Feature::of(w) {
             Feature::Face => self.plane(k).0,
             Feature::Edge(e) => v64(normals.edge[k][e]),

@@ -65,6 +65,9 @@ pub struct Mesh {
     /// The angle-weighted pseudo-normals of vertices and edges (`inside.rs`), made when
     /// [`SignMethod::PseudoNormal`](crate::SignMethod::PseudoNormal) first needs them.
     pub(super) pseudo_normals: std::sync::OnceLock<PseudoNormals>,
+    /// The inside / outside grid of a closed mesh (`regions.rs`; `None` inside for a mesh that
+    /// is not closed), made when a sign is first asked for.
+    pub(super) regions: std::sync::OnceLock<Option<super::regions::Regions>>,
     pub(super) bounds: Aabb,
     pub(super) center: DVec3,
     pub(super) radius: f64,
@@ -307,6 +310,7 @@ impl Mesh {
             octs: std::sync::OnceLock::new(),
             winding_nodes: std::sync::OnceLock::new(),
             pseudo_normals: std::sync::OnceLock::new(),
+            regions: std::sync::OnceLock::new(),
             bvh,
             bounds,
         })
@@ -376,6 +380,11 @@ impl Mesh {
             + self.octs.get().map_or(0, Octs::memory_bytes)
             + self.winding_nodes.get().map_or(0, WindingNodes::memory_bytes)
             + self.pseudo_normals.get().map_or(0, PseudoNormals::memory_bytes)
+            + self
+                .regions
+                .get()
+                .and_then(Option::as_ref)
+                .map_or(0, super::regions::Regions::memory_bytes)
     }
 
     /// Number of 4-wide BVH nodes.

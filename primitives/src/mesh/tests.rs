@@ -1,7 +1,6 @@
 //! Tests of the mesh across its files (set-up, ball test, walks, rows, lanes, Φ).
 
 use super::impls::PART_LEVELS;
-use super::phi::closest_on_triangle;
 use super::query::scaled_t_min;
 use super::rows::ROW_PAD;
 use super::storage::{v64, Mesh};
@@ -13,6 +12,7 @@ use crate::bvh::slab::SlabRay;
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
 use crate::traits::{Implicit, Intersect};
+use crate::triangle::closest_on_triangle;
 use crate::PACKET;
 use glam::{DVec3, Vec3A};
 
