@@ -8,78 +8,14 @@ mod support;
 
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
-use std::collections::HashMap;
 use std::path::Path;
 use support::{assert_ok, run, stderr, stdout};
 use zeroset::scene::Scene;
 use zeroset_primitives::{Interval, Ray};
 
-/// An icosphere of radius 1 subdivided `levels` times (vertices on the sphere, so the mesh is
-/// its convex hull, outward orientation).
-fn icosphere(levels: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-    let g = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<DVec3> = [
-        (-1.0, g, 0.0),
-        (1.0, g, 0.0),
-        (-1.0, -g, 0.0),
-        (1.0, -g, 0.0),
-        (0.0, -1.0, g),
-        (0.0, 1.0, g),
-        (0.0, -1.0, -g),
-        (0.0, 1.0, -g),
-        (g, 0.0, -1.0),
-        (g, 0.0, 1.0),
-        (-g, 0.0, -1.0),
-        (-g, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut next = Vec::with_capacity(f.len() * 4);
-        let mut middle = |a: u32, b: u32, v: &mut Vec<DVec3>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                v.push(((v[a as usize] + v[b as usize]) / 2.0).normalize());
-                (v.len() - 1) as u32
-            })
-        };
-        for [a, b, c] in f {
-            let ab = middle(a, b, &mut v);
-            let bc = middle(b, c, &mut v);
-            let ca = middle(c, a, &mut v);
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = next;
-    }
-    (v.iter().map(|p| p.as_vec3().to_array()).collect(), f)
-}
-
 /// A scene of the icosphere written to `dir` and placed at each of `centres` (as translations).
 fn mesh_scene(dir: &Path, levels: u32, centres: &[DVec3]) -> (Scene, Vec<[f32; 3]>, Vec<[u32; 3]>) {
-    let (vertices, triangles) = icosphere(levels);
+    let (vertices, triangles) = zeroset_primitives::testing::icosphere(levels);
     mesh_writers::write(&dir.join("ico.off"), &mesh_writers::off(&vertices, &triangles));
     let objects: Vec<String> = centres
         .iter()

@@ -478,16 +478,15 @@ impl Implicit for Function {
     }
 
     /// For an expression, guaranteed bounds on the distance to its zero set inside the box, by
-    /// branch and bound over boxes with interval arithmetic ([`crate::expr::distance`]), to
+    /// branch and bound over boxes with interval arithmetic ([`crate::expr::distance`]) from the
+    /// octree the rays walk (its empty cells skipped, its leaves' pruned tapes used), to
     /// within [`DISTANCE_TOLERANCE`] × the box's diagonal (or wider where the search's budget of
     /// [`DISTANCE_BUDGET`] boxes runs out; the bounds stay valid). A closure's Φ cannot be
     /// bounded: `None`.
     fn closest(&self, p: DVec3) -> Option<Closest> {
         match &self.phi {
             Phi::Expression(e) => Some(crate::expr::distance::distance_bounds(
-                &e.tape,
-                self.bounds.min,
-                self.bounds.max,
+                e.cells(),
                 p,
                 DISTANCE_TOLERANCE * self.bounds.diagonal_length(),
                 DISTANCE_BUDGET,

@@ -14,66 +14,13 @@ use zeroset_primitives::*;
 /// A closed icosphere, subdivided `level` times, radially displaced (so neighbouring faces are not
 /// coplanar), counter-clockwise seen from outside: `20·4^level` triangles.
 fn icosphere(level: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..level {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut next = Vec::with_capacity(f.len() * 4);
-        for [a, b, c] in f {
-            let mut m = |i: u32, j: u32| {
-                *mid.entry((i.min(j), i.max(j))).or_insert_with(|| {
-                    v.push(((v[i as usize] + v[j as usize]) * 0.5).normalize());
-                    (v.len() - 1) as u32
-                })
-            };
-            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = next;
-    }
+    let (v, f) = zeroset_primitives::testing::icosphere(level);
     let verts = v
         .iter()
-        .map(|p| {
+        .map(|&p| {
+            let p = DVec3::from_array(p.map(f64::from));
             let r = 1.0 + 0.08 * (9.0 * p.x).sin() * (9.0 * p.y).sin() * (9.0 * p.z).sin();
-            (*p * r).as_vec3().to_array()
+            (p * r).as_vec3().to_array()
         })
         .collect();
     (verts, f)

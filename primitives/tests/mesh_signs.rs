@@ -10,73 +10,12 @@ use glam::DVec3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::f64::consts::PI;
+use zeroset_primitives::testing::icosphere;
 use zeroset_primitives::*;
 
 /// The fast winding number's error bound stated in `Mesh::fast_winding_number`'s docs.
 const FAST_ERROR: f64 = 3e-3;
-
-/// A unit icosphere (vertices on the unit sphere), subdivided `level` times, counter-clockwise
-/// seen from outside: `20·4^level` triangles, edges about `1.1 / 2^level` long.
-fn icosphere(level: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..level {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut next = Vec::with_capacity(f.len() * 4);
-        for [a, b, c] in f {
-            let mut m = |i: u32, j: u32| {
-                *mid.entry((i.min(j), i.max(j))).or_insert_with(|| {
-                    v.push(((v[i as usize] + v[j as usize]) * 0.5).normalize());
-                    (v.len() - 1) as u32
-                })
-            };
-            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = next;
-    }
-    (v.iter().map(|p| p.as_vec3().to_array()).collect(), f)
-}
 
 /// The longest edge of a mesh.
 fn longest_edge(v: &[[f32; 3]], f: &[[u32; 3]]) -> f64 {

@@ -52,13 +52,10 @@ impl PyScene {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let query = query_named(query)?;
         let sign = sign_named(sign)?;
-        let shape = points.shape();
-        if shape.len() != 2 || shape[1] != 3 {
-            return Err(error(format!("points must have shape (N, 3), got {shape:?}")));
-        }
-        let n = shape[0];
+        let n = points.shape()[0];
         let width = query.columns().len();
-        let flat = points.as_slice().map_err(|_| error("points must be C-contiguous"))?;
+        // borrowed where the array is contiguous, else copied
+        let flat = crate::rays::rows_of_three(points, "points")?;
         let what = format!("{} of {n} points", query.columns()[0]);
         // the rows, and their copy in Morton order with the order itself (see `answer_points`)
         ensure_memory(&what, (n as u64).saturating_mul(16 * width as u64 + 8))?;

@@ -141,7 +141,7 @@ fn copied<'a>(values: impl Iterator<Item = &'a f64>, len: usize, what: &str) -> 
 }
 
 /// The rows of an `(N, 3)` float64 array as one flat slice (borrowed when C-contiguous).
-fn rows_of_three<'a>(array: &'a PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Cow<'a, [f64]>> {
+pub(crate) fn rows_of_three<'a>(array: &'a PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Cow<'a, [f64]>> {
     let shape = array.shape();
     if shape[1] != 3 {
         return Err(error(format!("{what}: expected shape (N, 3), got {shape:?}")));

@@ -104,6 +104,34 @@ def test_cast_rays_over_ray_blocks(client, repo):
         np.testing.assert_array_equal(got32[k], ref32[k], err_msg=k)
 
 
+def test_point_queries_and_grids_over_blocks(client):
+    scene = zeroset.Scene.empty()
+    scene.add("Sphere(center: (0, 0, 0), radius: 1)")
+    scene.add("Box(min: (1.5, -0.5, -0.5), max: (2.5, 0.5, 0.5))")
+    rng = np.random.default_rng(6)
+    p = rng.uniform(-3, 3, (5000, 3))
+    for query, ref in [("distance", scene.compute_distance(p)), ("signed", scene.compute_signed_distance(p)),
+                       ("occupancy", scene.compute_occupancy(p)),
+                       ("closest", scene.compute_closest_points(p)["points"])]:
+        lazy = zdask.points(scene, da.from_array(p, chunks=(1200, 3)), query)
+        assert lazy.chunks[0] == (1200, 1200, 1200, 1200, 200)
+        np.testing.assert_array_equal(lazy.compute(), ref, err_msg=query)
+    grid = scene.sample_grid((-2, -2, -2), (3, 2, 2), (21, 17, 9))
+    assert grid.shape == (21, 17, 9)
+    # the node (i, j, k) of the grid is lo + (hi − lo)·(i, j, k)/(n − 1)
+    x = np.linspace(-2, 3, 21)[:, None, None]
+    y = np.linspace(-2, 2, 17)[None, :, None]
+    z = np.linspace(-2, 2, 9)[None, None, :]
+    sphere = np.sqrt(x * x + y * y + z * z) - 1
+    far_from_box = (x < 1.0)
+    np.testing.assert_allclose(grid[np.broadcast_to(far_from_box, grid.shape)],
+                               np.broadcast_to(sphere, grid.shape)[np.broadcast_to(far_from_box, grid.shape)],
+                               rtol=1e-12, atol=1e-12)
+    lazy = zdask.sample_grid(scene, (-2, -2, -2), (3, 2, 2), (21, 17, 9), chunks=8)
+    assert lazy.chunks == ((8, 8, 5), (8, 8, 1), (8, 1))
+    np.testing.assert_array_equal(lazy.compute(), grid)
+
+
 def test_render_views_stack(client, repo):
     path = str(repo / "scenes" / "default.ron")
     views = [dict(eye=(0, 2.5, -7), look_at=(0, 0, 0)), dict(eye=(3, 2, -5), look_at=(0, 0.5, 0))]

@@ -376,6 +376,30 @@ class Scene:
         rows, lead = self._points(query_points, "phi")
         return rows[:, 1:4].reshape(lead + (3,))
 
+    def sample_grid(self, lo: Sequence[float], hi: Sequence[float], shape: Sequence[int],
+                    query: str = "signed", sign: str = "fast-winding") -> np.ndarray:
+        """A point query on the regular grid of ``shape`` samples spanning the box ``[lo, hi]``
+        (both ends included along each axis, as ``numpy.linspace``): an SDF or occupancy volume
+        shaped ``shape`` (``(*shape, 3)`` for ``"closest"`` and ``"gradient"``). ``query``:
+        ``"signed"`` (default), ``"distance"``, ``"occupancy"``, ``"phi"``, ``"closest"`` or
+        ``"gradient"``; ``sign`` as for ``compute_signed_distance``. ``numpy.save`` writes it as
+        ``.npy``; past memory, ``zeroset.dask.sample_grid`` makes it block by block."""
+        axes = [np.linspace(float(a), float(b), int(n)) for a, b, n in zip(lo, hi, shape)]
+        if len(axes) != 3 or any(len(a) < 1 for a in axes):
+            raise ZerosetError(f"lo, hi and shape need three entries each, shape at least 1, got {shape}")
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+        calls = {
+            "signed": lambda: self.compute_signed_distance(grid, sign=sign),
+            "distance": lambda: self.compute_distance(grid),
+            "occupancy": lambda: self.compute_occupancy(grid, sign=sign),
+            "phi": lambda: self.phi(grid),
+            "closest": lambda: self.compute_closest_points(grid)["points"],
+            "gradient": lambda: self.gradient(grid),
+        }
+        if query not in calls:
+            raise ZerosetError(f"query: one of {', '.join(calls)}, got {query!r}")
+        return calls[query]()
+
     def list_intersections(self, origins: Any, directions: Any, tmin: Any = 0.0, tmax: Any = np.inf,
                            closed: bool = False) -> Dict[str, np.ndarray]:
         """Every surface crossing along each ray with ``tmin < t ≤ tmax`` (``closed=True``:

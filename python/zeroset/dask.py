@@ -41,7 +41,7 @@ from . import Scene, ZerosetError, _from_recipe, _real_dtype, _zeroset
 
 SceneLike = Union[Scene, str, "os.PathLike[str]"]
 
-__all__ = ["render", "render_views", "cast_rays", "fetch"]
+__all__ = ["render", "render_views", "cast_rays", "points", "sample_grid", "fetch"]
 
 
 def _as_scene(scene: SceneLike) -> Scene:
@@ -221,6 +221,80 @@ def cast_rays(scene: SceneLike, origins: Any, directions: Any, tmin: float = 0.0
             return [nest(prefix + (i,)) for i in range(len(lead_chunks[level]))]
         out[field] = _assemble(nest(()))
     return out
+
+
+# what `points` computes: the Scene method, its keyword arguments' use of `sign`, the trailing
+# shape and dtype of its answer
+_POINT_QUERIES = {
+    "closest": (lambda s, p, sign: s.compute_closest_points(p)["points"], (3,), np.float64),
+    "distance": (lambda s, p, sign: s.compute_distance(p), (), np.float64),
+    "signed": (lambda s, p, sign: s.compute_signed_distance(p, sign=sign), (), np.float64),
+    "occupancy": (lambda s, p, sign: s.compute_occupancy(p, sign=sign), (), np.float32),
+    "phi": (lambda s, p, sign: s.phi(p), (), np.float64),
+    "gradient": (lambda s, p, sign: s.gradient(p), (3,), np.float64),
+}
+
+
+def _point_block(scene: Scene, block: np.ndarray, query: str, sign: str) -> np.ndarray:
+    return _POINT_QUERIES[query][0](scene, block, sign)
+
+
+def points(scene: SceneLike, points: Any, query: str = "distance", sign: str = "fast-winding") -> da.Array:
+    """A point query over the blocks of a dask array of points (``(..., 3)``; numpy arrays are
+    wrapped): ``query`` is ``"closest"`` (the nearest surface points, ``(..., 3)``),
+    ``"distance"``, ``"signed"``, ``"occupancy"``, ``"phi"`` or ``"gradient"``, each block
+    answered by the same ``Scene`` method as in one process (``sign`` as there). Returns a dask
+    array chunked like the points' leading dimensions: a grid of millions of SDF samples is one
+    ``points(scene, grid, "signed")``, stored with ``.to_zarr(...)`` without ever being whole in
+    memory."""
+    if query not in _POINT_QUERIES:
+        raise ZerosetError(f"query: one of {', '.join(_POINT_QUERIES)}, got {query!r}")
+    s = _as_scene(scene)
+    p = points if isinstance(points, da.Array) else da.from_array(np.asarray(points, dtype=np.float64))
+    if p.shape[-1:] != (3,):
+        raise ZerosetError(f"points must have shape (..., 3), got {p.shape}")
+    p = p.rechunk(p.chunks[:-1] + ((3,),))
+    shared = dask.delayed(s, pure=True)
+    blocks = p.to_delayed()
+    lead_chunks = p.chunks[:-1]
+    _, tail, kind = _POINT_QUERIES[query]
+
+    def nest(prefix: Tuple[int, ...]) -> Any:
+        level = len(prefix)
+        if level == len(lead_chunks):
+            shape = tuple(lead_chunks[k][prefix[k]] for k in range(level)) + tail
+            block = dask.delayed(_point_block, pure=True)(shared, blocks[prefix + (0,)], query, str(sign))
+            return da.from_delayed(block, shape=shape, dtype=kind)
+        return [nest(prefix + (i,)) for i in range(len(lead_chunks[level]))]
+
+    return _assemble(nest(()))
+
+
+def _grid_block(scene: Scene, axes: Tuple[np.ndarray, np.ndarray, np.ndarray], query: str, sign: str) -> np.ndarray:
+    x, y, z = np.meshgrid(*axes, indexing="ij")
+    block = np.stack([x, y, z], axis=-1)
+    return _POINT_QUERIES[query][0](scene, block, sign)
+
+
+def sample_grid(scene: SceneLike, lo: Sequence[float], hi: Sequence[float], shape: Sequence[int],
+                query: str = "signed", sign: str = "fast-winding", chunks: int = 64) -> da.Array:
+    """``Scene.sample_grid`` as a dask array of ``chunks``³ blocks: each block makes its own
+    sample points on its worker, so neither the points nor the answers of a large grid (an SDF
+    volume of 1024³) are ever whole in one memory; ``.to_zarr(path)`` (with ``zarr`` installed)
+    writes it block by block."""
+    if query not in _POINT_QUERIES:
+        raise ZerosetError(f"query: one of {', '.join(_POINT_QUERIES)}, got {query!r}")
+    axes = [np.linspace(float(a), float(b), int(n)) for a, b, n in zip(lo, hi, shape)]
+    if len(axes) != 3 or any(len(a) < 1 for a in axes):
+        raise ZerosetError(f"lo, hi and shape need three entries each, shape at least 1, got {shape}")
+    shared = dask.delayed(_as_scene(scene), pure=True)
+    _, tail, kind = _POINT_QUERIES[query]
+    splits = [_splits(len(a), int(chunks)) for a in axes]
+    nested = [[[da.from_delayed(dask.delayed(_grid_block, pure=True)(
+        shared, (axes[0][i0:i1], axes[1][j0:j1], axes[2][k0:k1]), query, str(sign)),
+        shape=(i1 - i0, j1 - j0, k1 - k0) + tail, dtype=kind)
+        for k0, k1 in splits[2]] for j0, j1 in splits[1]] for i0, i1 in splits[0]]
+    return _assemble(nested)
 
 
 def _windows(a: da.Array) -> Iterable[Tuple[Tuple[int, ...], Tuple[slice, ...]]]:

@@ -74,6 +74,48 @@ pub struct CellTree {
     root: Cell,
 }
 
+/// A cell and its box, as a search over the tree sees it ([`CellTree::root`]).
+#[derive(Clone, Copy)]
+pub(crate) struct CellView<'a> {
+    cell: &'a Cell,
+    /// The cell's box (not grown).
+    pub(crate) lo: DVec3,
+    /// The cell's box (not grown).
+    pub(crate) hi: DVec3,
+}
+
+/// What a cell holds, once opened ([`CellView::open`]).
+pub(crate) enum Opened<'a> {
+    /// Φ cannot vanish in it.
+    Empty,
+    /// A leaf: its pruned tape and grown box.
+    Leaf(&'a Leaf),
+    /// Its children (made now if no walk made them yet).
+    Children([CellView<'a>; 8]),
+}
+
+impl<'a> CellView<'a> {
+    /// What the cell holds; an inner cell's children are classified by the first caller, as
+    /// for a ray's walk.
+    pub(crate) fn open(&self, tree: &CellTree) -> Opened<'a> {
+        match self.cell {
+            Cell::Empty => Opened::Empty,
+            Cell::Leaf(leaf) => Opened::Leaf(leaf),
+            Cell::Inner(node) => match node.children(self.lo, self.hi, tree.margin) {
+                None => Opened::Empty,
+                Some(children) => Opened::Children(std::array::from_fn(|bits| {
+                    let (lo, hi) = child_box(self.lo, self.hi, bits);
+                    CellView {
+                        cell: &children[bits],
+                        lo,
+                        hi,
+                    }
+                })),
+            },
+        }
+    }
+}
+
 /// A leaf: its cell grown by the margin, the tape pruned over it, and enclosures of the partial
 /// derivatives `∂Φ/∂x, ∂Φ/∂y, ∂Φ/∂z` over the grown cell.
 #[derive(Debug)]
@@ -272,6 +314,17 @@ impl CellTree {
                     cell = &children[bits];
                 }
             }
+        }
+    }
+
+    /// The root cell, for searches that walk the tree in their own order
+    /// ([`CellView::open`]).
+    #[must_use]
+    pub(crate) fn root(&self) -> CellView<'_> {
+        CellView {
+            cell: &self.root,
+            lo: self.lo,
+            hi: self.hi,
         }
     }
 

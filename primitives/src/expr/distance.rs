@@ -12,6 +12,10 @@
 //! box. Near a smooth surface `r` shrinks with the square of the box size, so few boxes per level
 //! remain near the nearest point and the interval closes quickly.
 //!
+//! **The octree.** A `Function` starts the search from the octree its rays walk
+//! ([`distance_bounds`], [`crate::expr::cells`]): cells proved empty are dropped without an
+//! evaluation, and the boxes inside a leaf are evaluated with the leaf's pruned tape.
+//!
 //! **Witnesses.** The upper bound is the distance to a certified surface point: two points whose
 //! interval values of Φ have strictly opposite signs (taken across the slab, along `g`, through
 //! the point of the slab nearest to `p`) bracket a zero on the segment between them, which is
@@ -23,6 +27,7 @@
 //! Φ may be undefined (a domain error) a box is kept, never dropped, and no witness is taken
 //! from undefined values.
 
+use super::cells::{CellTree, CellView, Opened};
 use super::scalar::Jet;
 use super::tape::Tape;
 use crate::math::enclosure::Enclosure;
@@ -31,25 +36,33 @@ use glam::DVec3;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-/// A box waiting in the heap with its lower bound.
-struct Waiting {
+/// A box waiting in the heap with its lower bound: a cell of the octree not opened yet, or a box
+/// inside a leaf with the leaf's pruned tape.
+struct Waiting<'a> {
     bound: f64,
     lo: DVec3,
     hi: DVec3,
+    what: Part<'a>,
 }
 
-impl PartialEq for Waiting {
+/// What a waiting box is.
+enum Part<'a> {
+    Cell(CellView<'a>),
+    Piece(&'a Tape),
+}
+
+impl PartialEq for Waiting<'_> {
     fn eq(&self, other: &Self) -> bool {
         self.bound == other.bound
     }
 }
-impl Eq for Waiting {}
-impl PartialOrd for Waiting {
+impl Eq for Waiting<'_> {}
+impl PartialOrd for Waiting<'_> {
     fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
         Some(self.cmp(other))
     }
 }
-impl Ord for Waiting {
+impl Ord for Waiting<'_> {
     /// Smallest bound first (the heap is a max-heap).
     fn cmp(&self, other: &Self) -> Ordering {
         other.bound.total_cmp(&self.bound)
@@ -95,18 +108,29 @@ fn box_distance(p: DVec3, lo: DVec3, hi: DVec3) -> f64 {
     (lo - p).max(p - hi).max(DVec3::ZERO).length()
 }
 
-/// Guaranteed bounds on the distance from `p` to `{x in [lo, hi] : Φ(x) = 0}` (see the module
-/// docs); `point` is a certified surface point at distance at most `upper` (exactly: the bracket
-/// end nearer `p`; the bracket is narrowed until its width is negligible against `tolerance`).
-/// With no zero found, `point` is `None` and `upper` is `+∞`.
-pub(crate) fn distance_bounds(tape: &Tape, lo: DVec3, hi: DVec3, p: DVec3, tolerance: f64, budget: usize) -> Closest {
+/// Guaranteed bounds on the distance from `p` to the zero set of Φ inside the box of the
+/// octree `tree` (see the module docs). `point` is a certified surface point's bracket end
+/// nearer `p`, at distance at most `upper` (the bracket is narrowed until its width is
+/// negligible against `tolerance`); with no zero found, `point` is `None` and `upper` is `+∞`.
+/// The search starts from the tree's cells (the ones the rays walk, made by whichever query
+/// reaches them first): empty cells are dropped without an evaluation, and the boxes inside a
+/// leaf are evaluated with the leaf's pruned tape (shorter than the full one).
+pub(crate) fn distance_bounds(tree: &CellTree, p: DVec3, tolerance: f64, budget: usize) -> Closest {
+    let root = tree.root();
+    let start = Waiting {
+        bound: box_distance(p, root.lo, root.hi),
+        lo: root.lo,
+        hi: root.hi,
+        what: Part::Cell(root),
+    };
+    search(Some(tree), start, p, tolerance, budget)
+}
+
+/// The search of the module docs from `start`.
+fn search<'a>(tree: Option<&'a CellTree>, start: Waiting<'a>, p: DVec3, tolerance: f64, budget: usize) -> Closest {
     let mut slots = Slots::default();
     let mut heap = BinaryHeap::new();
-    heap.push(Waiting {
-        bound: box_distance(p, lo, hi),
-        lo,
-        hi,
-    });
+    heap.push(start);
     let mut upper = f64::INFINITY;
     let mut witness: Option<DVec3> = None;
     // the smallest bound of the boxes too small to split (their zeros are not excluded)
@@ -124,6 +148,34 @@ pub(crate) fn distance_bounds(tape: &Tape, lo: DVec3, hi: DVec3, p: DVec3, toler
             break item.bound.min(unsplit).min(dropped);
         }
         visited += 1;
+        let tape = match item.what {
+            Part::Piece(tape) => tape,
+            Part::Cell(view) => {
+                match view.open(tree.expect("cells come from a tree")) {
+                    Opened::Empty => {}
+                    Opened::Leaf(leaf) => {
+                        let (lo, hi) = leaf.grown();
+                        heap.push(Waiting {
+                            bound: item.bound.max(box_distance(p, lo, hi)),
+                            lo,
+                            hi,
+                            what: Part::Piece(leaf.tape()),
+                        });
+                    }
+                    Opened::Children(children) => {
+                        for child in children {
+                            heap.push(Waiting {
+                                bound: item.bound.max(box_distance(p, child.lo, child.hi)),
+                                lo: child.lo,
+                                hi: child.hi,
+                                what: Part::Cell(child),
+                            });
+                        }
+                    }
+                }
+                continue;
+            }
+        };
         let vars = enclosures(item.lo, item.hi);
         let value = tape.eval(vars, &mut slots.values);
         if !value.undefined() && !value.contains_zero() {
@@ -172,6 +224,7 @@ pub(crate) fn distance_bounds(tape: &Tape, lo: DVec3, hi: DVec3, p: DVec3, toler
                 bound: bound.max(box_distance(p, clo, chi)),
                 lo: clo,
                 hi: chi,
+                what: Part::Piece(tape),
             });
         }
     };
@@ -287,6 +340,7 @@ fn bracket(
 
 #[cfg(test)]
 mod tests {
+    use crate::expr::cells::CellTree;
     use crate::expr::Expr;
     use glam::DVec3;
 
@@ -294,11 +348,10 @@ mod tests {
     /// outside and near the surface: they contain it and close to the tolerance.
     #[test]
     fn bounds_contain_the_closed_form_distance_and_close_to_the_tolerance() {
-        let sphere = Expr::parse("sqrt(x^2 + y^2 + z^2) - 1").unwrap().compile();
-        let torus = Expr::parse("sqrt((sqrt(x^2 + y^2) - 1)^2 + z^2) - 0.25")
-            .unwrap()
-            .compile();
         let (lo, hi) = (DVec3::splat(-1.5), DVec3::splat(1.5));
+        let tree = |text: &str| CellTree::new(&Expr::parse(text).unwrap().compile(), lo, hi);
+        let sphere = tree("sqrt(x^2 + y^2 + z^2) - 1");
+        let torus = tree("sqrt((sqrt(x^2 + y^2) - 1)^2 + z^2) - 0.25");
         let mut state = 12345u64;
         let mut next = || {
             state = state
@@ -312,8 +365,8 @@ mod tests {
             let sphere_distance = (p.length() - 1.0).abs();
             let rho = (p.x * p.x + p.y * p.y).sqrt();
             let torus_distance = (((rho - 1.0).powi(2) + p.z * p.z).sqrt() - 0.25).abs();
-            for (tape, reference) in [(&sphere, sphere_distance), (&torus, torus_distance)] {
-                let c = super::distance_bounds(tape, lo, hi, p, tolerance, 100_000);
+            for (tree, reference) in [(&sphere, sphere_distance), (&torus, torus_distance)] {
+                let c = super::distance_bounds(tree, p, tolerance, 100_000);
                 let slack = 1e-12 * (1.0 + p.length());
                 assert!(
                     c.lower <= reference + slack && reference <= c.upper + slack,
