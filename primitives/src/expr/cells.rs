@@ -85,6 +85,10 @@ pub(crate) struct CellView<'a> {
 }
 
 /// What a cell holds, once opened ([`CellView::open`]).
+#[allow(
+    clippy::large_enum_variant,
+    reason = "returned and matched at once, never stored: boxing the children would only add an allocation"
+)]
 pub(crate) enum Opened<'a> {
     /// Φ cannot vanish in it.
     Empty,
