@@ -129,3 +129,15 @@ impl SignMethod {
         Self::ALL.into_iter().find(|m| m.name() == name)
     }
 }
+
+impl std::str::FromStr for SignMethod {
+    type Err = String;
+
+    /// The method of [`SignMethod::name`] `name`; otherwise an error listing the names.
+    fn from_str(name: &str) -> Result<Self, String> {
+        Self::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = Self::ALL.iter().map(|m| m.name()).collect();
+            format!("unknown sign method `{name}`; one of {}", names.join(", "))
+        })
+    }
+}

@@ -16,28 +16,21 @@ use zeroset::query::QueryRay;
 use crate::guards::{ensure_memory, error, try_vec};
 use crate::scene::PyScene;
 
-/// The query named as Python names it.
+/// The query named as Python names it (the command line's `--query` names).
 fn query_named(name: &str) -> PyResult<PointQuery> {
-    Ok(match name {
-        "closest" => PointQuery::Closest,
-        "distance" => PointQuery::Distance,
-        "signed" => PointQuery::Signed,
-        "occupancy" => PointQuery::Occupancy,
-        "phi" => PointQuery::Phi,
-        other => {
-            return Err(error(format!(
-                "unknown point query `{other}`; one of closest, distance, signed, occupancy, phi"
-            )))
-        }
+    use clap::ValueEnum;
+    PointQuery::from_str(name, false).map_err(|_| {
+        let names: Vec<String> = PointQuery::value_variants()
+            .iter()
+            .filter_map(|q| Some(q.to_possible_value()?.get_name().to_string()))
+            .collect();
+        error(format!("unknown point query `{name}`; one of {}", names.join(", ")))
     })
 }
 
 /// The sign method named as the command line names it.
 pub fn sign_named(name: &str) -> PyResult<SignMethod> {
-    SignMethod::from_name(name).ok_or_else(|| {
-        let names: Vec<&str> = SignMethod::ALL.iter().map(|m| m.name()).collect();
-        error(format!("unknown sign method `{name}`; one of {}", names.join(", ")))
-    })
+    name.parse().map_err(error)
 }
 
 impl PyScene {
@@ -148,8 +141,10 @@ impl Flat {
             self.t.push(c.hit.t);
             self.geometry.push(c.object);
             self.primitive.push(c.hit.feature);
-            self.uvs.extend_from_slice(&c.hit.uv.map_or([f64::NAN; 2], |uv| uv.to_array()));
-            self.normals.extend_from_slice(&c.hit.normal.map_or([f64::NAN; 3], |n| n.to_array()));
+            self.uvs
+                .extend_from_slice(&c.hit.uv.map_or([f64::NAN; 2], |uv| uv.to_array()));
+            self.normals
+                .extend_from_slice(&c.hit.normal.map_or([f64::NAN; 3], |n| n.to_array()));
             self.entering.push(c.entering);
         }
     }

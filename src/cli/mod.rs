@@ -203,7 +203,7 @@ pub struct PointsArgs {
     pub query: crate::query::point_table::PointQuery,
     /// How a mesh decides inside from outside (signed, occupancy): fast-winding (default),
     /// winding, pseudonormal or parity. Analytic solids use the sign of Φ.
-    #[arg(long, default_value = "fast-winding", value_parser = parse_sign_method)]
+    #[arg(long, default_value = "fast-winding")]
     pub sign: zeroset_primitives::SignMethod,
     /// Output file (`.npy` or CSV by extension), or `-` for stdout (CSV unless `--format npy`).
     #[arg(short, long, default_value = "-")]
@@ -214,13 +214,6 @@ pub struct PointsArgs {
     /// Worker threads (default: all cores).
     #[arg(short = 't', long)]
     pub threads: Option<usize>,
-}
-
-fn parse_sign_method(name: &str) -> Result<zeroset_primitives::SignMethod, String> {
-    zeroset_primitives::SignMethod::from_name(name).ok_or_else(|| {
-        let names: Vec<&str> = zeroset_primitives::SignMethod::ALL.iter().map(|m| m.name()).collect();
-        format!("unknown sign method `{name}`; one of {}", names.join(", "))
-    })
 }
 
 /// Runs the CLI on the process arguments; prints errors to stderr and returns a failing exit

@@ -99,8 +99,8 @@ impl PointQuery {
                 row[0] = f64::from(u8::from(scene.contains(p, sign)));
             }
             Self::Phi => {
-                let g = scene.gradient(p);
-                row.copy_from_slice(&[scene.phi(p), g.x, g.y, g.z]);
+                let (phi, g) = scene.phi_and_gradient(p);
+                row.copy_from_slice(&[phi, g.x, g.y, g.z]);
             }
         }
         Ok(())

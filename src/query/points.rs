@@ -64,14 +64,22 @@ impl Scene {
     /// ∇Φ of the scene at `p`: the gradient of the object of smallest Φ (zero for no objects).
     #[must_use]
     pub fn gradient(&self, p: DVec3) -> DVec3 {
+        self.phi_and_gradient(p).1
+    }
+
+    /// [`Scene::phi`] and [`Scene::gradient`] at `p` together, each object's Φ evaluated once.
+    #[must_use]
+    pub fn phi_and_gradient(&self, p: DVec3) -> (f64, DVec3) {
+        let mut smallest = f64::INFINITY;
         let mut best = (f64::INFINITY, None);
         for o in &self.objects {
             let phi = o.primitive.phi(p);
+            smallest = smallest.min(phi);
             if phi < best.0 || best.1.is_none() {
                 best = (phi, Some(o));
             }
         }
-        best.1.map_or(DVec3::ZERO, |o| o.primitive.gradient(p))
+        (smallest, best.1.map_or(DVec3::ZERO, |o| o.primitive.gradient(p)))
     }
 
     /// Whether `p` lies inside any object, by `method` (see [`SignMethod`]).
