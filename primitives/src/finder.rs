@@ -89,18 +89,63 @@ pub struct RootReport {
 /// bracket), and the bracket is bisected after two steps in a row that failed to halve it; also
 /// stops where no f64 lies strictly between `a` and `b`. Returns the end with the smaller `|g|`
 /// (or a point where `g` is exactly 0).
-pub(crate) fn refine_bracket(
-    mut g: impl FnMut(f64) -> f64,
-    (mut a, mut ga): (f64, f64),
-    (mut b, mut gb): (f64, f64),
+pub(crate) fn refine_bracket(mut g: impl FnMut(f64) -> f64, a: (f64, f64), b: (f64, f64), tolerance: f64) -> f64 {
+    let mut refinement = Refinement::new(a, b, tolerance);
+    while let Some(t) = refinement.next_point() {
+        refinement.take(g(t));
+    }
+    refinement.root()
+}
+
+/// [`refine_bracket`] one step at a time, for callers that evaluate many rays' points together:
+/// [`Refinement::next_point`] names the point whose value [`Refinement::take`] wants, until it
+/// returns `None` and [`Refinement::root`] is the result (the same points and result as
+/// [`refine_bracket`], which runs it).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Refinement {
+    a: f64,
+    ga: f64,
+    b: f64,
+    gb: f64,
     tolerance: f64,
-) -> f64 {
-    let mut side = 0i8;
-    let mut width = b - a;
-    let mut slow_steps = 0;
-    let step = 0.5 * tolerance;
-    while b - a > tolerance && 0.5 * (a + b) > a && 0.5 * (a + b) < b {
+    /// Which end moved last (−1: `a`, 1: `b`, 0: after a bisection), for the Illinois halving.
+    side: i8,
+    /// The bracket's width before the last step.
+    width: f64,
+    slow_steps: u8,
+    /// The point asked for, and whether it is a bisection's midpoint.
+    pending: Option<(f64, bool)>,
+    /// A point where `g` is exactly 0.
+    zero: Option<f64>,
+}
+
+impl Refinement {
+    /// The refinement of the bracket `(a, g(a))`, `(b, g(b))` (values of opposite signs).
+    pub(crate) fn new((a, ga): (f64, f64), (b, gb): (f64, f64), tolerance: f64) -> Self {
+        let mut refinement = Self {
+            a,
+            ga,
+            b,
+            gb,
+            tolerance,
+            side: 0,
+            width: b - a,
+            slow_steps: 0,
+            pending: None,
+            zero: None,
+        };
+        refinement.pending = refinement.secant_point().map(|t| (t, false));
+        refinement
+    }
+
+    /// The next secant point, or `None` when the bracket is refined.
+    fn secant_point(&self) -> Option<f64> {
+        let (a, b, ga, gb) = (self.a, self.b, self.ga, self.gb);
+        if !(b - a > self.tolerance && 0.5 * (a + b) > a && 0.5 * (a + b) < b) {
+            return None;
+        }
         // secant point, kept strictly inside and half a tolerance from either end
+        let step = 0.5 * self.tolerance;
         let mut t = (a * gb - b * ga) / (gb - ga);
         if !(t > a && t < b) {
             t = 0.5 * (a + b);
@@ -113,52 +158,68 @@ pub(crate) fn refine_bracket(
         if !(t > a && t < b) {
             t = 0.5 * (a + b);
         }
-        let gt = g(t);
-        if gt == 0.0 {
-            return t;
-        }
-        if (gt < 0.0) == (ga < 0.0) {
-            a = t;
-            ga = gt;
-            if side == -1 {
-                gb *= 0.5;
-            }
-            side = -1;
-        } else {
-            b = t;
-            gb = gt;
-            if side == 1 {
-                ga *= 0.5;
-            }
-            side = 1;
-        }
-        // bisect if the secant made poor progress twice in a row
-        if b - a > 0.5 * width {
-            slow_steps += 1;
-        } else {
-            slow_steps = 0;
-        }
-        if slow_steps >= 2 && b - a > tolerance {
-            let m = 0.5 * (a + b);
-            let gm = g(m);
-            if gm == 0.0 {
-                return m;
-            }
-            if (gm < 0.0) == (ga < 0.0) {
-                a = m;
-                ga = gm;
-            } else {
-                b = m;
-                gb = gm;
-            }
-            side = 0;
-            slow_steps = 0;
-        }
-        width = b - a;
+        Some(t)
     }
-    if ga.abs() <= gb.abs() {
-        a
-    } else {
-        b
+
+    /// The point whose value is wanted next (`None`: done).
+    #[inline]
+    pub(crate) fn next_point(&self) -> Option<f64> {
+        self.pending.map(|(t, _)| t)
+    }
+
+    /// Takes `g` at [`Refinement::next_point`].
+    pub(crate) fn take(&mut self, gt: f64) {
+        let Some((t, bisection)) = self.pending.take() else {
+            return;
+        };
+        if gt == 0.0 {
+            self.zero = Some(t);
+            return;
+        }
+        if bisection {
+            if (gt < 0.0) == (self.ga < 0.0) {
+                (self.a, self.ga) = (t, gt);
+            } else {
+                (self.b, self.gb) = (t, gt);
+            }
+            self.side = 0;
+            self.slow_steps = 0;
+        } else {
+            if (gt < 0.0) == (self.ga < 0.0) {
+                (self.a, self.ga) = (t, gt);
+                if self.side == -1 {
+                    self.gb *= 0.5;
+                }
+                self.side = -1;
+            } else {
+                (self.b, self.gb) = (t, gt);
+                if self.side == 1 {
+                    self.ga *= 0.5;
+                }
+                self.side = 1;
+            }
+            // bisect if the secant made poor progress twice in a row
+            if self.b - self.a > 0.5 * self.width {
+                self.slow_steps += 1;
+            } else {
+                self.slow_steps = 0;
+            }
+            if self.slow_steps >= 2 && self.b - self.a > self.tolerance {
+                self.pending = Some((0.5 * (self.a + self.b), true));
+                return;
+            }
+        }
+        self.width = self.b - self.a;
+        self.pending = self.secant_point().map(|t| (t, false));
+    }
+
+    /// The result once [`Refinement::next_point`] is `None`: a point where `g` is 0, else the
+    /// end with the smaller `|g|`.
+    pub(crate) fn root(&self) -> f64 {
+        match self.zero {
+            Some(t) => t,
+            None if self.ga.abs() <= self.gb.abs() => self.a,
+            None => self.b,
+        }
     }
 }

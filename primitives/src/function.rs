@@ -17,9 +17,12 @@
 //! of point evaluations over the box turns a found one into an error naming the operation's
 //! column and the point.
 
+mod packet;
+
 use crate::bounds::Aabb;
 use crate::error::PrimitiveError;
-use crate::expr::cells::CellTree;
+use crate::expr::cells::{CellTree, Leaf};
+use crate::expr::lanes::Lanes;
 use crate::expr::tape::Tape;
 use crate::expr::{coordinates_along, jets_along, Expr, Jet};
 use crate::hit::RawHit;
@@ -58,6 +61,7 @@ struct Scratch {
     curvatures: Vec<Jet<Jet<Enclosure>>>,
     gradients: Vec<Jet<f64, [f64; 3]>>,
     slopes: Vec<Jet<f64>>,
+    lanes: Vec<Lanes>,
 }
 
 thread_local! {
@@ -218,6 +222,41 @@ fn monotone_along(gradient: &[Enclosure; 3], dir: DVec3) -> bool {
     size.is_finite() && (lo > slack || hi < -slack)
 }
 
+/// One ray's search through the octree's leaves.
+#[derive(Clone, Copy)]
+struct RayState {
+    /// Point values and enclosures spent so far (the per-ray budget).
+    evaluations: u32,
+    outcome: Isolated,
+    /// The last point value `(t, g(t))` (see [`LeafAlong::last`]).
+    last: (f64, f64),
+}
+
+impl Default for RayState {
+    fn default() -> Self {
+        Self {
+            evaluations: 0,
+            outcome: Isolated::default(),
+            last: (f64::NAN, 0.0),
+        }
+    }
+}
+
+impl RayState {
+    /// The ray's report, its outcome counted process-wide ([`count_outcome`]).
+    fn report(&self) -> RootReport {
+        let outcome = self.outcome;
+        let uncertain = count_outcome(outcome.hit, outcome.exhausted, outcome.undefined_seen);
+        RootReport {
+            // 1: found in a leaf of the octree (0: without it), for the normal
+            hit: outcome.hit.map(|(t, _)| RawHit::on_feature(t, 1)),
+            lipschitz_violated: false,
+            evaluations: self.evaluations,
+            uncertain,
+        }
+    }
+}
+
 impl Compiled {
     /// The octree, its root made on first use; its other cells are made by the walks that reach
     /// them ([`CellTree::walk`]).
@@ -226,59 +265,75 @@ impl Compiled {
             .get_or_init(|| CellTree::new(&self.tape, self.bounds.min, self.bounds.max))
     }
 
+    /// Whether the octree serves `ray` on `segment`: its margin covers the ray's rounding
+    /// ([`CellTree::margin_covers`]); otherwise the caller isolates with the full tape.
+    fn walks(&self, ray: &Ray, segment: Interval) -> bool {
+        let far = segment.min.abs().max(segment.max.abs());
+        self.cells().margin_covers(ray.origin, ray.dir, far)
+    }
+
+    /// Isolates the first root of `ray` in one leaf's piece `[ta, tb]` (the walk's visitor):
+    /// by the end values where the leaf's gradient proves the ray monotone across it, else by
+    /// interval isolation with the leaf's pruned tape. Returns whether the ray's search ends
+    /// here (a root, or the budget spent).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn visit_leaf(
+        &self,
+        ray: &Ray,
+        bounds: &Aabb,
+        options: &RootOptions,
+        scratch: &mut Scratch,
+        state: &mut RayState,
+        leaf: &Leaf,
+        (ta, tb): (f64, f64),
+    ) -> bool {
+        let (lo, hi) = leaf.grown();
+        let mut along = LeafAlong {
+            ray,
+            leaf: leaf.tape(),
+            full: &self.tape,
+            cell_lo: lo,
+            cell_hi: hi,
+            bounds,
+            scratch,
+            last: &mut state.last,
+        };
+        if monotone_along(leaf.gradient(), ray.dir) {
+            // g is strictly monotone over the whole leaf: its end values decide
+            let t = monotone_root(&mut along, ta, tb, options.tolerance, &mut state.evaluations);
+            state.outcome.hit = t.map(|t| (t, false));
+            return state.outcome.hit.is_some();
+        }
+        let piece = isolate_in(
+            &mut along,
+            Interval::new(ta, tb),
+            options.tolerance,
+            options.max_evaluations,
+            &mut state.evaluations,
+        );
+        state.outcome.undefined_seen |= piece.undefined_seen;
+        state.outcome.exhausted = piece.exhausted;
+        state.outcome.hit = piece.hit;
+        piece.hit.is_some() || piece.exhausted
+    }
+
     /// The first root along `ray` in `segment` (clipped to the grown bounds), walking the
     /// octree's leaves front to back and isolating in each with its pruned tape; the per-ray
     /// budget is shared by the leaves. `None` when the octree's margin does not cover the ray's
     /// rounding (the caller then isolates with the full tape).
     fn first_root(&self, ray: &Ray, segment: Interval, bounds: &Aabb, options: &RootOptions) -> Option<RootReport> {
-        let cells = self.cells();
-        let far = segment.min.abs().max(segment.max.abs());
-        if !cells.margin_covers(ray.origin, ray.dir, far) {
+        if !self.walks(ray, segment) {
             return None;
         }
-        let mut evaluations = 0u32;
-        let mut outcome = Isolated::default();
-        let mut last = (f64::NAN, 0.0);
+        let mut state = RayState::default();
         with_scratch(|scratch| {
-            cells.walk(ray.origin, ray.dir, segment.min, segment.max, &mut |leaf, ta, tb| {
-                let (lo, hi) = leaf.grown();
-                let mut along = LeafAlong {
-                    ray,
-                    leaf: leaf.tape(),
-                    full: &self.tape,
-                    cell_lo: lo,
-                    cell_hi: hi,
-                    bounds,
-                    scratch: &mut *scratch,
-                    last: &mut last,
-                };
-                if monotone_along(leaf.gradient(), ray.dir) {
-                    // g is strictly monotone over the whole leaf: its end values decide
-                    let t = monotone_root(&mut along, ta, tb, options.tolerance, &mut evaluations);
-                    outcome.hit = t.map(|t| (t, false));
-                    return outcome.hit.is_some();
-                }
-                let piece = isolate_in(
-                    &mut along,
-                    Interval::new(ta, tb),
-                    options.tolerance,
-                    options.max_evaluations,
-                    &mut evaluations,
-                );
-                outcome.undefined_seen |= piece.undefined_seen;
-                outcome.exhausted = piece.exhausted;
-                outcome.hit = piece.hit;
-                piece.hit.is_some() || piece.exhausted
-            });
+            self.cells()
+                .walk(ray.origin, ray.dir, segment.min, segment.max, &mut |leaf, ta, tb| {
+                    self.visit_leaf(ray, bounds, options, scratch, &mut state, leaf, (ta, tb))
+                });
         });
-        let uncertain = count_outcome(outcome.hit, outcome.exhausted, outcome.undefined_seen);
-        Some(RootReport {
-            // 1: found in a leaf of the octree (0: without it), for the normal
-            hit: outcome.hit.map(|(t, _)| RawHit::on_feature(t, 1)),
-            lipschitz_violated: false,
-            evaluations,
-            uncertain,
-        })
+        Some(state.report())
     }
 
     /// ∇Φ at `p`, from the tape of the octree's leaf holding `p` where the hit was found in the
@@ -433,6 +488,15 @@ impl Function {
         Ok(self)
     }
 
+    /// The part of `range` an expression's root search covers along `ray`: clipped to the box
+    /// grown by the tolerance (as the generic finder clips, [`crate::root::first_root`]);
+    /// `None` where nothing is left, the clip is not finite or the ray is not valid.
+    fn clipped(&self, ray: &Ray, range: Interval) -> Option<Interval> {
+        let margin = self.options.tolerance * ray.dir.length();
+        let clipped = self.bounds.expanded(margin).clip(ray, range)?;
+        (clipped.min.is_finite() && clipped.max.is_finite() && ray.is_valid()).then_some(clipped)
+    }
+
     /// The expression, for an expression function.
     #[must_use]
     pub fn expr(&self) -> Option<&Expr> {
@@ -526,17 +590,18 @@ impl Intersect for Function {
     /// (see [`crate::expr::cells`]); a closure: the generic finder.
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
         if let Phi::Expression(compiled) = &self.phi {
-            // the clipping of the generic finder ([`crate::root::first_root`])
-            let margin = self.options.tolerance * ray.dir.length();
-            let clipped = self.bounds.expanded(margin).clip(ray, range)?;
-            if !clipped.min.is_finite() || !clipped.max.is_finite() || !ray.is_valid() {
-                return None;
-            }
-            if let Some(report) = compiled.first_root(ray, clipped, &self.bounds, &self.options) {
+            let segment = self.clipped(ray, range)?;
+            if let Some(report) = compiled.first_root(ray, segment, &self.bounds, &self.options) {
                 return report.hit;
             }
         }
         crate::root::first_root(self, ray, range, &self.options).hit
+    }
+
+    /// [`Function::intersect`] of each ray (the same hits): an expression's rays that the
+    /// octree serves walk it together, [`crate::expr::cells::LANES`] at a time ([`CellTree::walk_packet`]).
+    fn intersect_packet(&self, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) {
+        packet::intersect_packet(self, rays, ranges, hits);
     }
 
     fn root_options(&self) -> RootOptions {

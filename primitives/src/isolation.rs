@@ -78,7 +78,7 @@ pub fn uncertain_counts() -> UncertainCounts {
     }
 }
 
-fn differ(ga: f64, gb: f64) -> bool {
+pub(crate) fn differ(ga: f64, gb: f64) -> bool {
     ga == 0.0 || gb == 0.0 || (ga < 0.0) != (gb < 0.0)
 }
 

@@ -24,7 +24,9 @@
 //! cell (the cuts are computed values, so the pieces cover the range with no gap whatever the
 //! rounding). A point `o + t·d` handed to a cell lies in it up to the rounding of the cuts,
 //! which the margin covers whenever [`CellTree::margin_covers`] says so; a caller that cannot
-//! rely on it (an origin far beyond the box's scale) evaluates the full tape instead.
+//! rely on it (an origin far beyond the box's scale) evaluates the full tape instead. A packet of
+//! coherent rays walks it together ([`CellTree::walk_packet`]), each ray handed exactly the
+//! leaves and pieces of its own walk.
 
 use super::tape::{Choice, Tape};
 use super::Jet;
@@ -434,6 +436,161 @@ impl CellTree {
                     }
                     t = next;
                 }
+            }
+        }
+    }
+}
+
+/// Rays of one packet walked together ([`CellTree::walk_packet`]), one array per axis.
+struct Beam {
+    origin: [[f64; LANES]; 3],
+    dir: [[f64; LANES]; 3],
+    inv: [[f64; LANES]; 3],
+}
+
+/// The most rays [`CellTree::walk_packet`] walks together.
+pub const LANES: usize = crate::PACKET;
+
+impl CellTree {
+    /// [`CellTree::walk`] for up to [`LANES`] rays at once: lane `i` (ray `origin[i] + t·dir[i]`,
+    /// `t` in `[t0[i], t1[i]]`) is handed exactly the leaves and pieces its own walk would be, in
+    /// the same order. `visit(leaf, lanes, ta, tb)` gets a leaf with the set of lanes that cross
+    /// it (bit `i` for lane `i`) and their pieces `[ta[i], tb[i]]`, and returns the lanes whose
+    /// walk ends there.
+    ///
+    /// Rays whose directions agree in sign on every axis (zero agrees with both) share the
+    /// descent: each cell is opened once for all of them, and a lane's piece of a child is
+    /// `[max(t0, entry cuts), min(t1, exit cuts)]` of the same computed cuts as its own walk (the
+    /// same numbers), visited where it is not empty; children are taken in the order the common
+    /// direction signs give, which is each lane's front-to-back order. Any other lane (a
+    /// direction of other signs, an empty range) is walked alone.
+    pub fn walk_packet(
+        &self,
+        origin: &[DVec3],
+        dir: &[DVec3],
+        t0: &[f64],
+        t1: &[f64],
+        visit: &mut impl FnMut(&Leaf, u32, &[f64; LANES], &[f64; LANES]) -> u32,
+    ) {
+        let n = origin.len();
+        assert!(n <= LANES && dir.len() == n && t0.len() == n && t1.len() == n);
+        let mut beam = Beam {
+            origin: [[0.0; LANES]; 3],
+            dir: [[0.0; LANES]; 3],
+            inv: [[1.0; LANES]; 3],
+        };
+        let (mut lo, mut hi) = ([f64::INFINITY; LANES], [f64::NEG_INFINITY; LANES]);
+        let (mut negative, mut positive) = ([false; 3], [false; 3]);
+        let mut together = 0u32;
+        for lane in 0..n {
+            let d = dir[lane];
+            let disagrees = |a: usize| (d[a] < 0.0 && positive[a]) || (d[a] > 0.0 && negative[a]);
+            let joins = t0[lane] < t1[lane] && !(0..3).any(disagrees);
+            if !joins {
+                self.walk(origin[lane], d, t0[lane], t1[lane], &mut |leaf, ta, tb| {
+                    let (mut a, mut b) = ([0.0; LANES], [0.0; LANES]);
+                    (a[lane], b[lane]) = (ta, tb);
+                    visit(leaf, 1 << lane, &a, &b) != 0
+                });
+                continue;
+            }
+            for a in 0..3 {
+                negative[a] |= d[a] < 0.0;
+                positive[a] |= d[a] > 0.0;
+                beam.origin[a][lane] = origin[lane][a];
+                beam.dir[a][lane] = d[a];
+                beam.inv[a][lane] = d[a].recip();
+            }
+            (lo[lane], hi[lane]) = (t0[lane], t1[lane]);
+            together |= 1 << lane;
+        }
+        if together != 0 {
+            let flip = usize::from(negative[0]) | usize::from(negative[1]) << 1 | usize::from(negative[2]) << 2;
+            self.walk_cell_packet(&self.root, self.lo, self.hi, &beam, flip, &lo, &hi, together, visit);
+        }
+    }
+
+    /// One cell of [`CellTree::walk_packet`] for the lanes in `active`, each on its piece
+    /// `[t0[lane], t1[lane]]`; returns the lanes whose walk ended here.
+    #[allow(clippy::too_many_arguments)]
+    fn walk_cell_packet(
+        &self,
+        cell: &Cell,
+        lo: DVec3,
+        hi: DVec3,
+        beam: &Beam,
+        flip: usize,
+        t0: &[f64; LANES],
+        t1: &[f64; LANES],
+        active: u32,
+        visit: &mut impl FnMut(&Leaf, u32, &[f64; LANES], &[f64; LANES]) -> u32,
+    ) -> u32 {
+        match cell {
+            Cell::Empty => 0,
+            Cell::Leaf(leaf) => visit(leaf, active, t0, t1) & active,
+            Cell::Inner(node) => {
+                let Some(children) = node.children(lo, hi, self.margin) else {
+                    return 0;
+                };
+                let mid = 0.5 * (lo + hi);
+                // per axis and half (0: lower, 1: upper), where each lane enters and leaves it:
+                // the cut of the mid-plane (as in `walk_cell`), or no bound, or never (a lane
+                // that does not move on the axis stays on its origin's side)
+                let mut enter = [[[f64::NEG_INFINITY; LANES]; 2]; 3];
+                let mut leave = [[[f64::INFINITY; LANES]; 2]; 3];
+                for axis in 0..3 {
+                    let [enter_lower, enter_upper] = &mut enter[axis];
+                    let [leave_lower, leave_upper] = &mut leave[axis];
+                    for lane in 0..LANES {
+                        let (o, d) = (beam.origin[axis][lane], beam.dir[axis][lane]);
+                        let cut = (mid[axis] - o) * beam.inv[axis][lane];
+                        if d > 0.0 {
+                            leave_lower[lane] = cut;
+                            enter_upper[lane] = cut;
+                        } else if d < 0.0 {
+                            enter_lower[lane] = cut;
+                            leave_upper[lane] = cut;
+                        } else if o >= mid[axis] {
+                            enter_lower[lane] = f64::INFINITY;
+                        } else {
+                            enter_upper[lane] = f64::INFINITY;
+                        }
+                    }
+                }
+                let mut active = active;
+                let mut ended = 0;
+                for order in 0..8 {
+                    let bits = order ^ flip;
+                    let child = &children[bits];
+                    if matches!(child, Cell::Empty) {
+                        continue;
+                    }
+                    let half = [bits & 1, bits >> 1 & 1, bits >> 2 & 1];
+                    let (mut ta, mut tb) = ([0.0; LANES], [0.0; LANES]);
+                    let mut lanes = 0u32;
+                    for lane in 0..LANES {
+                        let mut a = t0[lane];
+                        let mut b = t1[lane];
+                        for axis in 0..3 {
+                            a = a.max(enter[axis][half[axis]][lane]);
+                            b = b.min(leave[axis][half[axis]][lane]);
+                        }
+                        (ta[lane], tb[lane]) = (a, b);
+                        lanes |= u32::from(a < b) << lane;
+                    }
+                    let lanes = lanes & active;
+                    if lanes == 0 {
+                        continue;
+                    }
+                    let (l, h) = child_box_at(lo, mid, hi, bits);
+                    let done = self.walk_cell_packet(child, l, h, beam, flip, &ta, &tb, lanes, visit);
+                    ended |= done;
+                    active &= !done;
+                    if active == 0 {
+                        break;
+                    }
+                }
+                ended
             }
         }
     }

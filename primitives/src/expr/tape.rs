@@ -19,6 +19,7 @@
 //! branch whose enclosure may be undefined (`√` of a negative…) is never dropped, so no domain
 //! flag is lost.
 
+use super::lanes::{Lanes, WIDTH};
 use super::scalar::{Jet, Scalar};
 use super::{Func1, Func2, Node};
 use crate::math::enclosure::Enclosure;
@@ -344,6 +345,24 @@ impl Tape {
     #[inline]
     pub fn eval_f64(&self, p: [f64; 3], slots: &mut Vec<f64>) -> f64 {
         self.eval(p, slots)
+    }
+
+    /// Φ at many points (`values[i]` for `points[i]`), [`WIDTH`] at a time in [`Lanes`]: the
+    /// same bits as [`Tape::eval_f64`] at each point, with the instruction loop run once per
+    /// `WIDTH` points.
+    pub fn eval_points(&self, points: &[[f64; 3]], values: &mut [f64], slots: &mut Vec<Lanes>) {
+        self.eval_points_here(points, values, slots);
+    }
+
+    #[inline(always)]
+    fn eval_points_here(&self, points: &[[f64; 3]], values: &mut [f64], slots: &mut Vec<Lanes>) {
+        assert_eq!(points.len(), values.len());
+        for (points, values) in points.chunks(WIDTH).zip(values.chunks_mut(WIDTH)) {
+            // unused lanes repeat the first point (their values are dropped)
+            let coordinate = |axis: usize| Lanes(std::array::from_fn(|i| points.get(i).unwrap_or(&points[0])[axis]));
+            let v = self.eval_here([coordinate(0), coordinate(1), coordinate(2)], slots);
+            values.copy_from_slice(&v.0[..values.len()]);
+        }
     }
 
     /// An interval evaluation that also records, per instruction, what it decided about each
