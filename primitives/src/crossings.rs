@@ -24,13 +24,28 @@ pub struct Crossing {
 /// The crossings of one primitive along one ray, in increasing `t`.
 pub struct Crossings<'a> {
     start: Start<'a>,
-    rest: Box<dyn Iterator<Item = Crossing> + 'a>,
+    rest: Rest<'a>,
 }
 
 /// Whether a stream starts inside: known, or worked out when first asked.
 enum Start<'a> {
     Known(bool),
     Later(Box<dyn FnOnce() -> bool + 'a>),
+    /// `surface.inside(point)`, asked without a closure to box.
+    Point(&'a dyn InsideTest, glam::DVec3),
+}
+
+/// The crossings after the start: a list made at once (no allocation where it is empty), or
+/// any iterator.
+enum Rest<'a> {
+    Listed(std::vec::IntoIter<Crossing>),
+    Lazy(Box<dyn Iterator<Item = Crossing> + 'a>),
+}
+
+/// An inside test a stream can defer ([`Crossings::listed`]): whether `p` is inside the solid.
+pub trait InsideTest {
+    /// Whether `p` is inside.
+    fn inside(&self, p: glam::DVec3) -> bool;
 }
 
 impl<'a> Crossings<'a> {
@@ -38,7 +53,17 @@ impl<'a> Crossings<'a> {
     pub fn new(starts_inside: bool, rest: impl Iterator<Item = Crossing> + 'a) -> Self {
         Self {
             start: Start::Known(starts_inside),
-            rest: Box::new(rest),
+            rest: Rest::Lazy(Box::new(rest)),
+        }
+    }
+
+    /// The crossings `list` (sorted by `t`), with whether the ray starts inside worked out as
+    /// `surface.inside(start)` only if someone asks ([`Crossings::starts_inside`]). Nothing is
+    /// allocated beyond the list itself (none where it is empty).
+    pub fn listed(surface: &'a dyn InsideTest, start: glam::DVec3, list: Vec<Crossing>) -> Self {
+        Self {
+            start: Start::Point(surface, start),
+            rest: Rest::Listed(list.into_iter()),
         }
     }
 
@@ -51,7 +76,7 @@ impl<'a> Crossings<'a> {
     ) -> Self {
         Self {
             start: Start::Later(Box::new(starts_inside)),
-            rest: Box::new(rest),
+            rest: Rest::Lazy(Box::new(rest)),
         }
     }
 
@@ -67,6 +92,7 @@ impl<'a> Crossings<'a> {
         let inside = match std::mem::replace(&mut self.start, Start::Known(false)) {
             Start::Known(inside) => inside,
             Start::Later(decide) => decide(),
+            Start::Point(surface, point) => surface.inside(point),
         };
         self.start = Start::Known(inside);
         inside
@@ -77,7 +103,7 @@ impl std::fmt::Debug for Crossings<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let start = match self.start {
             Start::Known(inside) => Some(inside),
-            Start::Later(_) => None,
+            Start::Later(_) | Start::Point(..) => None,
         };
         f.debug_struct("Crossings")
             .field("starts_inside", &start)
@@ -89,7 +115,10 @@ impl Iterator for Crossings<'_> {
     type Item = Crossing;
 
     fn next(&mut self) -> Option<Crossing> {
-        self.rest.next()
+        match &mut self.rest {
+            Rest::Listed(list) => list.next(),
+            Rest::Lazy(rest) => rest.next(),
+        }
     }
 }
 

@@ -11,6 +11,7 @@ use std::sync::{Arc, Mutex};
 use zeroset::camera::Model;
 use zeroset::primitives::offset::PointPrecision;
 use zeroset::primitives::{Mesh, Primitive, Transformed};
+use zeroset::scene::mesh_io::no_surface_stand_in;
 use zeroset::scene::registry::BuildContext;
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
 
@@ -205,10 +206,33 @@ impl PyScene {
         }
         let v = triples(&vertices, "add_mesh: the vertices")?;
         let t = triples(&triangles, "add_mesh: the triangles")?;
+        let count = t.len();
+        // as a scene file's mesh: one with no surface is held by a stand-in that is never hit,
+        // and degenerate triangles are warned about
+        let (primitive, warning): (Arc<dyn Primitive>, Option<String>) = match no_surface_stand_in(&v, &t) {
+            Some(stand_in) => (
+                Arc::new(stand_in),
+                Some(format!(
+                    "add_mesh: all {count} triangles are degenerate (zero area): the mesh has no surface and is never hit"
+                )),
+            ),
+            None => {
+                let mesh = py
+                    .detach(|| Mesh::new(v, t, None))
+                    .map_err(|e| error(format!("add_mesh: field `{}`: {}", e.field, e.problem)))?;
+                let skipped = mesh.skipped_triangles();
+                let warning = (skipped > 0).then(|| {
+                    format!("add_mesh: {skipped} of {count} triangles are degenerate (zero area) and are never hit")
+                });
+                (Arc::new(mesh), warning)
+            }
+        };
+        if let Some(warning) = warning {
+            let message = std::ffi::CString::new(warning).map_err(error)?;
+            PyErr::warn(py, &py.get_type::<pyo3::exceptions::PyUserWarning>(), &message, 1)?;
+        }
         self.with(py, |state| {
-            let mesh =
-                Mesh::new(v, t, None).map_err(|e| error(format!("add_mesh: field `{}`: {}", e.field, e.problem)))?;
-            state.push(Arc::new(mesh), matrix, name.map(String::into_boxed_str), Arc::default())
+            state.push(primitive, matrix, name.map(String::into_boxed_str), Arc::default())
         })
     }
 

@@ -270,6 +270,25 @@ def test_add_mesh_refuses_float_indices_that_are_not_integers():
     assert hits["hit"][0] and hits["t"][0] == pytest.approx(1.0)
 
 
+def test_add_mesh_with_degenerate_triangles_warns_as_a_scene_file_does():
+    # every triangle of zero area: held by a stand-in that is never hit, with the loader's warning
+    flat = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]]
+    scene = zeroset.Scene.empty()
+    with pytest.warns(UserWarning, match=re.escape(
+            "add_mesh: all 2 triangles are degenerate (zero area): the mesh has no surface and is never hit")):
+        assert scene.add_mesh(flat, [[0, 1, 2], [0, 0, 3]]) == 0
+    assert scene.object_count == 1
+    hits = scene.cast_rays([[0.5, 0.0, -1.0], [0.0, 0.0, -1.0]], [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
+    assert not hits["hit"].any()
+    # some of them: the others are hit, and the degenerate ones are counted
+    with pytest.warns(UserWarning, match=re.escape(
+            "add_mesh: 1 of 2 triangles are degenerate (zero area) and are never hit")):
+        assert scene.add_mesh(flat, [[0, 1, 3], [0, 1, 2]]) == 1
+    hits = scene.cast_rays([[0.2, 0.2, -1.0]], [[0.0, 0.0, 1.0]])
+    assert hits["hit"][0] and hits["t"][0] == pytest.approx(1.0)
+    assert scene.object_count == 2
+
+
 @pytest.mark.parametrize(
     "call, message",
     [

@@ -326,10 +326,19 @@ fn yes() -> bool {
 /// For a mesh file whose triangles all have zero area (and valid indices): a degenerate
 /// [`Triangle`] at its first vertex, which is never hit, standing in for the empty surface.
 fn no_surface(data: &MeshData) -> Option<Triangle> {
-    let vertex = |i: u32| data.vertices.get(i as usize).copied();
-    let all_degenerate = !data.indices.is_empty()
-        && data
-            .indices
+    no_surface_stand_in(&data.vertices, &data.indices)
+}
+
+/// For a mesh whose triangles all have zero area (and whose indices are valid), the object a
+/// scene holds in its place: a degenerate [`Triangle`] at its first vertex, which is never hit
+/// ([`zeroset_primitives::Mesh::new`] refuses such a mesh: a mesh with no surface is no
+/// primitive). `None` for any other mesh. Scene files and Python's `Scene.add_mesh` both use it,
+/// with a warning naming the mesh.
+#[must_use]
+pub fn no_surface_stand_in(vertices: &[[f32; 3]], indices: &[[u32; 3]]) -> Option<Triangle> {
+    let vertex = |i: u32| vertices.get(i as usize).copied();
+    let all_degenerate = !indices.is_empty()
+        && indices
             .iter()
             .all(|t| match (vertex(t[0]), vertex(t[1]), vertex(t[2])) {
                 (Some(a), Some(b), Some(c)) => is_degenerate_triangle(a, b, c),
@@ -338,7 +347,7 @@ fn no_surface(data: &MeshData) -> Option<Triangle> {
     if !all_degenerate {
         return None;
     }
-    let v = data.vertices[data.indices[0][0] as usize].map(f64::from);
+    let v = vertices[indices[0][0] as usize].map(f64::from);
     let p = glam::DVec3::from_array(v);
     Triangle::new(p, p, p).ok()
 }

@@ -74,13 +74,14 @@ impl Mesh {
         range: Interval,
         query: &MeshQuery,
         root: (u32, [f32; 8]),
+        found: Vec<Candidate>,
     ) -> Vec<Candidate> {
         let mut leaves = AllLeaves::<KX, KY, KZ> {
             mesh: self,
             ray,
             range,
             query,
-            found: Vec::new(),
+            found,
         };
         self.octs()
             .traverse(&query.ray.slab, query.t_min, query.t_max, root, &mut leaves);
@@ -95,27 +96,56 @@ pub(super) fn all_crossings(mesh: &Mesh, ray: &Ray, range: Interval) -> Vec<Cros
         return Vec::new();
     };
     let query = entry.query();
-    let candidates = by_axes!(query.ray.k, mesh.all_hits_walk(ray, range, &query, root));
-    // (hit, facing: −1 entering, +1 leaving, 0 in the plane)
-    let mut hits: Vec<(RawHit, f64, usize)> = candidates
-        .iter()
-        .filter_map(|c| {
-            let (n, a) = mesh.leaf(c.first, u32::from(c.count)).plane(usize::from(c.i));
-            let t = plane_t(n, a, ray)
-                .unwrap_or(f64::from(c.t) * query.scale)
-                .max(range.min);
-            if t > range.max {
-                return None;
-            }
-            let facing = ray.dir.dot(n);
-            let hit = RawHit {
-                t,
-                feature: mesh.leaf_to_file[c.k()],
-                local: DVec2::new(f64::from(c.u), f64::from(c.v)),
-            };
-            Some((hit, facing.signum() * f64::from(u8::from(facing != 0.0)), c.k()))
-        })
-        .collect();
+    SCRATCH.with(|scratch| match scratch.try_borrow_mut() {
+        Ok(mut scratch) => crossings_of(mesh, ray, range, &query, root, &mut scratch),
+        Err(_) => crossings_of(mesh, ray, range, &query, root, &mut Scratch::default()),
+    })
+}
+
+/// Room reused from ray to ray by [`all_crossings`]: the candidates of the walk and the hits
+/// made of them.
+#[derive(Default)]
+struct Scratch {
+    candidates: Vec<Candidate>,
+    hits: Vec<(RawHit, f64, usize)>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+/// [`all_crossings`] once the ray enters the mesh's root, with `scratch` as room.
+#[inline(always)]
+fn crossings_of(
+    mesh: &Mesh,
+    ray: &Ray,
+    range: Interval,
+    query: &MeshQuery,
+    root: (u32, [f32; 8]),
+    scratch: &mut Scratch,
+) -> Vec<Crossing> {
+    let mut candidates = std::mem::take(&mut scratch.candidates);
+    candidates.clear();
+    let candidates = by_axes!(query.ray.k, mesh.all_hits_walk(ray, range, query, root, candidates));
+    let hits = &mut scratch.hits;
+    hits.clear();
+    hits.extend(candidates.iter().filter_map(|c| {
+        let (n, a) = mesh.leaf(c.first, u32::from(c.count)).plane(usize::from(c.i));
+        let t = plane_t(n, a, ray)
+            .unwrap_or(f64::from(c.t) * query.scale)
+            .max(range.min);
+        if t > range.max {
+            return None;
+        }
+        let facing = ray.dir.dot(n);
+        let hit = RawHit {
+            t,
+            feature: mesh.leaf_to_file[c.k()],
+            local: DVec2::new(f64::from(c.u), f64::from(c.v)),
+        };
+        Some((hit, facing.signum() * f64::from(u8::from(facing != 0.0)), c.k()))
+    }));
+    scratch.candidates = candidates;
     hits.sort_unstable_by(|a, b| a.0.t.total_cmp(&b.0.t).then(a.2.cmp(&b.2)));
     let mut out = Vec::with_capacity(hits.len());
     let mut i = 0;

@@ -129,8 +129,19 @@ impl Intersect for Mesh {
             super::crossings::all_crossings(mesh, ray, range)
         }
         let found = crate::with_fma!(collect(mesh: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Vec<crate::crossings::Crossing>);
-        let start = ray.at(range.min);
-        Crossings::with_lazy_start(move || self.contains(start, SignMethod::FastWinding), found.into_iter())
+        Crossings::listed(self, ray.at(range.min), found)
+    }
+
+    /// The default bound, raised to what the f32 copy of a ray started near the surface is off
+    /// by: `8·2⁻²³·(max |pᵢ| + the bounds' magnitude)` at the hit point `p`. A secondary ray
+    /// started closer than that could have its f32 origin (off by `2⁻²⁴` of each component)
+    /// on the other side of the triangle's plane, or its f32 test (whose sheared coordinates
+    /// round at the vertices' magnitude) decide the side wrongly: it would hit the surface it
+    /// leaves, or miss the one it enters.
+    fn hit_error(&self, ray: &Ray, raw: &RawHit) -> f64 {
+        let magnitude = crate::offset::magnitude(&self.bounds());
+        let f32_rounding = 8.0 * f64::from(f32::EPSILON) * (ray.at(raw.t).abs().max_element() + magnitude);
+        crate::offset::point_error_bound(ray, raw.t, magnitude).max(f32_rounding)
     }
 
     /// The barycentrics `(u, v)` of the hit (see the module docs).
@@ -151,5 +162,13 @@ impl Intersect for Mesh {
     /// `√3·2⁻²⁴·max |oᵢ| < 2⁻²³·max |oᵢ|` in all.
     fn origin_rounding(&self, origin: DVec3) -> f64 {
         f64::from(f32::EPSILON) * origin.abs().max_element()
+    }
+}
+
+/// Whether a ray's crossings start inside the mesh: the default sign method
+/// ([`SignMethod::FastWinding`]).
+impl crate::crossings::InsideTest for Mesh {
+    fn inside(&self, p: DVec3) -> bool {
+        self.contains(p, SignMethod::FastWinding)
     }
 }
