@@ -7,6 +7,7 @@ the same process and thread count, runs interleaved.
     bash scenes/bench/make_meshes.sh            # the meshes (needs numpy, trimesh)
     pip install ./python open3d libigl
     python3 python/bench/points.py [--levels 4 6 8] [--points 1000000] [--runs 5] [--threads 2]
+                                   [--calls distance signed occupancy intersections libigl]
 
 The points are ../shared/anchors/pointquery/bench_points.py's: 10⁶ uniform in [−1.5, 1.5]³
 (numpy seed 7), rays from them in normal-distributed directions. Prints a markdown table: per
@@ -28,6 +29,9 @@ ap.add_argument("--points", type=int, default=1_000_000)
 ap.add_argument("--runs", type=int, default=5)
 ap.add_argument("--threads", type=int, default=2)
 ap.add_argument("--igl-points", type=int, default=200_000)
+CALLS = ["distance", "signed", "occupancy", "intersections", "libigl"]
+ap.add_argument("--calls", nargs="*", choices=CALLS, default=CALLS,
+                help="which calls to time (default: all)")
 args = ap.parse_args()
 os.environ["RAYON_NUM_THREADS"] = str(args.threads)
 os.environ.setdefault("OMP_NUM_THREADS", str(args.threads))
@@ -81,28 +85,32 @@ for level in args.levels:
     q = o3d.core.Tensor(P32)
     P64 = P32.astype(np.float64)
     n = len(P)
-    # distance
-    (tz, to), (dz, do) = medians([lambda: scene.compute_distance(P64),
-                                  lambda: o3.compute_distance(q, nthreads=args.threads).numpy()], args.runs)
-    off = int(np.sum(np.abs(dz - do) > 1e-5 * np.maximum(do, 1e-3)))
-    rows.append((level, "compute_distance", n / tz / 1e6, n / to / 1e6, "Open3D", f"{off} beyond 1e-5"))
-    (tz, to), (sz, so) = medians([lambda: scene.compute_signed_distance(P64),
-                                  lambda: o3.compute_signed_distance(q, nthreads=args.threads).numpy()], args.runs)
-    rows.append((level, "compute_signed_distance", n / tz / 1e6, n / to / 1e6, "Open3D",
-                 f"{int(np.sum(np.sign(sz) != np.sign(so)))} signs"))
-    (tz, to), (oz, oo) = medians([lambda: scene.compute_occupancy(P64),
-                                  lambda: o3.compute_occupancy(q, nthreads=args.threads).numpy()], args.runs)
-    rows.append((level, "compute_occupancy", n / tz / 1e6, n / to / 1e6, "Open3D",
-                 f"{int(np.sum(oz != oo))} differ"))
-    rays = o3d.core.Tensor(np.concatenate([P32, D32], 1))
-    O64, D64 = P32.astype(np.float64), D32.astype(np.float64)
-    (tz, to), (lz, lo) = medians([lambda: scene.list_intersections(O64, D64),
-                                  lambda: o3.list_intersections(rays, nthreads=args.threads)], args.runs)
-    counts_z = np.diff(lz["ray_splits"])
-    counts_o = np.diff(lo["ray_splits"].numpy())
-    rows.append((level, "list_intersections", n / tz / 1e6, n / to / 1e6, "Open3D",
-                 f"{int(np.sum(counts_z != counts_o))} counts differ"))
-    if igl is not None and level <= 6:
+    if "distance" in args.calls:
+        (tz, to), (dz, do) = medians([lambda: scene.compute_distance(P64),
+                                      lambda: o3.compute_distance(q, nthreads=args.threads).numpy()], args.runs)
+        off = int(np.sum(np.abs(dz - do) > 1e-5 * np.maximum(do, 1e-3)))
+        rows.append((level, "compute_distance", n / tz / 1e6, n / to / 1e6, "Open3D", f"{off} beyond 1e-5"))
+    if "signed" in args.calls:
+        (tz, to), (sz, so) = medians([lambda: scene.compute_signed_distance(P64),
+                                      lambda: o3.compute_signed_distance(q, nthreads=args.threads).numpy()],
+                                     args.runs)
+        rows.append((level, "compute_signed_distance", n / tz / 1e6, n / to / 1e6, "Open3D",
+                     f"{int(np.sum(np.sign(sz) != np.sign(so)))} signs"))
+    if "occupancy" in args.calls:
+        (tz, to), (oz, oo) = medians([lambda: scene.compute_occupancy(P64),
+                                      lambda: o3.compute_occupancy(q, nthreads=args.threads).numpy()], args.runs)
+        rows.append((level, "compute_occupancy", n / tz / 1e6, n / to / 1e6, "Open3D",
+                     f"{int(np.sum(oz != oo))} differ"))
+    if "intersections" in args.calls:
+        rays = o3d.core.Tensor(np.concatenate([P32, D32], 1))
+        O64, D64 = P32.astype(np.float64), D32.astype(np.float64)
+        (tz, to), (lz, lo) = medians([lambda: scene.list_intersections(O64, D64),
+                                      lambda: o3.list_intersections(rays, nthreads=args.threads)], args.runs)
+        counts_z = np.diff(lz["ray_splits"])
+        counts_o = np.diff(lo["ray_splits"].numpy())
+        rows.append((level, "list_intersections", n / tz / 1e6, n / to / 1e6, "Open3D",
+                     f"{int(np.sum(counts_z != counts_o))} counts differ"))
+    if igl is not None and level <= 6 and "libigl" in args.calls:
         m = min(args.igl_points, n)
         Pi = P64[:m].copy()
         for sign, label, igl_type in [("winding", "winding", igl.SIGNED_DISTANCE_TYPE_WINDING_NUMBER),

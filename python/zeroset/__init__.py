@@ -203,7 +203,9 @@ class Scene:
     def add_mesh(self, vertices: Any, triangles: Any, transform: Any = None, name: Optional[str] = None) -> int:
         """Adds a triangle mesh from ``(N, 3)`` vertices (stored as float32) and ``(M, 3)`` vertex
         indices (counter-clockwise seen from outside; integers, or floats with integer values);
-        returns its object id. The arrays are converted without a per-element Python loop."""
+        returns its object id. The arrays are converted without a per-element Python loop.
+        Degenerate (zero-area) triangles are never hit, with a ``UserWarning`` giving their count;
+        a mesh of nothing else is added as an object that is never hit, as a scene file's is."""
         v = np.ascontiguousarray(vertices, dtype=np.float32)
         t = np.asarray(triangles)
         if t.dtype.kind == "f":
