@@ -90,11 +90,7 @@ pub struct RootReport {
 /// stops where no f64 lies strictly between `a` and `b`. Returns the end with the smaller `|g|`
 /// (or a point where `g` is exactly 0).
 pub(crate) fn refine_bracket(mut g: impl FnMut(f64) -> f64, a: (f64, f64), b: (f64, f64), tolerance: f64) -> f64 {
-    let mut refinement = Refinement::new(a, b, tolerance);
-    while let Some(t) = refinement.next_point() {
-        refinement.take(g(t));
-    }
-    refinement.root()
+    Refinement::new(a, b, tolerance).run(&mut g)
 }
 
 /// [`refine_bracket`] one step at a time, for callers that evaluate many rays' points together:
@@ -159,6 +155,15 @@ impl Refinement {
             t = 0.5 * (a + b);
         }
         Some(t)
+    }
+
+    /// Runs the refinement to its end with `g` at each point asked for; returns
+    /// [`Refinement::root`].
+    pub(crate) fn run(mut self, mut g: impl FnMut(f64) -> f64) -> f64 {
+        while let Some(t) = self.next_point() {
+            self.take(g(t));
+        }
+        self.root()
     }
 
     /// The point whose value is wanted next (`None`: done).

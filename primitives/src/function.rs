@@ -273,9 +273,9 @@ impl Compiled {
     }
 
     /// Isolates the first root of `ray` in one leaf's piece `[ta, tb]` (the walk's visitor):
-    /// by the end values where the leaf's gradient proves the ray monotone across it, else by
-    /// interval isolation with the leaf's pruned tape. Returns whether the ray's search ends
-    /// here (a root, or the budget spent).
+    /// by the end values where the leaf's gradient proves the ray `monotone` across it
+    /// ([`monotone_along`], the caller's test), else by interval isolation with the leaf's
+    /// pruned tape. Returns whether the ray's search ends here (a root, or the budget spent).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn visit_leaf(
@@ -287,6 +287,7 @@ impl Compiled {
         state: &mut RayState,
         leaf: &Leaf,
         (ta, tb): (f64, f64),
+        monotone: bool,
     ) -> bool {
         let (lo, hi) = leaf.grown();
         let mut along = LeafAlong {
@@ -299,7 +300,7 @@ impl Compiled {
             scratch,
             last: &mut state.last,
         };
-        if monotone_along(leaf.gradient(), ray.dir) {
+        if monotone {
             // g is strictly monotone over the whole leaf: its end values decide
             let t = monotone_root(&mut along, ta, tb, options.tolerance, &mut state.evaluations);
             state.outcome.hit = t.map(|t| (t, false));
@@ -330,7 +331,8 @@ impl Compiled {
         with_scratch(|scratch| {
             self.cells()
                 .walk(ray.origin, ray.dir, segment.min, segment.max, &mut |leaf, ta, tb| {
-                    self.visit_leaf(ray, bounds, options, scratch, &mut state, leaf, (ta, tb))
+                    let monotone = monotone_along(leaf.gradient(), ray.dir);
+                    self.visit_leaf(ray, bounds, options, scratch, &mut state, leaf, (ta, tb), monotone)
                 });
         });
         Some(state.report())

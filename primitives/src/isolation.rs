@@ -37,7 +37,7 @@
 //! is never lost between two pieces).
 
 use crate::expr::Jet;
-use crate::finder::{note_uncertain_on_thread, refine_bracket, RootOptions, RootReport};
+use crate::finder::{note_uncertain_on_thread, refine_bracket, Refinement, RootOptions, RootReport};
 use crate::hit::RawHit;
 use crate::implicit::Implicit;
 use crate::math::enclosure::Enclosure;
@@ -78,7 +78,7 @@ pub fn uncertain_counts() -> UncertainCounts {
     }
 }
 
-pub(crate) fn differ(ga: f64, gb: f64) -> bool {
+fn differ(ga: f64, gb: f64) -> bool {
     ga == 0.0 || gb == 0.0 || (ga < 0.0) != (gb < 0.0)
 }
 
@@ -242,19 +242,34 @@ pub(crate) fn monotone_root<P: AlongRay>(
         along.point(t)
     };
     let (ga, gb) = (point(a), point(b));
+    match monotone_ends((a, ga), (b, gb), tolerance) {
+        Ends::NoRoot => None,
+        Ends::Root(t) => Some(t),
+        Ends::Bracket(refinement) => Some(refinement.run(point)),
+    }
+}
+
+/// What the end values of a piece where `g` is strictly monotone decide ([`monotone_ends`]).
+pub(crate) enum Ends {
+    /// No root in the piece (the values do not differ in sign).
+    NoRoot,
+    /// A root at an end, where `g` is exactly 0.
+    Root(f64),
+    /// One root inside, to refine to `tolerance`.
+    Bracket(Refinement),
+}
+
+/// Step 2 on a monotone piece `[a, b]` from its end values: [`monotone_root`]'s decision, for
+/// callers that evaluate the points themselves (several rays at once).
+pub(crate) fn monotone_ends((a, ga): (f64, f64), (b, gb): (f64, f64), tolerance: f64) -> Ends {
     if !differ(ga, gb) {
-        None
+        Ends::NoRoot
     } else if ga == 0.0 {
-        Some(a)
+        Ends::Root(a)
     } else if gb == 0.0 {
-        Some(b)
+        Ends::Root(b)
     } else {
-        Some(refine_bracket(
-            point,
-            (a, ga),
-            (b, gb),
-            tolerance.max(f64::MIN_POSITIVE),
-        ))
+        Ends::Bracket(Refinement::new((a, ga), (b, gb), tolerance.max(f64::MIN_POSITIVE)))
     }
 }
 

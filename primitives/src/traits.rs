@@ -99,12 +99,7 @@ pub trait Intersect: Implicit {
     /// its hierarchy once for the whole packet, with the rays in SIMD lanes), giving the same
     /// answers.
     fn intersect_packet(&self, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) {
-        for ((ray, range), hit) in rays.iter().zip(ranges.iter_mut()).zip(hits.iter_mut()) {
-            if let Some(found) = self.intersect(ray, *range) {
-                range.max = found.t;
-                *hit = Some(found);
-            }
-        }
+        packet_lane_by_lane(self, rays, ranges, hits);
     }
 
     /// Tolerances of the generic root finder for this type.
@@ -301,6 +296,22 @@ macro_rules! forward_through_pointer {
 
 forward_through_pointer!(std::sync::Arc);
 forward_through_pointer!(Box);
+
+/// [`Intersect::intersect_packet`] lane after lane with [`Intersect::intersect`]: its default,
+/// for overrides that take this way for some of their rays.
+pub fn packet_lane_by_lane<P: Intersect + ?Sized>(
+    primitive: &P,
+    rays: &[Ray],
+    ranges: &mut [Interval],
+    hits: &mut [Option<RawHit>],
+) {
+    for ((ray, range), hit) in rays.iter().zip(ranges.iter_mut()).zip(hits.iter_mut()) {
+        if let Some(found) = primitive.intersect(ray, *range) {
+            range.max = found.t;
+            *hit = Some(found);
+        }
+    }
+}
 
 /// The crossings of `primitive` found by repeated first-hit queries: the default of
 /// [`Intersect::crossings`].

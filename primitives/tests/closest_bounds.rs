@@ -4,7 +4,7 @@
 
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use std::sync::Arc;
-use zeroset_primitives::{Csg, CsgOp, Cuboid, Ellipsoid, Implicit, Primitive, Sphere, Transformed};
+use zeroset_primitives::{Closest, Csg, CsgOp, Cuboid, Ellipsoid, Implicit, Primitive, Sphere, Transformed};
 
 /// A small deterministic generator of points in `[-r, r]³`.
 struct Points(u64);
@@ -20,6 +20,19 @@ impl Points {
         };
         DVec3::new(coordinate(), coordinate(), coordinate())
     }
+}
+
+/// Asserts that `c`'s distance bounds hold `reference` (the distance from `p` computed here), up
+/// to `1e-12·(1 + reference)`; returns that slack.
+fn assert_bounds_hold(p: DVec3, c: &Closest, reference: f64) -> f64 {
+    let slack = 1e-12 * (1.0 + reference);
+    assert!(
+        c.lower <= reference + slack && reference <= c.upper + slack,
+        "{p}: [{}, {}] misses {reference}",
+        c.lower,
+        c.upper
+    );
+    slack
 }
 
 #[test]
@@ -64,13 +77,7 @@ fn a_sphere_stretched_into_an_ellipsoid_bounds_the_ellipsoid_s_distance() {
         let p = DVec3::new(1.0, 2.0, 3.0) + points.next(5.0);
         let reference = ellipsoid.closest(p).unwrap().upper;
         let c = placed.closest(p).unwrap();
-        let slack = 1e-12 * (1.0 + reference);
-        assert!(
-            c.lower <= reference + slack && reference <= c.upper + slack,
-            "{p}: [{}, {}] misses {reference}",
-            c.lower,
-            c.upper
-        );
+        let slack = assert_bounds_hold(p, &c, reference);
         let q = c.point.unwrap();
         assert!(ellipsoid.phi(q).abs() <= 1e-12, "{p}: the witness lies on the surface");
         assert!(((q - p).length() - c.upper).abs() <= slack);
@@ -131,13 +138,7 @@ fn csg_distances_are_exact_where_a_child_s_nearest_point_survives_and_bounded_ot
         let cut_reference = candidates.into_iter().fold(f64::INFINITY, f64::min);
         for (shape, reference) in [(&union, union_reference), (&cut, cut_reference)] {
             let c = shape.closest(p).unwrap();
-            let slack = 1e-12 * (1.0 + reference);
-            assert!(
-                c.lower <= reference + slack && reference <= c.upper + slack,
-                "{p}: [{}, {}] misses {reference}",
-                c.lower,
-                c.upper
-            );
+            let slack = assert_bounds_hold(p, &c, reference);
             if c.is_exact() {
                 exact += 1;
                 assert!(

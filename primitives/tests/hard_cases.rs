@@ -340,68 +340,18 @@ fn disk_and_polygon_nearly_parallel() {
 /// A closed, star-shaped mesh: an icosahedron subdivided once, vertices pushed to radius
 /// 1 ± 0.1 at awkward coordinates, every other triangle's vertex list rotated.
 fn closed_mesh(rng: &mut StdRng) -> (Vec<Triangle>, Vec<DVec3>, Vec<(DVec3, DVec3)>) {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut verts: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let faces = [
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let mut mid = std::collections::HashMap::new();
-    let mut fine = Vec::new();
-    for [a, b, c] in faces {
-        let mut m = |i: usize, j: usize, verts: &mut Vec<DVec3>| {
-            *mid.entry((i.min(j), i.max(j))).or_insert_with(|| {
-                verts.push((verts[i] + verts[j]).normalize());
-                verts.len() - 1
-            })
-        };
-        let (ab, bc, ca) = (m(a, b, &mut verts), m(b, c, &mut verts), m(c, a, &mut verts));
-        fine.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-    }
+    let (unit, fine) = zeroset_primitives::testing::icosphere(1);
     let center = DVec3::new(0.3, -0.2, 0.1);
-    let verts: Vec<DVec3> = verts
+    let verts: Vec<DVec3> = unit
         .iter()
-        .map(|v| v32(center + *v * rng.random_range(0.9..1.1) * 1.37))
+        .map(|&v| v32(center + DVec3::from(v.map(f64::from)) * rng.random_range(0.9..1.1) * 1.37))
         .collect();
     let mut edges = Vec::new();
     let tris = fine
         .iter()
         .enumerate()
-        .map(|(k, &[a, b, c])| {
+        .map(|(k, &t)| {
+            let [a, b, c] = t.map(|i| i as usize);
             edges.extend([(verts[a], verts[b]), (verts[b], verts[c]), (verts[c], verts[a])]);
             let (a, b, c) = match k % 3 {
                 0 => (a, b, c),

@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 use zeroset::camera::Model;
 use zeroset::primitives::offset::PointPrecision;
 use zeroset::primitives::{Mesh, Primitive, Transformed};
-use zeroset::scene::mesh_io::no_surface_stand_in;
+use zeroset::scene::mesh_io::{degenerate_warning, no_surface_stand_in, no_surface_warning};
 use zeroset::scene::registry::BuildContext;
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
 
@@ -212,18 +212,14 @@ impl PyScene {
         let (primitive, warning): (Arc<dyn Primitive>, Option<String>) = match no_surface_stand_in(&v, &t) {
             Some(stand_in) => (
                 Arc::new(stand_in),
-                Some(format!(
-                    "add_mesh: all {count} triangles are degenerate (zero area): the mesh has no surface and is never hit"
-                )),
+                Some(format!("add_mesh: {}", no_surface_warning(count))),
             ),
             None => {
                 let mesh = py
                     .detach(|| Mesh::new(v, t, None))
                     .map_err(|e| error(format!("add_mesh: field `{}`: {}", e.field, e.problem)))?;
                 let skipped = mesh.skipped_triangles();
-                let warning = (skipped > 0).then(|| {
-                    format!("add_mesh: {skipped} of {count} triangles are degenerate (zero area) and are never hit")
-                });
+                let warning = (skipped > 0).then(|| format!("add_mesh: {}", degenerate_warning(skipped, count)));
                 (Arc::new(mesh), warning)
             }
         };

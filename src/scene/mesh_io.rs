@@ -323,17 +323,11 @@ fn yes() -> bool {
     true
 }
 
-/// For a mesh file whose triangles all have zero area (and valid indices): a degenerate
-/// [`Triangle`] at its first vertex, which is never hit, standing in for the empty surface.
-fn no_surface(data: &MeshData) -> Option<Triangle> {
-    no_surface_stand_in(&data.vertices, &data.indices)
-}
-
 /// For a mesh whose triangles all have zero area (and whose indices are valid), the object a
 /// scene holds in its place: a degenerate [`Triangle`] at its first vertex, which is never hit
 /// ([`zeroset_primitives::Mesh::new`] refuses such a mesh: a mesh with no surface is no
 /// primitive). `None` for any other mesh. Scene files and Python's `Scene.add_mesh` both use it,
-/// with a warning naming the mesh.
+/// with the warning [`no_surface_warning`].
 #[must_use]
 pub fn no_surface_stand_in(vertices: &[[f32; 3]], indices: &[[u32; 3]]) -> Option<Triangle> {
     let vertex = |i: u32| vertices.get(i as usize).copied();
@@ -350,6 +344,20 @@ pub fn no_surface_stand_in(vertices: &[[f32; 3]], indices: &[[u32; 3]]) -> Optio
     let v = vertices[indices[0][0] as usize].map(f64::from);
     let p = glam::DVec3::from_array(v);
     Triangle::new(p, p, p).ok()
+}
+
+/// The warning for a mesh of `count` triangles that all have zero area (held by
+/// [`no_surface_stand_in`]), after the mesh's name.
+#[must_use]
+pub fn no_surface_warning(count: usize) -> String {
+    format!("all {count} triangles are degenerate (zero area): the mesh has no surface and is never hit")
+}
+
+/// The warning for a mesh of `count` triangles of which `skipped` have zero area, after the
+/// mesh's name.
+#[must_use]
+pub fn degenerate_warning(skipped: usize, count: usize) -> String {
+    format!("{skipped} of {count} triangles are degenerate (zero area) and are never hit")
 }
 
 /// `Mesh(path: "meshes/bunny.ply", normals: true)`: a triangle mesh from an OBJ or PLY file, the
@@ -392,11 +400,11 @@ impl SceneShape for MeshDesc {
             context.warn(format!("{}: {note}", path.display()));
         }
         let data = report.data;
-        if let Some(stand_in) = no_surface(&data) {
+        if let Some(stand_in) = no_surface_stand_in(&data.vertices, &data.indices) {
             context.warn(format!(
-                "{}: all {} triangles are degenerate (zero area): the mesh has no surface and is never hit",
+                "{}: {}",
                 path.display(),
-                data.indices.len()
+                no_surface_warning(data.indices.len())
             ));
             let stand_in: Arc<dyn Primitive> = Arc::new(stand_in);
             loaded.insert(key, Arc::clone(&stand_in));
@@ -407,10 +415,9 @@ impl SceneShape for MeshDesc {
             .map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?;
         if mesh.skipped_triangles() > 0 {
             context.warn(format!(
-                "{}: {} of {} triangles are degenerate (zero area) and are never hit",
+                "{}: {}",
                 path.display(),
-                mesh.skipped_triangles(),
-                mesh.triangle_count()
+                degenerate_warning(mesh.skipped_triangles(), mesh.triangle_count())
             ));
         }
         let mesh: Arc<dyn Primitive> = Arc::new(mesh);

@@ -7,12 +7,10 @@ use super::{defined_or_outside, monotone_along, with_scratch, Compiled, Function
 use crate::bounds::Aabb;
 use crate::expr::cells::{Leaf, LANES};
 use crate::expr::tape::Tape;
-use crate::finder::Refinement;
 use crate::hit::RawHit;
-use crate::isolation::differ;
+use crate::isolation::{monotone_ends, Ends};
 use crate::ray::{Interval, Ray};
 use crate::root::{RootOptions, RootReport};
-use crate::traits::Intersect;
 use glam::DVec3;
 
 pub(super) fn intersect_packet(
@@ -22,13 +20,7 @@ pub(super) fn intersect_packet(
     hits: &mut [Option<RawHit>],
 ) {
     let Phi::Expression(compiled) = &function.phi else {
-        for ((ray, range), hit) in rays.iter().zip(ranges.iter_mut()).zip(hits.iter_mut()) {
-            if let Some(found) = function.intersect(ray, *range) {
-                range.max = found.t;
-                *hit = Some(found);
-            }
-        }
-        return;
+        return crate::traits::packet_lane_by_lane(function, rays, ranges, hits);
     };
     for ((rays, ranges), hits) in rays
         .chunks(LANES)
@@ -158,8 +150,8 @@ impl Compiled {
     /// [`Compiled::visit_leaf`] for the `lanes` of a packet crossing one leaf, each on its piece
     /// `[ta[i], tb[i]]`; returns the lanes whose search ends here. Lanes the leaf's gradient
     /// proves monotone are refined together: their end values, then each step of their
-    /// refinements ([`Refinement`]), evaluated at once ([`Tape::eval_points`]): each lane takes
-    /// the same points, counts and result as [`monotone_root`] alone. Other lanes are isolated
+    /// refinements ([`crate::finder::Refinement`]), evaluated at once ([`Tape::eval_points`]): each lane takes
+    /// the same points, counts and result as [`crate::isolation::monotone_root`] alone. Other lanes are isolated
     /// one by one.
     #[allow(clippy::too_many_arguments)]
     fn visit_leaf_lanes(
@@ -186,6 +178,7 @@ impl Compiled {
                 &mut states[lane],
                 leaf,
                 (ta[lane], tb[lane]),
+                false,
             ) {
                 ended |= 1 << lane;
             }
@@ -209,7 +202,6 @@ impl Compiled {
             points.ask(&rays[lane], LANES + lane, tb[lane]);
         }
         points.evaluate(scratch);
-        let tolerance = options.tolerance.max(f64::MIN_POSITIVE);
         let mut refinements = [None; LANES];
         for lane in (0..LANES).filter(|&lane| monotone & 1 << lane != 0) {
             if let Some(ga) = points.value(lane) {
@@ -218,15 +210,13 @@ impl Compiled {
             let (ga, gb) = (ends[lane].0, points.value(LANES + lane).unwrap_or(f64::NAN));
             let state = &mut states[lane];
             state.last = (tb[lane], gb);
-            let hit = if !differ(ga, gb) {
-                None
-            } else if ga == 0.0 {
-                Some(ta[lane])
-            } else if gb == 0.0 {
-                Some(tb[lane])
-            } else {
-                refinements[lane] = Some(Refinement::new((ta[lane], ga), (tb[lane], gb), tolerance));
-                continue;
+            let hit = match monotone_ends((ta[lane], ga), (tb[lane], gb), options.tolerance) {
+                Ends::NoRoot => None,
+                Ends::Root(t) => Some(t),
+                Ends::Bracket(refinement) => {
+                    refinements[lane] = Some(refinement);
+                    continue;
+                }
             };
             state.outcome.hit = hit.map(|t| (t, false));
             ended |= u32::from(hit.is_some()) << lane;
