@@ -195,6 +195,10 @@ fn function_expressions_errors_and_guaranteed_roots() {
     assert_ok(&out, "double root");
     assert!(hits.iter().all(Option::is_some), "{hits:?}");
     assert!(stderr(&out).contains("2 rays touch"), "{}", stderr(&out));
+    // the two rays point alike, so they go as a packet (and are traced again, one by one, to
+    // tell which is uncertain): each is counted once, in either order
+    let (out, _) = query(&touch, "0.3,0.2,-5,0,0,1\n0.5,0,-5,0,0,1\n", &["--ray-order", "sorted"]);
+    assert!(stderr(&out).contains("2 rays touch"), "{}", stderr(&out));
     let starved = scene_with(
         r#"Function(phi: "abs(sqrt(x^2 + y^2 + z^2) - 1) - 1e-4", min: (-2, -2, -2), max: (2, 2, 2), budget: 2)"#,
     );
@@ -232,6 +236,19 @@ fn degenerate_triangles_warn_and_render() {
         "{}",
         stderr(&out)
     );
+    // a mesh all of whose faces are degenerate has no surface: loaded with a warning, never hit,
+    // even by rays aimed at its vertices and along its collapsed edges
+    let flat = dir.path().join("flat.obj");
+    std::fs::write(&flat, "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 1 4\nf 4 4 4\n").unwrap();
+    let rays = "0,0,-6,0,0,1\n1,0,-6,0,0,1\n0.5,0,-6,0,0,1\n0,0.5,-6,0,0,1\n0,1,-6,0,0,1\n-1,0,0,1,0,0\n";
+    let (out, hits) = query(&scene_with(&format!("Mesh(path: {:?})", p(&flat))), rays, &[]);
+    assert_ok(&out, "mesh without a surface");
+    assert!(
+        stderr(&out).contains("all 3 triangles are degenerate (zero area): the mesh has no surface"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(hits, vec![None; 6]);
 }
 
 #[test]

@@ -30,7 +30,9 @@
 //!   with that f64 `t` so that rays leaving the surface do not re-hit it.
 //! - **Degenerate triangles** (zero area, exactly) are **skipped**: they keep their index (so
 //!   `feature` still matches the file) but are left out of the BVH, so they are never hit and do
-//!   not take part in Φ. [`Mesh::skipped_triangles`] counts them.
+//!   not take part in Φ. [`Mesh::skipped_triangles`] counts them. A mesh whose triangles all
+//!   have zero area has no surface ([`Mesh::has_surface`]): it is never hit, holds no point,
+//!   and its Φ is the unsigned distance to what its triangles collapse to.
 //!
 //! # Storage
 //! Vertices `12 B` each (plus `12 B` with normals), triangles `12 B` (index triple, kept in BVH

@@ -60,14 +60,23 @@ pub struct Triangle {
     cross: DVec3,
 }
 
-/// The closest point to `p` on the segment `[a, b]` (`a` when `a = b`).
-fn closest_on_segment(a: DVec3, b: DVec3, p: DVec3) -> DVec3 {
+/// Where on the segment `[a, b]` the point nearest to `p` lies: `s ∈ [0, 1]` of `a + s·(b − a)`
+/// (`0` when `a = b`).
+fn segment_parameter(a: DVec3, b: DVec3, p: DVec3) -> f64 {
     let ab = b - a;
     let len2 = ab.length_squared();
     if len2 == 0.0 {
+        return 0.0;
+    }
+    ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
+}
+
+/// The closest point to `p` on the segment `[a, b]` (`a` when `a = b`).
+fn closest_on_segment(a: DVec3, b: DVec3, p: DVec3) -> DVec3 {
+    if a == b {
         return a;
     }
-    a + ((p - a).dot(ab) / len2).clamp(0.0, 1.0) * ab
+    a + segment_parameter(a, b, p) * (b - a)
 }
 
 /// The barycentrics `[wₐ, w_b, w_c]` of the point of triangle `(a, b, c)` nearest to `p`
@@ -120,6 +129,30 @@ pub(crate) fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVe
     w[0] * a + w[1] * b + w[2] * c
 }
 
+/// The point nearest to `p` of what a degenerate (zero-area) triangle `(a, b, c)` collapses to:
+/// the longest of its three edges (a segment, or a point where all three corners coincide),
+/// with its barycentrics (`1 − s` and `s` on the edge's two corners, `0` on the third). A
+/// degenerate [`Triangle`] and a [`crate::Mesh`] without a surface measure Φ from it.
+pub(crate) fn closest_on_collapsed(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, [f64; 3]) {
+    let (ab, bc, ca) = (
+        (b - a).length_squared(),
+        (c - b).length_squared(),
+        (a - c).length_squared(),
+    );
+    let (from, to, i, j) = if ab >= bc && ab >= ca {
+        (a, b, 0, 1)
+    } else if bc >= ca {
+        (b, c, 1, 2)
+    } else {
+        (c, a, 2, 0)
+    };
+    let s = segment_parameter(from, to, p);
+    let mut w = [0.0; 3];
+    w[i] = 1.0 - s;
+    w[j] += s;
+    (closest_on_segment(from, to, p), w)
+}
+
 impl Triangle {
     /// The triangle `a → b → c`; errors on a non-finite vertex. Collinear or repeated vertices
     /// give a degenerate triangle that is never hit (see the module docs).
@@ -158,21 +191,9 @@ impl Triangle {
         self.cross == DVec3::ZERO
     }
 
-    /// The closest point of a degenerate triangle to `p`: on the longest of its three edges.
+    /// The closest point of a degenerate triangle to `p` ([`closest_on_collapsed`]).
     fn closest_on_degenerate(&self, p: DVec3) -> DVec3 {
-        let (a, b, c) = (self.a, self.b, self.c);
-        let (ab, bc, ca) = (
-            (b - a).length_squared(),
-            (c - b).length_squared(),
-            (a - c).length_squared(),
-        );
-        if ab >= bc && ab >= ca {
-            closest_on_segment(a, b, p)
-        } else if bc >= ca {
-            closest_on_segment(b, c, p)
-        } else {
-            closest_on_segment(c, a, p)
-        }
+        closest_on_collapsed(p, self.a, self.b, self.c).0
     }
 
     /// The vertices `[a, b, c]`.

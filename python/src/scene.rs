@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 use zeroset::camera::Model;
 use zeroset::primitives::offset::PointPrecision;
 use zeroset::primitives::{Mesh, Primitive, Transformed};
-use zeroset::scene::mesh_io::{degenerate_warning, no_surface_stand_in, no_surface_warning};
+use zeroset::scene::mesh_io::degenerate_warning;
 use zeroset::scene::registry::BuildContext;
 use zeroset::scene::{ron_options, Object, Scene, SceneDesc};
 
@@ -206,27 +206,15 @@ impl PyScene {
         }
         let v = triples(&vertices, "add_mesh: the vertices")?;
         let t = triples(&triangles, "add_mesh: the triangles")?;
-        let count = t.len();
-        // as a scene file's mesh: one with no surface is held by a stand-in that is never hit,
-        // and degenerate triangles are warned about
-        let (primitive, warning): (Arc<dyn Primitive>, Option<String>) = match no_surface_stand_in(&v, &t) {
-            Some(stand_in) => (
-                Arc::new(stand_in),
-                Some(format!("add_mesh: {}", no_surface_warning(count))),
-            ),
-            None => {
-                let mesh = py
-                    .detach(|| Mesh::new(v, t, None))
-                    .map_err(|e| error(format!("add_mesh: field `{}`: {}", e.field, e.problem)))?;
-                let skipped = mesh.skipped_triangles();
-                let warning = (skipped > 0).then(|| format!("add_mesh: {}", degenerate_warning(skipped, count)));
-                (Arc::new(mesh), warning)
-            }
-        };
-        if let Some(warning) = warning {
-            let message = std::ffi::CString::new(warning).map_err(error)?;
+        let mesh = py
+            .detach(|| Mesh::new(v, t, None))
+            .map_err(|e| error(format!("add_mesh: field `{}`: {}", e.field, e.problem)))?;
+        // degenerate triangles (or all of them: no surface) are warned about, as in a scene file
+        if let Some(warning) = degenerate_warning(&mesh) {
+            let message = std::ffi::CString::new(format!("add_mesh: {warning}")).map_err(error)?;
             PyErr::warn(py, &py.get_type::<pyo3::exceptions::PyUserWarning>(), &message, 1)?;
         }
+        let primitive: Arc<dyn Primitive> = Arc::new(mesh);
         self.with(py, |state| {
             state.push(primitive, matrix, name.map(String::into_boxed_str), Arc::default())
         })

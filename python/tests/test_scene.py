@@ -271,7 +271,7 @@ def test_add_mesh_refuses_float_indices_that_are_not_integers():
 
 
 def test_add_mesh_with_degenerate_triangles_warns_as_a_scene_file_does():
-    # every triangle of zero area: held by a stand-in that is never hit, with the loader's warning
+    # every triangle of zero area: a mesh with no surface, never hit, with the loader's warning
     flat = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]]
     scene = zeroset.Scene.empty()
     with pytest.warns(UserWarning, match=re.escape(

@@ -39,8 +39,7 @@ use serde::Deserialize;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use zeroset_primitives::mesh::is_degenerate_triangle;
-use zeroset_primitives::{Mesh, Primitive, PrimitiveError, Triangle};
+use zeroset_primitives::{Mesh, Primitive, PrimitiveError};
 
 /// A mesh file could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -323,41 +322,23 @@ fn yes() -> bool {
     true
 }
 
-/// For a mesh whose triangles all have zero area (and whose indices are valid), the object a
-/// scene holds in its place: a degenerate [`Triangle`] at its first vertex, which is never hit
-/// ([`zeroset_primitives::Mesh::new`] refuses such a mesh: a mesh with no surface is no
-/// primitive). `None` for any other mesh. Scene files and Python's `Scene.add_mesh` both use it,
-/// with the warning [`no_surface_warning`].
+/// The warning for a mesh with degenerate (zero-area) triangles, after the mesh's name: all of
+/// them (the mesh has no surface, [`Mesh::has_surface`]) or some; `None` when there are none.
+/// Scene files and Python's `Scene.add_mesh` both give it.
 #[must_use]
-pub fn no_surface_stand_in(vertices: &[[f32; 3]], indices: &[[u32; 3]]) -> Option<Triangle> {
-    let vertex = |i: u32| vertices.get(i as usize).copied();
-    let all_degenerate = !indices.is_empty()
-        && indices
-            .iter()
-            .all(|t| match (vertex(t[0]), vertex(t[1]), vertex(t[2])) {
-                (Some(a), Some(b), Some(c)) => is_degenerate_triangle(a, b, c),
-                _ => false,
-            });
-    if !all_degenerate {
-        return None;
+pub fn degenerate_warning(mesh: &Mesh) -> Option<String> {
+    let (skipped, count) = (mesh.skipped_triangles(), mesh.triangle_count());
+    if !mesh.has_surface() {
+        Some(format!(
+            "all {count} triangles are degenerate (zero area): the mesh has no surface and is never hit"
+        ))
+    } else if skipped > 0 {
+        Some(format!(
+            "{skipped} of {count} triangles are degenerate (zero area) and are never hit"
+        ))
+    } else {
+        None
     }
-    let v = vertices[indices[0][0] as usize].map(f64::from);
-    let p = glam::DVec3::from_array(v);
-    Triangle::new(p, p, p).ok()
-}
-
-/// The warning for a mesh of `count` triangles that all have zero area (held by
-/// [`no_surface_stand_in`]), after the mesh's name.
-#[must_use]
-pub fn no_surface_warning(count: usize) -> String {
-    format!("all {count} triangles are degenerate (zero area): the mesh has no surface and is never hit")
-}
-
-/// The warning for a mesh of `count` triangles of which `skipped` have zero area, after the
-/// mesh's name.
-#[must_use]
-pub fn degenerate_warning(skipped: usize, count: usize) -> String {
-    format!("{skipped} of {count} triangles are degenerate (zero area) and are never hit")
 }
 
 /// `Mesh(path: "meshes/bunny.ply", normals: true)`: a triangle mesh from an OBJ or PLY file, the
@@ -399,26 +380,12 @@ impl SceneShape for MeshDesc {
         for note in &report.notes {
             context.warn(format!("{}: {note}", path.display()));
         }
-        let data = report.data;
-        if let Some(stand_in) = no_surface_stand_in(&data.vertices, &data.indices) {
-            context.warn(format!(
-                "{}: {}",
-                path.display(),
-                no_surface_warning(data.indices.len())
-            ));
-            let stand_in: Arc<dyn Primitive> = Arc::new(stand_in);
-            loaded.insert(key, Arc::clone(&stand_in));
-            return Ok(stand_in);
-        }
-        let mesh = data
+        let mesh = report
+            .data
             .into_mesh(&path, self.normals)
             .map_err(|e| PrimitiveError::new("Mesh", "path", e.to_string()))?;
-        if mesh.skipped_triangles() > 0 {
-            context.warn(format!(
-                "{}: {}",
-                path.display(),
-                degenerate_warning(mesh.skipped_triangles(), mesh.triangle_count())
-            ));
+        if let Some(warning) = degenerate_warning(&mesh) {
+            context.warn(format!("{}: {warning}", path.display()));
         }
         let mesh: Arc<dyn Primitive> = Arc::new(mesh);
         loaded.insert(key, Arc::clone(&mesh));

@@ -18,7 +18,8 @@ use glam::{DVec2, DVec3};
 pub(super) const PART_LEVELS: u32 = 4;
 
 impl Implicit for Mesh {
-    /// Distance to the nearest triangle, signed by its face normal (see the module docs).
+    /// Distance to the nearest triangle, signed by its face normal (see the module docs);
+    /// unsigned for a mesh without a surface ([`Mesh::has_surface`]).
     fn phi(&self, p: DVec3) -> f64 {
         let (q, k) = self.nearest(p);
         let d = (p - q).length();
@@ -81,6 +82,9 @@ impl Implicit for Mesh {
 impl Intersect for Mesh {
     /// [`single_ray`] in its AVX2+FMA copy where the CPU has them.
     fn intersect(&self, ray: &Ray, range: Interval) -> Option<RawHit> {
+        if !self.surface {
+            return None;
+        }
         crate::with_fma!(single_ray(mesh: &Mesh = self, ray: &Ray = ray, range: Interval = range) -> Option<RawHit>)
     }
 
@@ -89,6 +93,10 @@ impl Intersect for Mesh {
     /// as [`Mesh::intersect`] ray by ray. A mesh has no root finder, so no answer is uncertain.
     fn intersect_each(&self, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>], uncertain: &mut [bool]) {
         uncertain.fill(false);
+        if !self.surface {
+            hits.fill(None);
+            return;
+        }
         #[inline(always)]
         fn each(mesh: &Mesh, rays: &[Ray], ranges: &[Interval], hits: &mut [Option<RawHit>]) {
             mesh.intersect_stream(rays, ranges, hits);
@@ -99,6 +107,10 @@ impl Intersect for Mesh {
     /// Walks the hierarchy once for the whole packet (see `mesh/packet.rs`); the same answers
     /// as [`Mesh::intersect`] lane by lane.
     fn intersect_packet(&self, rays: &[Ray], ranges: &mut [Interval], hits: &mut [Option<RawHit>]) {
+        if !self.surface {
+            hits.fill(None);
+            return;
+        }
         for ((rays, ranges), hits) in rays
             .chunks(crate::PACKET)
             .zip(ranges.chunks_mut(crate::PACKET))
@@ -124,6 +136,9 @@ impl Intersect for Mesh {
     /// by the default sign method ([`SignMethod::FastWinding`], a lookup for most points of a
     /// closed mesh), not by Φ's nearest face.
     fn crossings<'a>(&'a self, ray: &Ray, range: Interval) -> Crossings<'a> {
+        if !self.surface {
+            return Crossings::constant(false);
+        }
         #[inline(always)]
         fn collect(mesh: &Mesh, ray: &Ray, range: Interval) -> Vec<crate::crossings::Crossing> {
             super::crossings::all_crossings(mesh, ray, range)
@@ -153,9 +168,9 @@ impl Intersect for Mesh {
         self.shading_normal(raw)
     }
 
-    /// The hierarchy's leaves (see `mesh/pieces.rs`).
+    /// The hierarchy's leaves (see `mesh/pieces.rs`); none for a mesh without a surface.
     fn pieces(&self) -> Option<&dyn crate::Pieces> {
-        Some(self)
+        self.surface.then_some(self as &dyn crate::Pieces)
     }
 
     /// The f32 copy of the origin is off by up to `2⁻²⁴` of each component's size: at most

@@ -117,6 +117,9 @@ impl PseudoNormals {
 impl Mesh {
     /// Whether `p` is inside by `method` (see [`SignMethod`] and the module docs).
     pub(super) fn contains_by(&self, p: DVec3, method: SignMethod) -> bool {
+        if !self.surface {
+            return false;
+        }
         // a closed mesh's grid decides most points by their cell (`regions.rs`)
         if method != SignMethod::PseudoNormal {
             if let Some(w) = self.regions().and_then(|r| r.winding(p)) {

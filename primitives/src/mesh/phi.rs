@@ -31,6 +31,7 @@ use super::storage::Mesh;
 use crate::bvh::quad::Quad;
 use crate::bvh::walk::QUAD_STACK;
 pub(super) use crate::triangle::closest_barycentrics;
+use crate::triangle::closest_on_collapsed;
 use crate::PACKET;
 use glam::DVec3;
 use std::mem::MaybeUninit;
@@ -273,11 +274,37 @@ thread_local! {
 
 impl Mesh {
     /// The surface point nearest to `p`, its triangle and barycentrics (see the module docs).
-    /// The mesh must have triangles in its hierarchy.
+    /// On a mesh without a surface, the nearest point of the collapsed triangles, each tried.
     pub(super) fn nearest_feature(&self, p: DVec3) -> NearestPoint {
+        if !self.surface {
+            return self.nearest_collapsed(p);
+        }
         let found = crate::with_fma!(nearest_walk(mesh: &Mesh = self, p: DVec3 = p) -> NearestPoint);
         LAST_NEAREST.with(|last| last.set((std::ptr::from_ref(self) as usize, found.k)));
         found
+    }
+
+    /// [`Mesh::nearest_feature`] on a mesh whose triangles all have zero area: the nearest
+    /// point of the segments (or points) they collapse to, by trying each (the first of equal
+    /// distances).
+    fn nearest_collapsed(&self, p: DVec3) -> NearestPoint {
+        let mut best = (
+            f64::INFINITY,
+            NearestPoint {
+                point: p,
+                k: 0,
+                barycentrics: [1.0, 0.0, 0.0],
+            },
+        );
+        for k in 0..self.tris.len() {
+            let [a, b, c] = self.corners(k).map(super::storage::v64);
+            let (point, barycentrics) = closest_on_collapsed(p, a, b, c);
+            let d2 = (p - point).length_squared();
+            if d2 < best.0 {
+                best = (d2, NearestPoint { point, k, barycentrics });
+            }
+        }
+        best.1
     }
 
     /// Nearest surface point to `p`: `(q, leaf position of its triangle)`.

@@ -42,6 +42,10 @@ pub struct Mesh {
     pub(super) leaf_to_file: Vec<u32>,
     pub(super) file_to_leaf: Vec<u32>,
     pub(super) in_bvh: usize,
+    /// Whether any triangle has an area: when none has, the hierarchy holds all of them (so
+    /// that its boxes and Φ's nearest points are the collapsed triangles'), and no ray or
+    /// inside test walks it (see [`Mesh::has_surface`]).
+    pub(super) surface: bool,
     /// The 4-wide hierarchy: packets of rays and nearest-point queries walk it.
     pub(super) bvh: QuadBvh,
     /// The corners of the triangles in the hierarchy, leaf by leaf in rows (see [`leaf_rows`]):
@@ -179,7 +183,8 @@ impl Mesh {
     /// # Errors
     /// No triangles; a non-finite vertex or normal (`vertices[i]`, `normals[i]`); an index out of
     /// range (`indices[t]`); a normal count different from the vertex count; 2³² − 1 triangles
-    /// or more. Degenerate triangles are not an error (they are skipped, see the module docs).
+    /// or more. Degenerate triangles are not an error (they are skipped, see the module docs),
+    /// not even when all of them are (a mesh without a surface, [`Mesh::has_surface`]).
     pub fn new(
         vertices: Vec<[f32; 3]>,
         indices: Vec<[u32; 3]>,
@@ -228,30 +233,31 @@ impl Mesh {
             }
         }
         // triangle boxes, written in place in parallel (an indexed collect: a filtered one
-        // gathers pieces and copies them); degenerate triangles are marked, then left out
+        // gathers pieces and copies them); degenerate triangles are marked, then left out —
+        // unless all of them are: then the hierarchy holds them all, and no query walks it
+        // (a mesh without a surface, see [`Mesh::has_surface`])
         const DEGENERATE: u32 = u32::MAX;
-        let mut build: Vec<BuildItem> = Vec::new();
-        build.par_extend(indices.par_iter().enumerate().map(|(id, t)| {
-            let [a, b, c] = t.map(|i| vertices[i as usize]);
-            let (a, b, c, id) = if is_degenerate_triangle(a, b, c) {
-                (a, a, a, DEGENERATE)
-            } else {
-                (a, b, c, id as u32)
-            };
-            let (a, b, c) = (Vec3A::from_array(a), Vec3A::from_array(b), Vec3A::from_array(c));
-            let bounds = Bb {
-                lo: a.min(b).min(c),
-                hi: a.max(b).max(c),
-            };
-            BuildItem::new(bounds, id)
-        }));
+        let boxes = |skip_degenerate: bool| {
+            let mut build: Vec<BuildItem> = Vec::new();
+            build.par_extend(indices.par_iter().enumerate().map(|(id, t)| {
+                let [a, b, c] = t.map(|i| Vec3A::from_array(vertices[i as usize]));
+                let degenerate = skip_degenerate && {
+                    let [a, b, c] = t.map(|i| vertices[i as usize]);
+                    is_degenerate_triangle(a, b, c)
+                };
+                let bounds = Bb {
+                    lo: a.min(b).min(c),
+                    hi: a.max(b).max(c),
+                };
+                BuildItem::new(bounds, if degenerate { DEGENERATE } else { id as u32 })
+            }));
+            build
+        };
+        let mut build = boxes(true);
         build.retain(|item| item.id != DEGENERATE);
-        if build.is_empty() {
-            return Err(PrimitiveError::new(
-                "Mesh",
-                "indices",
-                "every triangle is degenerate (zero area)",
-            ));
+        let surface = !build.is_empty();
+        if !surface {
+            build = boxes(false);
         }
         let bvh = QuadBvh::build(&mut build, LEAVES);
         let in_bvh = build.len();
@@ -295,6 +301,7 @@ impl Mesh {
             .reduce(|| 0.0, f64::max)
             .next_up();
         Ok(Self {
+            surface,
             ball_radius,
             center,
             radius: 0.5 * bounds.diagonal_length(),
@@ -328,10 +335,25 @@ impl Mesh {
         self.vertices.len()
     }
 
-    /// Degenerate (zero-area) triangles left out of the BVH.
+    /// Degenerate (zero-area) triangles, which are never hit: all of them in a mesh without
+    /// a surface, else those left out of the BVH.
     #[must_use]
     pub fn skipped_triangles(&self) -> usize {
-        self.tris.len() - self.in_bvh
+        if self.surface {
+            self.tris.len() - self.in_bvh
+        } else {
+            self.tris.len()
+        }
+    }
+
+    /// Whether any triangle has an area. A mesh whose triangles all have zero area has no
+    /// surface: no ray hits it or crosses it, no point is inside it, its winding numbers are
+    /// `0`, and its Φ, gradient and closest points are those of the collapsed triangles (each
+    /// the segment or point a degenerate [`crate::Triangle`] collapses to, the nearest of them
+    /// found by trying each), unsigned.
+    #[must_use]
+    pub fn has_surface(&self) -> bool {
+        self.surface
     }
 
     /// Whether per-vertex normals were given.

@@ -606,4 +606,122 @@ fn constructor_errors() {
     let m = Mesh::new(v, vec![[0, 1, 2], [0, 0, 1]], None).unwrap();
     assert_eq!(m.skipped_triangles(), 1);
     assert_eq!(m.triangle_indices(1), [0, 0, 1]);
+    assert!(m.has_surface());
+}
+
+/// A mesh whose triangles all have zero area is accepted and has no surface: every ray path
+/// (single, batch, packet, crossings) misses, no point is inside by any sign method, winding
+/// numbers are 0, and Φ, ∇Φ and `closest` are the nearest collapsed triangle's, against the
+/// least of the degenerate [`crate::Triangle`]s' own answers over all of them.
+#[test]
+fn a_mesh_of_degenerate_triangles_has_no_surface() {
+    use crate::proximity::SignMethod;
+    use crate::Triangle;
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+    let mut rng = StdRng::seed_from_u64(44);
+    let mut range = |lo: f64, hi: f64| rng.random_range(lo..hi);
+    let mut vertices: Vec<[f32; 3]> = Vec::new();
+    let mut indices = Vec::new();
+    for i in 0..60u32 {
+        let a = [
+            range(-1.0, 1.0) as f32,
+            range(-1.0, 1.0) as f32,
+            range(-1.0, 1.0) as f32,
+        ];
+        let step = [
+            range(-0.5, 0.5) as f32,
+            range(-0.5, 0.5) as f32,
+            range(-0.5, 0.5) as f32,
+        ];
+        // zero area exactly: the third corner repeats one of the first two, or all coincide
+        let b = [a[0] + step[0], a[1] + step[1], a[2] + step[2]];
+        let base = vertices.len() as u32;
+        vertices.extend([a, b]);
+        indices.push(match i % 3 {
+            0 => [base, base + 1, base],
+            1 => [base + 1, base, base + 1],
+            _ => [base, base, base],
+        });
+    }
+    let mesh = Mesh::new(vertices.clone(), indices.clone(), None).unwrap();
+    assert!(!mesh.has_surface());
+    assert_eq!(mesh.skipped_triangles(), indices.len());
+    assert_eq!(mesh.triangle_count(), indices.len());
+    assert!(mesh.pieces().is_none());
+    let bounds = mesh.bounds();
+    for v in indices.iter().flatten().map(|&i| vertices[i as usize]) {
+        assert!(bounds.contains(v64(v)), "{v:?} outside {bounds:?}");
+    }
+    let collapsed: Vec<Triangle> = indices
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| v64(vertices[i as usize]));
+            Triangle::new(a, b, c).unwrap()
+        })
+        .collect();
+    assert!(collapsed.iter().all(Triangle::is_degenerate));
+    for _ in 0..300 {
+        let p = DVec3::new(range(-2.0, 2.0), range(-2.0, 2.0), range(-2.0, 2.0));
+        let reference = collapsed.iter().map(|t| t.phi(p)).fold(f64::INFINITY, f64::min);
+        assert_eq!(mesh.phi(p), reference, "Φ at {p:?}");
+        let closest = mesh.closest(p).unwrap();
+        let q = closest.point.unwrap();
+        assert_eq!((q - p).length(), reference);
+        assert_eq!((closest.lower, closest.upper), (reference, reference));
+        let feature = closest.feature as usize;
+        assert_eq!(
+            collapsed[feature].phi(p),
+            reference,
+            "the feature is a nearest triangle"
+        );
+        let g = mesh.gradient(p);
+        assert!((g - (p - q) / reference).length() < 1e-12, "∇Φ at {p:?}: {g:?}");
+        for method in SignMethod::ALL {
+            assert!(!mesh.contains(p, method), "{p:?} inside by {method:?}");
+        }
+        assert_eq!(mesh.winding_number(p), 0.0);
+        assert_eq!(mesh.fast_winding_number(p), 0.0);
+    }
+    // rays aimed at the collapsed triangles' corners and midpoints, and random ones
+    let mut rays = Vec::new();
+    for (i, v) in vertices.iter().enumerate() {
+        let origin = DVec3::new(range(-3.0, 3.0), range(-3.0, 3.0), 3.0);
+        let target = if i % 2 == 0 {
+            v64(*v)
+        } else {
+            0.5 * (v64(*v) + v64(vertices[i - 1]))
+        };
+        rays.push(Ray::new(origin, target - origin));
+        let d = DVec3::new(range(-1.0, 1.0), range(-1.0, 1.0), range(-1.0, 1.0));
+        rays.push(Ray::new(DVec3::ZERO, d));
+    }
+    let everything = Interval::new(0.0, f64::INFINITY);
+    for ray in &rays {
+        assert!(mesh.intersect(ray, everything).is_none());
+        assert!(mesh.intersect_brute_force(ray).is_none());
+        let mut crossings = mesh.crossings(ray, everything);
+        assert!(!crossings.starts_inside());
+        assert_eq!(crossings.count(), 0);
+    }
+    let ranges = vec![everything; rays.len()];
+    let mut hits = vec![
+        Some(RawHit {
+            t: 1.0,
+            feature: 0,
+            local: glam::DVec2::ZERO
+        });
+        rays.len()
+    ];
+    let mut uncertain = vec![true; rays.len()];
+    mesh.intersect_each(&rays, &ranges, &mut hits, &mut uncertain);
+    assert!(hits.iter().all(Option::is_none) && uncertain.iter().all(|u| !u));
+    let mut ranges = ranges;
+    hits.fill(Some(RawHit {
+        t: 1.0,
+        feature: 0,
+        local: glam::DVec2::ZERO,
+    }));
+    mesh.intersect_packet(&rays, &mut ranges, &mut hits);
+    assert!(hits.iter().all(Option::is_none));
 }

@@ -92,6 +92,9 @@ impl Mesh {
     #[doc(hidden)]
     #[must_use]
     pub fn intersect_brute_force(&self, ray: &Ray) -> Option<(u32, f32)> {
+        if !self.surface {
+            return None;
+        }
         let query = self.query(ray, Interval::new(0.0, f64::INFINITY))?;
         let mut best: Option<(u32, f32)> = None;
         for k in 0..self.in_bvh {

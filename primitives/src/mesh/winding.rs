@@ -356,6 +356,9 @@ impl Mesh {
     /// 10 ns each); [`Mesh::fast_winding_number`] is the hierarchical approximation.
     #[must_use]
     pub fn winding_number(&self, p: DVec3) -> f64 {
+        if !self.surface {
+            return 0.0;
+        }
         crate::with_fma!(exact_winding(mesh: &Mesh = self, p: DVec3 = p) -> f64)
     }
 
@@ -367,6 +370,9 @@ impl Mesh {
     /// where `|w| > ½`.
     #[must_use]
     pub fn fast_winding_number(&self, p: DVec3) -> f64 {
+        if !self.surface {
+            return 0.0;
+        }
         let nodes = self.winding_nodes();
         crate::with_fma!(fast_winding(mesh: &Mesh = self, nodes: &WindingNodes = nodes, p: DVec3 = p) -> f64)
     }
