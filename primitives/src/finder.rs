@@ -7,6 +7,30 @@ use crate::hit::RawHit;
 
 thread_local! {
     static THREAD_UNCERTAIN_EVENTS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+    /// Whether the rays traced now on this thread were counted already ([`traced_again`]).
+    static TRACED_AGAIN: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f`, which traces again rays whose outcomes were counted already (a packet traced ray
+/// by ray to tell which of its rays is uncertain): the per-thread events
+/// ([`thread_uncertain_events`]) still move, the process-wide counts
+/// ([`crate::root::budget_exhaustions`], [`crate::isolation::uncertain_counts`], Lipschitz
+/// violations) do not, so that each ray is counted once.
+pub fn traced_again<T>(f: impl FnOnce() -> T) -> T {
+    struct Restore(bool);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            TRACED_AGAIN.with(|c| c.set(self.0));
+        }
+    }
+    let _restore = Restore(TRACED_AGAIN.with(|c| c.replace(true)));
+    f()
+}
+
+/// Whether a ray's outcome counts process-wide: not inside [`traced_again`].
+#[inline]
+pub(crate) fn counts_process_wide() -> bool {
+    !TRACED_AGAIN.with(std::cell::Cell::get)
 }
 
 /// Events on the calling thread that leave a ray's answer uncertain: this finder's budget

@@ -429,19 +429,23 @@ impl PieceStack {
 /// an exhausted budget, pieces skipped as undefined.
 pub(crate) fn count_outcome(hit: Option<(f64, bool)>, exhausted: bool, undefined_seen: bool) -> bool {
     let mut uncertain = false;
-    if exhausted {
-        EXHAUSTED.fetch_add(1, Ordering::Relaxed);
+    let process_wide = crate::finder::counts_process_wide();
+    let count = |counter: &AtomicU64| {
+        if process_wide {
+            counter.fetch_add(1, Ordering::Relaxed);
+        }
         note_uncertain_on_thread();
+    };
+    if exhausted {
+        count(&EXHAUSTED);
         uncertain = true;
     }
     if let Some((_, true)) = hit {
-        TANGENT.fetch_add(1, Ordering::Relaxed);
-        note_uncertain_on_thread();
+        count(&TANGENT);
         uncertain = true;
     }
     if undefined_seen {
-        UNDEFINED.fetch_add(1, Ordering::Relaxed);
-        note_uncertain_on_thread();
+        count(&UNDEFINED);
     }
     uncertain
 }

@@ -29,7 +29,7 @@
 //! arithmetic instead ([`crate::isolation`]), and no Lipschitz bound is needed.
 
 pub(crate) use crate::finder::{note_uncertain_on_thread, refine_bracket};
-pub use crate::finder::{thread_uncertain_events, uncertain_while, RootOptions, RootReport};
+pub use crate::finder::{thread_uncertain_events, traced_again, uncertain_while, RootOptions, RootReport};
 use crate::hit::RawHit;
 use crate::implicit::Implicit;
 use crate::ray::{Interval, Ray};
@@ -46,7 +46,9 @@ pub fn budget_exhaustions() -> u64 {
 }
 
 fn record_budget_exhaustion() {
-    BUDGET_EXHAUSTIONS.fetch_add(1, Ordering::Relaxed);
+    if crate::finder::counts_process_wide() {
+        BUDGET_EXHAUSTIONS.fetch_add(1, Ordering::Relaxed);
+    }
     note_uncertain_on_thread();
 }
 
@@ -259,7 +261,9 @@ impl March {
                 if observed > k * (1.0 + 1e-9) + f64::MIN_POSITIVE {
                     if !report.lipschitz_violated {
                         report.lipschitz_violated = true;
-                        LIPSCHITZ_VIOLATIONS.fetch_add(1, Ordering::Relaxed);
+                        if crate::finder::counts_process_wide() {
+                            LIPSCHITZ_VIOLATIONS.fetch_add(1, Ordering::Relaxed);
+                        }
                     }
                     *slope = Some(2.0 * observed);
                     *relax = 1.0;

@@ -1,10 +1,14 @@
 #!/usr/bin/env python3
 """zeroset.Scene.cast_rays beside Open3D's RaycastingScene.cast_rays on the benchmark meshes,
-10⁶ random rays each, and the Python overhead against the Rust query path on the same batch.
+10⁶ random rays each (or, with --camera, each scene's camera rays from `rays_pinhole`, 1280×720
+in pixel order), and the Python overhead against the Rust query path on the same batch.
 
     bash scenes/bench/make_meshes.sh            # the meshes (needs numpy, trimesh)
     pip install ./python open3d
-    python3 python/bench/cast_rays.py [--rays 1000000] [--runs 5] [--threads 2]
+    python3 python/bench/cast_rays.py [--rays 1000000] [--runs 5] [--threads 2] [--camera]
+
+With --camera a last column times `Scene.render(aovs=["Depth", "Normal", "Alpha"])` of the same
+camera (the render's own coherent path, its outputs written), and gives cast_rays ÷ render.
 
 Prints one row per scene: Mrays/s medians of --runs (min–max in brackets) for zeroset's
 cast_rays (float64 outputs, the default), the Rust API alone on the same rays, zeroset's
@@ -54,6 +58,8 @@ def main():
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--threads", type=int, default=os.cpu_count())
     ap.add_argument("--levels", type=int, nargs="+", default=[4, 6, 8])
+    ap.add_argument("--camera", action="store_true",
+                    help="each scene's camera rays (rays_pinhole, pixel order) instead of random rays")
     a = ap.parse_args()
     try:
         import open3d as o3d
@@ -64,13 +70,20 @@ def main():
     origins = rng.uniform(-2.5, 2.5, (a.rays, 3))
     directions = rng.normal(size=(a.rays, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    print(f"{a.rays} random rays, {a.threads} threads, medians of {a.runs} (Mrays/s)")
+    kind = "camera rays (1280×720, pixel order)" if a.camera else f"{a.rays} random rays"
+    print(f"{kind}, {a.threads} threads, medians of {a.runs} (Mrays/s)")
+    extra = " render Depth, Normal, Alpha | cast_rays ÷ render time |" if a.camera else ""
     print("| scene | zeroset cast_rays | Rust trace_batch | zeroset cast_rays float32 | Open3D cast_rays | Python overhead "
-          "| ratio to Open3D | float32 ratio to Open3D | hits zeroset / Open3D |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| ratio to Open3D | float32 ratio to Open3D | hits zeroset / Open3D |" + extra)
+    print("|---|---|---|---|---|---|---|---|---|" + ("---|---|" if a.camera else ""))
     for level in a.levels:
         path = REPO / "scenes" / "bench" / f"mesh{level}.ron"
         scene = zeroset.Scene.load(path)
+        if a.camera:
+            cam = scene.camera
+            o, d = zeroset.rays_pinhole(cam.intrinsics(), cam.world_to_camera(), cam.width, cam.height)
+            origins, directions = o.reshape(-1, 3), d.reshape(-1, 3)
+        n = len(origins)
         scene.cast_rays(origins, directions)  # warm: the hierarchy, the thread pool, the pages
         scene.cast_rays(origins, directions, dtype=np.float32)
         z, rust, z32 = [], [], []
@@ -79,8 +92,8 @@ def main():
             rust.append(scene._core.time_first_hits(origins, directions))
             z32 += timed(lambda: scene.cast_rays(origins, directions, dtype=np.float32), 1)
         hits = int(scene.cast_rays(origins, directions)["hit"].sum())
-        row = [f"mesh{level}", "%.2f [%.2f–%.2f]" % mrays(a.rays, z), "%.2f [%.2f–%.2f]" % mrays(a.rays, rust),
-               "%.2f [%.2f–%.2f]" % mrays(a.rays, z32)]
+        row = [f"mesh{level}", "%.2f [%.2f–%.2f]" % mrays(n, z), "%.2f [%.2f–%.2f]" % mrays(n, rust),
+               "%.2f [%.2f–%.2f]" % mrays(n, z32)]
         if o3d is not None:
             mesh = o3d.io.read_triangle_mesh(str(REPO / "scenes" / "bench" / "meshes" / f"mesh{level}.ply"))
             o_scene = o3d.t.geometry.RaycastingScene()
@@ -90,7 +103,7 @@ def main():
             o_scene.cast_rays(rays, nthreads=a.threads)
             o = timed(lambda: o_scene.cast_rays(rays, nthreads=a.threads), a.runs)
             o_hits = int(np.isfinite(o_scene.cast_rays(rays, nthreads=a.threads)["t_hit"].numpy()).sum())
-            row.append("%.2f [%.2f–%.2f]" % mrays(a.rays, o))
+            row.append("%.2f [%.2f–%.2f]" % mrays(n, o))
         else:
             o, o_hits = None, None
             row.append("–")
@@ -99,6 +112,15 @@ def main():
         row.append("–" if o is None else f"{statistics.median(o) / statistics.median(z):.2f}")
         row.append("–" if o is None else f"{statistics.median(o) / statistics.median(z32):.2f}")
         row.append(f"{hits} / {o_hits}")
+        if a.camera:
+            aovs = ["Depth", "Normal", "Alpha"]
+            scene.render(aovs=aovs, threads=a.threads)
+            r = []
+            for _ in range(a.runs):  # interleaved with cast_rays again, for the ratio
+                r += timed(lambda: scene.render(aovs=aovs, threads=a.threads), 1)
+                z += timed(lambda: scene.cast_rays(origins, directions), 1)
+            row.append("%.2f [%.2f–%.2f]" % mrays(n, r))
+            row.append(f"{statistics.median(z) / statistics.median(r):.2f}")
         print("| " + " | ".join(row) + " |")
 
 

@@ -158,9 +158,9 @@ pub struct QueryArgs {
     pub origin_precision: Option<zeroset_primitives::offset::PointPrecision>,
     /// Order in which each chunk's rays are traced (the answers and the output order are the
     /// same): `input` as given, `sorted` grouped for coherence (direction octant, origin cell,
-    /// direction) and traced in packets. `input` is the faster on every batch measured (see the
-    /// README's "Command line", `zeroset query`): random rays, camera rays in pixel order or
-    /// shuffled, many cameras' rays shuffled together.
+    /// direction) and traced in packets. `input` (whose runs of 8 rays pointing alike, such as a
+    /// camera's rays in pixel order, are traced as packets too) is the faster on every batch
+    /// measured (`docs/performance.md`).
     #[arg(long, value_enum, default_value = "input", ignore_case = true)]
     pub ray_order: crate::query::RayOrder,
     /// Output (`-` for stdout): CSV, or `.npy` (f8, shape (N, 11)).

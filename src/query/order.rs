@@ -6,16 +6,15 @@ use crate::scene::Scene;
 use crate::trace::packet::coherent;
 use glam::DVec3;
 use rayon::prelude::*;
-use zeroset_primitives::root::thread_uncertain_events;
+use zeroset_primitives::root::{thread_uncertain_events, traced_again};
 use zeroset_primitives::{Interval, Ray, PACKET};
 
 /// The order in which a batch's rays are traced. The answers are the same whatever the order;
-/// only the speed differs. `Input` traces each ray alone, as given; `Sorted` sorts the batch
-/// for coherence and traces it in packets of [`PACKET`] neighbouring rays
-/// ([`Scene::intersect_packet`]). On every batch measured (random rays, camera rays in pixel
-/// order or shuffled, many cameras' rays shuffled together) `Input` is the faster: the single-ray
-/// walks lose little to a lack of order, less than sorting costs (see the README's "Command
-/// line", `zeroset query`).
+/// only the speed differs. `Input` traces the rays as given (runs of [`PACKET`] consecutive rays
+/// that point alike, such as a camera's rays in pixel order, walk a lone object as packets:
+/// [`Scene::intersect_each`]); `Sorted` sorts the batch for coherence and traces it in packets
+/// of [`PACKET`] neighbouring rays ([`Scene::intersect_packet`]). On every batch measured
+/// `Input` is the faster: sorting costs more than it recovers (`docs/performance.md`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum RayOrder {
     /// As given.
@@ -119,7 +118,7 @@ pub(super) fn sample_may_pay(rays: &[QueryRay]) -> bool {
 /// order (the lanes past `packet.len()` are misses): traced together
 /// ([`Scene::intersect_packet`]) where they point alike ([`coherent`]), else one by one
 /// ([`trace_one`]). If a root finder ran out of budget while a packet was traced, its rays are
-/// traced again one by one to tell which.
+/// traced again one by one to tell which (counted once: [`traced_again`]).
 fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> [QueryHit; PACKET] {
     let n = packet.len().min(PACKET);
     let mut lanes = [Ray::new(DVec3::ZERO, DVec3::Z); PACKET];
@@ -135,7 +134,8 @@ fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> [QueryHit; 
     let exhausted_before = thread_uncertain_events();
     let mut found = [None; PACKET];
     // together where the rays point alike and no root finder ran out of budget meanwhile
-    let together = coherent(&lanes[..n], PACKET_COSINE) && {
+    let packed = coherent(&lanes[..n], PACKET_COSINE);
+    let together = packed && {
         scene.intersect_packet(&lanes[..n], &ranges[..n], &mut found[..n]);
         thread_uncertain_events() == exhausted_before
     };
@@ -145,7 +145,9 @@ fn trace_packet(scene: &Scene, rays: &[QueryRay], packet: &[u32]) -> [QueryHit; 
         }
     } else {
         for (l, &i) in packet[..n].iter().enumerate() {
-            out[l] = trace_one(scene, &rays[i as usize]);
+            let one = || trace_one(scene, &rays[i as usize]);
+            // a packet traced together, then again, counts its rays' outcomes once
+            out[l] = if packed { traced_again(one) } else { one() };
         }
     }
     out

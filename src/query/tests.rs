@@ -117,48 +117,97 @@ fn the_batch_loop_writes_and_fails_in_chunk_order() {
 /// Rays handed to the scene together ([`trace_many_for`]) get exactly the answers they get
 /// one by one, `uncertain` flags included: a lone object (the batch handed to it in one
 /// call), a lone `Function` whose budget of 4 evaluations runs out on the rays through its
-/// sphere (flagged ray by ray), and three objects; in each, some directions 10⁻³⁰⁰ or 10³⁰⁰
-/// long (rescaled, so not handed over together).
+/// sphere (flagged ray by ray), three objects, and a lone mesh; in each, some directions of
+/// the first 256 rays 10⁻³⁰⁰ or 10³⁰⁰ long (rescaled, so that batch is not handed over). Each scene takes random rays
+/// and a camera's rays in pixel order (70 wide, so some runs of 8 straddle two rows): the
+/// camera's runs of 8 pointing alike are handed over as packets, the others together.
 #[test]
 fn rays_traced_together_equal_rays_traced_one_by_one() {
     use rand::{Rng, SeedableRng};
+    let dir = tempfile::tempdir().unwrap();
+    let mesh_path = dir.path().join("ball.obj");
+    let (vertices, triangles) = zeroset_primitives::testing::icosphere(3);
+    let mut obj = String::new();
+    for v in &vertices {
+        writeln!(obj, "v {} {} {}", v[0], v[1], v[2]).unwrap();
+    }
+    for t in &triangles {
+        writeln!(obj, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1).unwrap();
+    }
+    std::fs::write(&mesh_path, obj).unwrap();
     let scenes = [
-        "Scene(camera: (), objects: [(shape: Sphere(center: (0, 0, 0), radius: 1))])",
+        "Scene(camera: (), objects: [(shape: Sphere(center: (0, 0, 0), radius: 1))])".to_string(),
         "Scene(camera: (), objects: [(shape: Function(phi: \"sqrt(x^2 + y^2 + z^2) - 1\", \
-         min: (-2, -2, -2), max: (2, 2, 2), budget: 4))])",
+         min: (-2, -2, -2), max: (2, 2, 2), budget: 4))])"
+            .to_string(),
         "Scene(camera: (), objects: [(shape: Sphere(center: (0, 0, 0), radius: 1)), \
-         (shape: Box(min: (2, -1, -1), max: (3, 1, 1))), (shape: Plane(normal: (0, 1, 0), point: (0, -2, 0)))])",
+         (shape: Box(min: (2, -1, -1), max: (3, 1, 1))), (shape: Plane(normal: (0, 1, 0), point: (0, -2, 0)))])"
+            .to_string(),
+        format!(
+            "Scene(camera: (), objects: [(shape: Mesh(path: {:?}))])",
+            mesh_path.to_str().unwrap()
+        ),
     ];
+    // only in the first 256 rays: a batch of 256 with one such ray is traced ray by ray
+    let scaled = |i: usize| match (i < 256, i % 97) {
+        (true, 0) => 1e-300,
+        (true, 1) => 1e300,
+        _ => 1.0,
+    };
     let mut rng = rand::rngs::StdRng::seed_from_u64(14);
+    let random: Vec<QueryRay> = (0..3000)
+        .map(|i| {
+            let o = DVec3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), -4.0);
+            let aim = DVec3::new(rng.random_range(-1.5..1.5), rng.random_range(-1.5..1.5), 0.0);
+            QueryRay {
+                ray: Ray::new(o, (aim - o) * scaled(i)),
+                range: Interval::POSITIVE,
+            }
+        })
+        .collect();
+    let (width, height) = (70, 50);
+    let camera: Vec<QueryRay> = (0..width * height)
+        .map(|i| {
+            let (x, y) = ((i % width) as f64, (i / width) as f64);
+            let d = DVec3::new((x + 0.5) / width as f64 - 0.5, 0.5 - (y + 0.5) / height as f64, 2.4);
+            QueryRay {
+                ray: Ray::new(DVec3::new(0.1, 0.2, -4.0), d * scaled(i)),
+                range: Interval::POSITIVE,
+            }
+        })
+        .collect();
+    // most of the camera's runs of 8 are packets, none of the random rays'
+    let packets = |rays: &[QueryRay]| {
+        let rays: Vec<Ray> = rays.iter().map(|q| q.ray).collect();
+        rays.chunks(zeroset_primitives::PACKET)
+            .filter(|run| crate::trace::packet::coherent(run, crate::trace::packet::PACKET_COS))
+            .count()
+    };
+    let (camera_packets, random_packets) = (packets(&camera), packets(&random));
+    assert!(
+        camera_packets > 350 && random_packets == 0,
+        "{camera_packets}, {random_packets}"
+    );
     for (which, text) in scenes.iter().enumerate() {
         let scene = Scene::from_ron(text, "t.ron").unwrap();
-        let rays: Vec<QueryRay> = (0..3000)
-            .map(|i| {
-                let o = DVec3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), -4.0);
-                let aim = DVec3::new(rng.random_range(-1.5..1.5), rng.random_range(-1.5..1.5), 0.0);
-                let scale = match i % 97 {
-                    0 => 1e-300,
-                    1 => 1e300,
-                    _ => 1.0,
-                };
-                QueryRay {
-                    ray: Ray::new(o, (aim - o) * scale),
-                    range: Interval::POSITIVE,
-                }
-            })
-            .collect();
-        let one_by_one: Vec<QueryHit> = rays.iter().map(|q| trace_one(&scene, q)).collect();
-        let mut work = TraceWork::default();
-        let mut together = vec![MISS; rays.len()];
-        for (rays, answers) in rays.chunks(256).zip(together.chunks_mut(256)) {
-            trace_many_for(&scene, rays, ANSWER, &mut work, answers);
+        for (kind, rays) in [("random", &random), ("camera", &camera)] {
+            let one_by_one: Vec<QueryHit> = rays.iter().map(|q| trace_one(&scene, q)).collect();
+            let mut work = TraceWork::default();
+            let mut together = vec![MISS; rays.len()];
+            for (rays, answers) in rays.chunks(256).zip(together.chunks_mut(256)) {
+                trace_many_for(&scene, rays, ANSWER, &mut work, answers);
+            }
+            assert_eq!(together, one_by_one, "scene {which}, {kind} rays");
+            assert_eq!(trace_batch(&scene, rays), one_by_one, "scene {which}, {kind} rays");
+            let hits = one_by_one.iter().filter(|a| a.hit.is_some()).count();
+            let uncertain = one_by_one.iter().filter(|a| a.uncertain).count();
+            assert!(hits > 300, "scene {which}, {kind} rays: {hits} hits");
+            assert_eq!(
+                uncertain > 100,
+                which == 1,
+                "scene {which}, {kind} rays: {uncertain} uncertain"
+            );
         }
-        assert_eq!(together, one_by_one, "scene {which}");
-        assert_eq!(trace_batch(&scene, &rays), one_by_one, "scene {which}");
-        let hits = one_by_one.iter().filter(|a| a.hit.is_some()).count();
-        let uncertain = one_by_one.iter().filter(|a| a.uncertain).count();
-        assert!(hits > 300, "scene {which}: {hits} hits");
-        assert_eq!(uncertain > 100, which == 1, "scene {which}: {uncertain} uncertain");
     }
 }
 

@@ -2,7 +2,7 @@
 //! and occlusion queries that walk it. The render loop, `query` and Python all come here.
 
 use glam::Vec3;
-use zeroset_primitives::root::uncertain_while;
+use zeroset_primitives::root::{traced_again, uncertain_while};
 use zeroset_primitives::{Aabb, Interval, RawHit, Ray};
 
 use crate::scene::Scene;
@@ -10,6 +10,60 @@ use crate::scene::Scene;
 pub mod packet;
 
 use packet::{coherent, PACKET_COS};
+
+/// `primitive`'s first hits of `rays` (none needing rescaling) over `ranges`, into `hits` and
+/// `uncertain`, as [`zeroset_primitives::Intersect::intersect_each`] gives them: each run of
+/// [`zeroset_primitives::PACKET`] consecutive rays that passes the packet test
+/// ([`coherent`] with [`PACKET_COS`]) walks as one packet
+/// ([`zeroset_primitives::Intersect::intersect_packet`], the same answers lane by lane), and the
+/// other runs go to `intersect_each` together. A packet during which a root finder ran out of
+/// budget is traced again ray by ray, so that the flag names the rays it belongs to (counted
+/// once: [`traced_again`]). Random
+/// rays cost the test only: their runs fail it at the first pair.
+fn lone_packets_or_each(
+    primitive: &dyn zeroset_primitives::Primitive,
+    rays: &[Ray],
+    ranges: &[Interval],
+    hits: &mut [Option<RawHit>],
+    uncertain: &mut [bool],
+) {
+    const N: usize = zeroset_primitives::PACKET;
+    // runs of rays alike in kind (packets, or not) go to the primitive together
+    let mut start = 0;
+    while start < rays.len() {
+        let packet = |at: usize| coherent(&rays[at..(at + N).min(rays.len())], PACKET_COS);
+        let kind = packet(start);
+        let mut end = (start + N).min(rays.len());
+        while end < rays.len() && packet(end) == kind {
+            end = (end + N).min(rays.len());
+        }
+        let (rays, ranges) = (&rays[start..end], &ranges[start..end]);
+        let (hits, uncertain) = (&mut hits[start..end], &mut uncertain[start..end]);
+        if kind {
+            for (((rays, ranges), hits), uncertain) in rays
+                .chunks(N)
+                .zip(ranges.chunks(N))
+                .zip(hits.chunks_mut(N))
+                .zip(uncertain.chunks_mut(N))
+            {
+                let mut narrowed = [Interval::POSITIVE; N];
+                narrowed[..rays.len()].copy_from_slice(ranges);
+                // the packet sets the lanes that hit and leaves the others as they were
+                hits.fill(None);
+                let ((), flagged) =
+                    uncertain_while(|| primitive.intersect_packet(rays, &mut narrowed[..rays.len()], hits));
+                if flagged {
+                    traced_again(|| primitive.intersect_each(rays, ranges, hits, uncertain));
+                } else {
+                    uncertain.fill(false);
+                }
+            }
+        } else {
+            primitive.intersect_each(rays, ranges, hits, uncertain);
+        }
+        start = end;
+    }
+}
 
 /// Direction magnitudes (largest component) traced as given; beyond, [`Scene::intersect`] scales
 /// the direction by a power of two first.
@@ -72,12 +126,11 @@ impl Scene {
     /// whether a root finder ran out of budget on that ray (this thread's
     /// [`zeroset_primitives::root::thread_uncertain_events`] moved meanwhile); the four slices
     /// have the same length. The same answers: a scene of one object (a lone mesh, the common
-    /// query) hands the rays to it 256 at a time
-    /// ([`zeroset_primitives::Intersect::intersect_each`]: what a call costs around the test is
-    /// paid once, and a large mesh interleaves the rays' walks, which pays more the more rays a
-    /// call has: 256 rather than 64 took `cast_rays` on the level-8 mesh from 58.2 to 54.6 ms)
-    /// where no direction needs rescaling (see [`Scene::intersect`]); other scenes trace ray
-    /// after ray.
+    /// query) hands the rays to it 256 at a time where no direction needs rescaling (see
+    /// [`Scene::intersect`]) — what a call costs around the test is paid once, and a large mesh
+    /// interleaves the rays' walks, which pays more the more rays a call has — and each run of
+    /// [`zeroset_primitives::PACKET`] consecutive rays that point alike (a camera's rays in pixel
+    /// order) as one packet ([`lone_packets_or_each`]); other scenes trace ray after ray.
     pub fn intersect_each(
         &self,
         rays: &[Ray],
@@ -96,9 +149,7 @@ impl Scene {
         for ((rays, ranges), ((hits, objects), uncertain)) in batches.zip(outputs) {
             match lone {
                 Some(object) if rays.iter().all(|ray| scaled_direction_size(ray).is_none()) => {
-                    self.objects[object as usize]
-                        .primitive
-                        .intersect_each(rays, ranges, hits, uncertain);
+                    lone_packets_or_each(&*self.objects[object as usize].primitive, rays, ranges, hits, uncertain);
                     objects.fill(object);
                 }
                 _ => {

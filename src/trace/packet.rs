@@ -7,7 +7,9 @@
 //! thresholds, and they serve different purposes:
 //!
 //! - [`PACKET_COS`] (`cos` of about 3.6°) decides whether a packet walks the hierarchies
-//!   together: the render's pixel blocks and every packet a query hands over;
+//!   together: the render's pixel blocks, every packet a sorted query hands over, and each run
+//!   of consecutive rays a batch hands to a lone object
+//!   ([`crate::scene::Scene::intersect_each`]: a camera's rays in pixel order);
 //! - the query's sort ([`crate::query::order`]) uses a wider cosine (about 8°, twice the width
 //!   of its direction cells) to judge whether sorting a batch into packets pays at all; a packet
 //!   it passes is still walked together only if it passes [`PACKET_COS`].
