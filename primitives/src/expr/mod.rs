@@ -30,6 +30,7 @@ pub(crate) mod distance;
 pub mod faces;
 pub mod lanes;
 mod parse;
+pub(crate) mod record;
 pub use parse::excerpt;
 pub mod scalar;
 pub mod tape;
@@ -258,6 +259,12 @@ impl Expr {
             root: parse::parse(text)?,
             source: text.to_string(),
         })
+    }
+
+    /// The expression recorded from a generic Φ ([`record::record`]), named `name` where an
+    /// expression names its text.
+    pub(crate) fn recorded(root: Node, name: String) -> Self {
+        Self { root, source: name }
     }
 
     /// The expression compiled to an instruction tape ([`tape::Tape`]): the same numbers as
