@@ -14,28 +14,15 @@
 //! the generic Φ's, bit for bit, in every number type.
 
 use super::parse::{MAX_DEPTH, MAX_INTEGER_POWER, MAX_NODES};
+use super::tape::Op as Step;
 use super::{Func1, Func2, Node, Scalar};
 use std::cell::RefCell;
 use std::cmp::Ordering;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-/// One recorded operation; operands are indices of earlier ones.
-#[derive(Clone, Copy, Debug)]
-enum Step {
-    Const(f64),
-    Var(u8),
-    Neg(u32),
-    Add(u32, u32),
-    Sub(u32, u32),
-    Mul(u32, u32),
-    Div(u32, u32),
-    PowI(u32, i32),
-    Call1(Func1, u32),
-    Call2(Func2, u32, u32),
-}
-
-/// The recording in progress on this thread: its steps, and whether an operation that cannot be
-/// recorded was met.
+/// The recording in progress on this thread: its steps (instructions as a tape writes them,
+/// operands the indices of earlier steps, not yet shared or folded), and whether an operation
+/// that cannot be recorded was met.
 #[derive(Default)]
 struct Recording {
     steps: Vec<Step>,
