@@ -18,8 +18,8 @@ use packet::{coherent, PACKET_COS};
 /// ([`zeroset_primitives::Intersect::intersect_packet`], the same answers lane by lane), and the
 /// other runs go to `intersect_each` together. A packet during which a root finder ran out of
 /// budget is traced again ray by ray, so that the flag names the rays it belongs to (counted
-/// once: [`traced_again`]). Random
-/// rays cost the test only: their runs fail it at the first pair.
+/// once: [`traced_again`]). Random rays cost the test only: their runs fail it at the first
+/// pair.
 fn lone_packets_or_each(
     primitive: &dyn zeroset_primitives::Primitive,
     rays: &[Ray],
