@@ -7,6 +7,7 @@ pub mod enclosure;
 pub mod magnitude;
 pub mod polygon2d;
 pub mod quadratic;
+pub(crate) mod ulps;
 
 pub use basis::orthonormal_basis;
 pub use magnitude::{is_square_safe, length_scaled, normalize_scaled, power_of_two_scale};
