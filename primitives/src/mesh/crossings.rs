@@ -11,14 +11,13 @@
 //! contains the ray (`dir · n = 0`) are not crossings.
 
 use super::query::{Candidate, MeshQuery};
-use super::storage::{plane_t, Mesh};
+use super::storage::Mesh;
 use super::watertight::watertight_lanes;
 use crate::bvh::lanes::lanes_of;
 use crate::bvh::walk::LeafTest;
 use crate::crossings::{step_past, Crossing};
 use crate::hit::RawHit;
 use crate::ray::{Interval, Ray};
-use glam::DVec2;
 
 /// The leaf test that keeps every hit.
 struct AllLeaves<'a, const KX: usize, const KY: usize, const KZ: usize> {
@@ -130,19 +129,8 @@ fn crossings_of(
     let hits = &mut scratch.hits;
     hits.clear();
     hits.extend(candidates.iter().filter_map(|c| {
-        let (n, a) = mesh.leaf(c.first, u32::from(c.count)).plane(usize::from(c.i));
-        let t = plane_t(n, a, ray)
-            .unwrap_or(f64::from(c.t) * query.scale)
-            .max(range.min);
-        if t > range.max {
-            return None;
-        }
+        let (hit, n) = mesh.finish_on_plane(ray, range, query, *c)?;
         let facing = ray.dir.dot(n);
-        let hit = RawHit {
-            t,
-            feature: mesh.leaf_to_file[c.k()],
-            local: DVec2::new(f64::from(c.u), f64::from(c.v)),
-        };
         Some((hit, facing.signum() * f64::from(u8::from(facing != 0.0)), c.k()))
     }));
     scratch.candidates = candidates;

@@ -290,9 +290,10 @@ impl Mesh {
     }
 
     /// The raw hit of the candidate `best` (`t` recomputed in f64 on the triangle's plane) and
-    /// that plane's unnormalised normal; `None` where `t` lies beyond the range.
+    /// that plane's unnormalised normal; `None` where `t` lies beyond the range. Every hit and
+    /// every listed crossing is finished here.
     #[inline(always)]
-    fn finish_on_plane(
+    pub(super) fn finish_on_plane(
         &self,
         ray: &Ray,
         range: Interval,
