@@ -2,7 +2,7 @@
 //! [`Function`]: a shared walk and refinements evaluated together) give each ray exactly what
 //! it gets alone ([`Intersect::intersect`]): the same hits, bit for bit, the same features and
 //! the same narrowed ranges, on smooth, kinked, thin and partly undefined surfaces, for
-//! orthographic and perspective packets, packets whose directions disagree in sign, rays along
+//! orthographic and perspective packets, narrow packets on the octree's mid-planes, packets whose directions disagree in sign, rays along
 //! the axes, from inside the box and with short ranges.
 
 use glam::DVec3;
@@ -115,12 +115,35 @@ fn packets_hit_what_their_rays_hit_alone() {
             let origin = DVec3::new(on_plane(rng), on_plane(rng), on_plane(rng)) - 2.0 * axis;
             (Ray::new(origin, axis), Interval::POSITIVE)
         });
+        // narrow packets on the octree's mid-planes (the box [-1.5, 1.5] halved up to 9 times):
+        // lanes exactly on a plane, lanes a pixel off it, and the packet's first lane (the
+        // beam's central ray) moving on no axis but z while the others lean away from it
+        let planes = packets(5, 3000, |_, packet, lane| {
+            // the same planes for every lane of a packet
+            let rng = &mut StdRng::seed_from_u64(packet as u64);
+            let plane = |rng: &mut StdRng| {
+                let depth = rng.random_range(1..=9);
+                let cells = 1u32 << depth;
+                -1.5 + 3.0 * f64::from(rng.random_range(1..cells)) / f64::from(cells)
+            };
+            let (x, y) = (plane(rng), plane(rng));
+            let step = 3.0 / 1024.0;
+            let (dx, dy) = ((lane % 4) as f64 * step, (lane / 4) as f64 * step);
+            if packet % 2 == 0 {
+                let origin = DVec3::new(x + dx, y + dy, 3.0);
+                (Ray::new(origin, DVec3::NEG_Z), Interval::POSITIVE)
+            } else {
+                let eye = DVec3::new(x, y, 2.5);
+                (Ray::new(eye, DVec3::new(0.3 * dx, 0.3 * dy, -1.0)), Interval::POSITIVE)
+            }
+        });
         let mut total = 0;
         for (name, batch) in [
             ("orthographic", &ortho),
             ("pinhole", &pinhole),
             ("random", &random),
             ("axes", &axes),
+            ("mid-planes", &planes),
         ] {
             total += check(name, text, batch);
         }

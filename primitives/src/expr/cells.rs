@@ -35,7 +35,7 @@ use glam::DVec3;
 use std::sync::{Arc, OnceLock};
 
 /// Levels of the octree below its root (a leaf is `1/2^MAX_DEPTH` of the box on each axis).
-pub const MAX_DEPTH: u32 = 7;
+pub const MAX_DEPTH: u32 = 8;
 
 /// Levels below which a cell is always split: from here on a cell whose gradients lie in a
 /// narrow cone is a leaf already (rays crossing it are monotone there, except
@@ -441,15 +441,68 @@ impl CellTree {
     }
 }
 
-/// Rays of one packet walked together ([`CellTree::walk_packet`]), one array per axis.
+/// Rays of one packet walked together ([`CellTree::walk_packet`]), one array per axis, and a
+/// beam around them: a central ray `c + t·e` (one of the lanes) and radii `r0 + r1·|t|` (per
+/// axis, grown by the tree's margin) such that every lane's point `o_i + t·d_i` lies within
+/// them of the central ray's point at the same `t`.
 struct Beam {
     origin: [[f64; LANES]; 3],
     dir: [[f64; LANES]; 3],
     inv: [[f64; LANES]; 3],
+    center: DVec3,
+    center_dir: DVec3,
+    center_inv: DVec3,
+    r0: DVec3,
+    r1: DVec3,
+}
+
+impl Beam {
+    /// The part of `[ta, tb]` where the central ray is within the radii of the box `[lo, hi]`:
+    /// a lane crossing the box does so at some `t` of it (`None`: no lane crosses the box).
+    #[inline]
+    fn crosses(&self, lo: DVec3, hi: DVec3, (ta, tb): (f64, f64)) -> Option<(f64, f64)> {
+        let radius = self.r0 + self.r1 * ta.abs().max(tb.abs());
+        let (lo, hi) = (lo - radius, hi + radius);
+        let (mut a, mut b) = (ta, tb);
+        for axis in 0..3 {
+            let (c, e) = (self.center[axis], self.center_dir[axis]);
+            if e == 0.0 {
+                if c < lo[axis] || c > hi[axis] {
+                    return None;
+                }
+                continue;
+            }
+            let inv = self.center_inv[axis];
+            let (x, y) = ((lo[axis] - c) * inv, (hi[axis] - c) * inv);
+            let (near, far) = if e > 0.0 { (x, y) } else { (y, x) };
+            a = a.max(near);
+            b = b.min(far);
+        }
+        (a <= b).then_some((a, b))
+    }
 }
 
 /// The most rays [`CellTree::walk_packet`] walks together.
 pub const LANES: usize = crate::PACKET;
+
+/// What [`CellTree::walk_packet`] hands each leaf to: the leaf, its lanes and their pieces;
+/// returns the lanes whose walk ends there.
+pub trait LaneVisitor: FnMut(&Leaf, u32, &[f64; LANES], &[f64; LANES]) -> u32 {}
+impl<F: FnMut(&Leaf, u32, &[f64; LANES], &[f64; LANES]) -> u32> LaneVisitor for F {}
+
+/// A cell's faces that are mid-planes of an ancestor (bit `a`: the lower face on axis `a`, bit
+/// `3 + a`: the upper one); the others lie on the root's box, where no walk cuts.
+type InnerFaces = u8;
+
+/// The faces of child `bits` of a cell with inner faces `faces`.
+#[inline]
+fn child_faces(faces: InnerFaces, bits: usize) -> InnerFaces {
+    let mut faces = faces;
+    for axis in 0..3 {
+        faces |= if bits >> axis & 1 != 0 { 1 << axis } else { 8 << axis };
+    }
+    faces
+}
 
 impl CellTree {
     /// [`CellTree::walk`] for up to [`LANES`] rays at once: lane `i` (ray `origin[i] + t·dir[i]`,
@@ -459,40 +512,47 @@ impl CellTree {
     /// walk ends there.
     ///
     /// Rays whose directions agree in sign on every axis (zero agrees with both) share the
-    /// descent: each cell is opened once for all of them, and a lane's piece of a child is
-    /// `[max(t0, entry cuts), min(t1, exit cuts)]` of the same computed cuts as its own walk (the
-    /// same numbers), visited where it is not empty; children are taken in the order the common
-    /// direction signs give, which is each lane's front-to-back order. Any other lane (a
-    /// direction of other signs, an empty range) is walked alone.
-    pub fn walk_packet(
-        &self,
-        origin: &[DVec3],
-        dir: &[DVec3],
-        t0: &[f64],
-        t1: &[f64],
-        visit: &mut impl FnMut(&Leaf, u32, &[f64; LANES], &[f64; LANES]) -> u32,
-    ) {
+    /// descent: it follows a beam around them (a central ray and radii, [`Beam`]) into the
+    /// children it may cross, taken in the order the common direction signs give (each lane's
+    /// front-to-back order). At a leaf, a lane's piece is `[max(t0, entry cuts), min(t1, exit
+    /// cuts)]` with the cuts of the leaf's faces that are mid-planes of its ancestors: the same
+    /// numbers as its own walk, whose cuts at the ancestors' other mid-planes lie beyond them
+    /// (the rounded cut `(m − o)·(1/d)` is monotone in `m`). Lanes too far apart for a narrow
+    /// beam, and any other lane (a direction of other signs, an empty range), are walked alone.
+    pub fn walk_packet(&self, origin: &[DVec3], dir: &[DVec3], t0: &[f64], t1: &[f64], visit: &mut impl LaneVisitor) {
         let n = origin.len();
         assert!(n <= LANES && dir.len() == n && t0.len() == n && t1.len() == n);
         let mut beam = Beam {
             origin: [[0.0; LANES]; 3],
             dir: [[0.0; LANES]; 3],
             inv: [[1.0; LANES]; 3],
+            center: DVec3::ZERO,
+            center_dir: DVec3::ZERO,
+            center_inv: DVec3::ZERO,
+            r0: DVec3::ZERO,
+            r1: DVec3::ZERO,
         };
         let (mut lo, mut hi) = ([f64::INFINITY; LANES], [f64::NEG_INFINITY; LANES]);
         let (mut negative, mut positive) = ([false; 3], [false; 3]);
         let mut together = 0u32;
+        let alone = |lane: usize, visit: &mut dyn LaneVisitor| {
+            self.walk(origin[lane], dir[lane], t0[lane], t1[lane], &mut |leaf, ta, tb| {
+                let (mut a, mut b) = ([0.0; LANES], [0.0; LANES]);
+                (a[lane], b[lane]) = (ta, tb);
+                visit(leaf, 1 << lane, &a, &b) != 0
+            })
+        };
+        let mut range = (f64::INFINITY, f64::NEG_INFINITY);
         for lane in 0..n {
             let d = dir[lane];
             let disagrees = |a: usize| (d[a] < 0.0 && positive[a]) || (d[a] > 0.0 && negative[a]);
             let joins = t0[lane] < t1[lane] && !(0..3).any(disagrees);
             if !joins {
-                self.walk(origin[lane], d, t0[lane], t1[lane], &mut |leaf, ta, tb| {
-                    let (mut a, mut b) = ([0.0; LANES], [0.0; LANES]);
-                    (a[lane], b[lane]) = (ta, tb);
-                    visit(leaf, 1 << lane, &a, &b) != 0
-                });
+                alone(lane, visit);
                 continue;
+            }
+            if together == 0 {
+                (beam.center, beam.center_dir, beam.center_inv) = (origin[lane], d, d.recip());
             }
             for a in 0..3 {
                 negative[a] |= d[a] < 0.0;
@@ -501,62 +561,62 @@ impl CellTree {
                 beam.dir[a][lane] = d[a];
                 beam.inv[a][lane] = d[a].recip();
             }
+            beam.r0 = beam.r0.max((origin[lane] - beam.center).abs());
+            beam.r1 = beam.r1.max((d - beam.center_dir).abs());
             (lo[lane], hi[lane]) = (t0[lane], t1[lane]);
+            range = (range.0.min(t0[lane]), range.1.max(t1[lane]));
             together |= 1 << lane;
         }
-        if together != 0 {
-            let flip = usize::from(negative[0]) | usize::from(negative[1]) << 1 | usize::from(negative[2]) << 2;
-            self.walk_cell_packet(&self.root, self.lo, self.hi, &beam, flip, &lo, &hi, together, visit);
+        if together == 0 {
+            return;
         }
+        // the margin covers the rounding of the lanes' points and of the beam's own cuts
+        beam.r0 += DVec3::splat(2.0 * self.margin);
+        let spread = beam.r0 + beam.r1 * range.0.abs().max(range.1.abs());
+        if (spread.cmpgt((self.hi - self.lo) / 16.0)).any() {
+            for lane in (0..n).filter(|&lane| together & 1 << lane != 0) {
+                alone(lane, visit);
+            }
+            return;
+        }
+        let flip = usize::from(negative[0]) | usize::from(negative[1]) << 1 | usize::from(negative[2]) << 2;
+        self.walk_cell_packet(
+            &self.root, self.lo, self.hi, 0, &beam, flip, range, &lo, &hi, together, visit,
+        );
     }
 
-    /// One cell of [`CellTree::walk_packet`] for the lanes in `active`, each on its piece
-    /// `[t0[lane], t1[lane]]`; returns the lanes whose walk ended here.
+    /// One cell of [`CellTree::walk_packet`] for the lanes in `active`, the beam within `range`
+    /// there; returns the lanes whose walk ended here. `t0`, `t1`: the lanes' whole ranges.
     #[allow(clippy::too_many_arguments)]
     fn walk_cell_packet(
         &self,
         cell: &Cell,
         lo: DVec3,
         hi: DVec3,
+        faces: InnerFaces,
         beam: &Beam,
         flip: usize,
+        range: (f64, f64),
         t0: &[f64; LANES],
         t1: &[f64; LANES],
         active: u32,
-        visit: &mut impl FnMut(&Leaf, u32, &[f64; LANES], &[f64; LANES]) -> u32,
+        visit: &mut impl LaneVisitor,
     ) -> u32 {
         match cell {
             Cell::Empty => 0,
-            Cell::Leaf(leaf) => visit(leaf, active, t0, t1) & active,
+            Cell::Leaf(leaf) => {
+                let (ta, tb, lanes) = lane_pieces(lo, hi, faces, beam, t0, t1);
+                let lanes = lanes & active;
+                if lanes == 0 {
+                    return 0;
+                }
+                visit(leaf, lanes, &ta, &tb) & lanes
+            }
             Cell::Inner(node) => {
                 let Some(children) = node.children(lo, hi, self.margin) else {
                     return 0;
                 };
                 let mid = 0.5 * (lo + hi);
-                // per axis and half (0: lower, 1: upper), where each lane enters and leaves it:
-                // the cut of the mid-plane (as in `walk_cell`), or no bound, or never (a lane
-                // that does not move on the axis stays on its origin's side)
-                let mut enter = [[[f64::NEG_INFINITY; LANES]; 2]; 3];
-                let mut leave = [[[f64::INFINITY; LANES]; 2]; 3];
-                for axis in 0..3 {
-                    let [enter_lower, enter_upper] = &mut enter[axis];
-                    let [leave_lower, leave_upper] = &mut leave[axis];
-                    for lane in 0..LANES {
-                        let (o, d) = (beam.origin[axis][lane], beam.dir[axis][lane]);
-                        let cut = (mid[axis] - o) * beam.inv[axis][lane];
-                        if d > 0.0 {
-                            leave_lower[lane] = cut;
-                            enter_upper[lane] = cut;
-                        } else if d < 0.0 {
-                            enter_lower[lane] = cut;
-                            leave_upper[lane] = cut;
-                        } else if o >= mid[axis] {
-                            enter_lower[lane] = f64::INFINITY;
-                        } else {
-                            enter_upper[lane] = f64::INFINITY;
-                        }
-                    }
-                }
                 let mut active = active;
                 let mut ended = 0;
                 for order in 0..8 {
@@ -565,25 +625,12 @@ impl CellTree {
                     if matches!(child, Cell::Empty) {
                         continue;
                     }
-                    let half = [bits & 1, bits >> 1 & 1, bits >> 2 & 1];
-                    let (mut ta, mut tb) = ([0.0; LANES], [0.0; LANES]);
-                    let mut lanes = 0u32;
-                    for lane in 0..LANES {
-                        let mut a = t0[lane];
-                        let mut b = t1[lane];
-                        for axis in 0..3 {
-                            a = a.max(enter[axis][half[axis]][lane]);
-                            b = b.min(leave[axis][half[axis]][lane]);
-                        }
-                        (ta[lane], tb[lane]) = (a, b);
-                        lanes |= u32::from(a < b) << lane;
-                    }
-                    let lanes = lanes & active;
-                    if lanes == 0 {
-                        continue;
-                    }
                     let (l, h) = child_box_at(lo, mid, hi, bits);
-                    let done = self.walk_cell_packet(child, l, h, beam, flip, &ta, &tb, lanes, visit);
+                    let Some(within) = beam.crosses(l, h, range) else {
+                        continue;
+                    };
+                    let faces = child_faces(faces, bits);
+                    let done = self.walk_cell_packet(child, l, h, faces, beam, flip, within, t0, t1, active, visit);
                     ended |= done;
                     active &= !done;
                     if active == 0 {
@@ -594,6 +641,52 @@ impl CellTree {
             }
         }
     }
+}
+
+/// Each lane's piece `[ta, tb]` of the leaf `[lo, hi]` and the set of lanes with `ta < tb`:
+/// `[t0, t1]` cut where the lane crosses the leaf's inner faces (a lane that does not move on an
+/// axis is in the leaf there when its origin is on the leaf's side of each inner face: at or
+/// above a lower one, below an upper one, as the walk decides at each mid-plane).
+#[inline]
+fn lane_pieces(
+    lo: DVec3,
+    hi: DVec3,
+    faces: InnerFaces,
+    beam: &Beam,
+    t0: &[f64; LANES],
+    t1: &[f64; LANES],
+) -> ([f64; LANES], [f64; LANES], u32) {
+    let (mut ta, mut tb) = (*t0, *t1);
+    for axis in 0..3 {
+        let lower = faces & 1 << axis != 0;
+        let upper = faces & 8 << axis != 0;
+        for lane in 0..LANES {
+            let (o, d, inv) = (beam.origin[axis][lane], beam.dir[axis][lane], beam.inv[axis][lane]);
+            let (a, b) = (&mut ta[lane], &mut tb[lane]);
+            if d > 0.0 {
+                if lower {
+                    *a = a.max((lo[axis] - o) * inv);
+                }
+                if upper {
+                    *b = b.min((hi[axis] - o) * inv);
+                }
+            } else if d < 0.0 {
+                if upper {
+                    *a = a.max((hi[axis] - o) * inv);
+                }
+                if lower {
+                    *b = b.min((lo[axis] - o) * inv);
+                }
+            } else if (lower && o < lo[axis]) || (upper && o >= hi[axis]) {
+                *a = f64::INFINITY;
+            }
+        }
+    }
+    let mut lanes = 0u32;
+    for lane in 0..LANES {
+        lanes |= u32::from(ta[lane] < tb[lane]) << lane;
+    }
+    (ta, tb, lanes)
 }
 
 #[cfg(test)]
