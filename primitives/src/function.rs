@@ -122,6 +122,29 @@ impl<'a> LeafAlong<'a> {
     }
 }
 
+impl LeafAlong<'_> {
+    /// `g` as a jet of jets over the coordinates `c` of a piece: value, `g′` twice and `g″`.
+    fn second_order(&mut self, tape: &Tape, c: [Enclosure; 3]) -> Jet<Jet<Enclosure>, Jet<Enclosure>> {
+        let d = self.ray.dir;
+        let seed = |a: usize| {
+            let slope = Enclosure::point(d[a]);
+            Jet::new(Jet::new(c[a], slope), Jet::new(slope, Enclosure::point(0.0)))
+        };
+        tape.eval([seed(0), seed(1), seed(2)], &mut self.scratch.curvatures)
+    }
+}
+
+/// `Some(±1.0)` where the enclosure of `g″` has one strict sign, else `None`.
+fn sign_of_curvature(curvature: Enclosure) -> Option<f64> {
+    if curvature.undefined() || curvature.contains_zero() {
+        None
+    } else if curvature.lo > 0.0 {
+        Some(1.0)
+    } else {
+        Some(-1.0)
+    }
+}
+
 impl AlongRay for LeafAlong<'_> {
     fn value(&mut self, piece: Interval) -> Enclosure {
         match coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) {
@@ -165,22 +188,26 @@ impl AlongRay for LeafAlong<'_> {
         if tape.has_branches() {
             return None;
         }
-        let d = self.ray.dir;
-        let seed = |a: usize| {
-            let slope = Enclosure::point(d[a]);
-            Jet::new(Jet::new(c[a], slope), Jet::new(slope, Enclosure::point(0.0)))
+        sign_of_curvature(self.second_order(tape, c).slope.slope)
+    }
+
+    /// On tapes without branches, the jet of jets gives `g` and `g′` too: its first-order part
+    /// is computed by the same operations as [`AlongRay::jet`]'s (the same numbers), so one
+    /// evaluation answers both where the curvature is likely to be asked (the leaf's gradient
+    /// did not prove the ray monotone, so the piece's slope rarely does).
+    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Option<f64>>) {
+        let Some(c) = coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) else {
+            return (Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE), Some(None));
         };
-        let curvature = tape
-            .eval([seed(0), seed(1), seed(2)], &mut self.scratch.curvatures)
-            .slope
-            .slope;
-        if curvature.undefined() || curvature.contains_zero() {
-            None
-        } else if curvature.lo > 0.0 {
-            Some(1.0)
-        } else {
-            Some(-1.0)
+        let tape = self.tape_for(&c);
+        if tape.has_branches() {
+            return (
+                tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets),
+                Some(None),
+            );
         }
+        let second = self.second_order(tape, c);
+        (second.value, Some(sign_of_curvature(second.slope.slope)))
     }
 
     fn point_slope(&mut self, t: f64) -> (f64, f64) {

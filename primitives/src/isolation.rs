@@ -102,6 +102,12 @@ pub(crate) trait AlongRay {
     fn curvature_sign(&mut self, _piece: Interval) -> Option<f64> {
         None
     }
+    /// [`AlongRay::jet`] over `piece`, and [`AlongRay::curvature_sign`] there where one
+    /// evaluation gives both (`Some`: the enclosure of `g″` came with them, the same numbers as
+    /// asked one by one; `None`: ask `curvature_sign` if it is needed).
+    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Option<f64>>) {
+        (self.jet(piece), None)
+    }
     /// `g(t)` (as [`AlongRay::point`] gives it) and `g′(t)` in f64.
     fn point_slope(&mut self, t: f64) -> (f64, f64) {
         (self.point(t), f64::NAN)
@@ -173,7 +179,7 @@ pub(crate) fn isolate_in<P: AlongRay>(
         if !value.undefined() && !value.contains_zero() {
             continue; // 1. root-free
         }
-        let enclosure = along.jet(piece);
+        let (enclosure, known_curvature) = along.jet_and_curvature(piece);
         let value = enclosure.value;
         let defined = !value.undefined();
         if defined && !value.contains_zero() {
@@ -184,8 +190,8 @@ pub(crate) fn isolate_in<P: AlongRay>(
         let monotone = defined && !enclosure.slope.contains_zero();
         // 3. strictly convex or concave (where g″ is enclosed)
         let curved = if defined && !monotone {
-            along
-                .curvature_sign(piece)
+            known_curvature
+                .unwrap_or_else(|| along.curvature_sign(piece))
                 .map(|sign| convex_root(along, a, b, sign, tolerance, evaluations))
         } else {
             None
