@@ -457,28 +457,35 @@ struct Beam {
 }
 
 impl Beam {
-    /// The part of `[ta, tb]` where the central ray is within the radii of the box `[lo, hi]`:
-    /// a lane crossing the box does so at some `t` of it (`None`: no lane crosses the box).
+    /// For each axis and half (0: lower, 1: upper) of the cell `[lo, hi]` cut at `mid`, the
+    /// range of `t` where the central ray is within the radii (at `range`'s largest `|t|`) of
+    /// that half's slab: a lane crossing a child does so at some `t` of the intersection of its
+    /// three halves' ranges and `range` (an empty one: no lane crosses it).
     #[inline]
-    fn crosses(&self, lo: DVec3, hi: DVec3, (ta, tb): (f64, f64)) -> Option<(f64, f64)> {
+    fn halves(&self, lo: DVec3, mid: DVec3, hi: DVec3, (ta, tb): (f64, f64)) -> [[(f64, f64); 2]; 3] {
         let radius = self.r0 + self.r1 * ta.abs().max(tb.abs());
-        let (lo, hi) = (lo - radius, hi + radius);
-        let (mut a, mut b) = (ta, tb);
-        for axis in 0..3 {
+        std::array::from_fn(|axis| {
             let (c, e) = (self.center[axis], self.center_dir[axis]);
-            if e == 0.0 {
-                if c < lo[axis] || c > hi[axis] {
-                    return None;
+            let r = radius[axis];
+            let bounds = [(lo[axis] - r, mid[axis] + r), (mid[axis] - r, hi[axis] + r)];
+            bounds.map(|(l, h)| {
+                if e == 0.0 {
+                    if c < l || c > h {
+                        (f64::INFINITY, f64::NEG_INFINITY)
+                    } else {
+                        (f64::NEG_INFINITY, f64::INFINITY)
+                    }
+                } else {
+                    let inv = self.center_inv[axis];
+                    let (x, y) = ((l - c) * inv, (h - c) * inv);
+                    if e > 0.0 {
+                        (x, y)
+                    } else {
+                        (y, x)
+                    }
                 }
-                continue;
-            }
-            let inv = self.center_inv[axis];
-            let (x, y) = ((lo[axis] - c) * inv, (hi[axis] - c) * inv);
-            let (near, far) = if e > 0.0 { (x, y) } else { (y, x) };
-            a = a.max(near);
-            b = b.min(far);
-        }
-        (a <= b).then_some((a, b))
+            })
+        })
     }
 }
 
@@ -617,6 +624,7 @@ impl CellTree {
                     return 0;
                 };
                 let mid = 0.5 * (lo + hi);
+                let halves = beam.halves(lo, mid, hi, range);
                 let mut active = active;
                 let mut ended = 0;
                 for order in 0..8 {
@@ -625,10 +633,17 @@ impl CellTree {
                     if matches!(child, Cell::Empty) {
                         continue;
                     }
-                    let (l, h) = child_box_at(lo, mid, hi, bits);
-                    let Some(within) = beam.crosses(l, h, range) else {
+                    let (mut a, mut b) = range;
+                    for (axis, halves) in halves.iter().enumerate() {
+                        let (near, far) = halves[bits >> axis & 1];
+                        a = a.max(near);
+                        b = b.min(far);
+                    }
+                    if a > b {
                         continue;
-                    };
+                    }
+                    let within = (a, b);
+                    let (l, h) = child_box_at(lo, mid, hi, bits);
                     let faces = child_faces(faces, bits);
                     let done = self.walk_cell_packet(child, l, h, faces, beam, flip, within, t0, t1, active, visit);
                     ended |= done;

@@ -344,7 +344,8 @@ impl Enclosure {
 
         // each powi rounds at most ~n times; widen by n ulps (relative error ≤ γₙ)
         let ulps = n.unsigned_abs() + 1;
-        let (a, b) = (power(self.lo, n), power(self.hi, n));
+        let a = power(self.lo, n);
+        let b = if self.hi == self.lo { a } else { power(self.hi, n) };
         if n % 2 == 1 {
             Self::widened(a, b, ulps, self.undefined())
         } else if self.lo >= 0.0 {
@@ -387,7 +388,9 @@ impl Enclosure {
                 flag: self.flag,
             };
         }
-        let (a, b) = (f(self.lo), f(self.hi));
+        // a point (a coordinate a ray does not move along) needs one call of `f`
+        let a = f(self.lo);
+        let b = if self.hi == self.lo { a } else { f(self.hi) };
         let mut lo = a.min(b);
         let mut hi = a.max(b);
         // the first maximum at or after lo (and minimum): conservative in the presence of rounding
