@@ -90,24 +90,15 @@ fn differ(ga: f64, gb: f64) -> bool {
 pub(crate) trait AlongRay {
     /// An enclosure of `g` over `piece` (`ENTIRE` when none is known).
     fn value(&mut self, piece: Interval) -> Enclosure;
-    /// Enclosures of `g` and `g′` over `piece`.
-    fn jet(&mut self, piece: Interval) -> Jet<Enclosure>;
+    /// Enclosures of `g` and `g′` over `piece`, with the sign of `g″` there where it is known
+    /// (one evaluation may give all three): `Some(1.0)` where an enclosure of `g″` over `piece`
+    /// is certainly positive, `Some(-1.0)` where certainly negative, `None` otherwise or where no
+    /// enclosure of `g″` is known (then [`AlongRay::point_slope`] is never asked).
+    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<f64>);
     /// `g(t)` in f64.
     fn point(&mut self, t: f64) -> f64;
     /// Whether the zero-set point at `t` belongs to the surface.
     fn within_boundary(&mut self, t: f64) -> bool;
-    /// `Some(1.0)` where an enclosure of `g″` over `piece` is certainly positive, `Some(-1.0)`
-    /// where certainly negative, `None` otherwise or where no enclosure of `g″` is known (then
-    /// [`AlongRay::point_slope`] is never asked).
-    fn curvature_sign(&mut self, _piece: Interval) -> Option<f64> {
-        None
-    }
-    /// [`AlongRay::jet`] over `piece`, and [`AlongRay::curvature_sign`] there where one
-    /// evaluation gives both (`Some`: the enclosure of `g″` came with them, the same numbers as
-    /// asked one by one; `None`: ask `curvature_sign` if it is needed).
-    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Option<f64>>) {
-        (self.jet(piece), None)
-    }
     /// `g(t)` (as [`AlongRay::point`] gives it) and `g′(t)` in f64.
     fn point_slope(&mut self, t: f64) -> (f64, f64) {
         (self.point(t), f64::NAN)
@@ -125,10 +116,12 @@ impl<I: Implicit + ?Sized> AlongRay for ImplicitAlong<'_, I> {
             .enclose_value_along(self.ray, piece)
             .unwrap_or(Enclosure::ENTIRE)
     }
-    fn jet(&mut self, piece: Interval) -> Jet<Enclosure> {
-        self.surface
+    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<f64>) {
+        let jet = self
+            .surface
             .enclose_along(self.ray, piece)
-            .unwrap_or(Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE))
+            .unwrap_or(Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE));
+        (jet, None)
     }
     fn point(&mut self, t: f64) -> f64 {
         self.surface.phi(self.ray.at(t))
@@ -179,7 +172,7 @@ pub(crate) fn isolate_in<P: AlongRay>(
         if !value.undefined() && !value.contains_zero() {
             continue; // 1. root-free
         }
-        let (enclosure, known_curvature) = along.jet_and_curvature(piece);
+        let (enclosure, curvature) = along.jet_and_curvature(piece);
         let value = enclosure.value;
         let defined = !value.undefined();
         if defined && !value.contains_zero() {
@@ -190,9 +183,7 @@ pub(crate) fn isolate_in<P: AlongRay>(
         let monotone = defined && !enclosure.slope.contains_zero();
         // 3. strictly convex or concave (where g″ is enclosed)
         let curved = if defined && !monotone {
-            known_curvature
-                .unwrap_or_else(|| along.curvature_sign(piece))
-                .map(|sign| convex_root(along, a, b, sign, tolerance, evaluations))
+            curvature.map(|sign| convex_root(along, a, b, sign, tolerance, evaluations))
         } else {
             None
         };
@@ -498,17 +489,14 @@ mod tests {
         fn value(&mut self, _piece: Interval) -> Enclosure {
             Enclosure::ENTIRE
         }
-        fn jet(&mut self, _piece: Interval) -> Jet<Enclosure> {
-            Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE)
+        fn jet_and_curvature(&mut self, _piece: Interval) -> (Jet<Enclosure>, Option<f64>) {
+            (Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE), Some(self.s))
         }
         fn point(&mut self, t: f64) -> f64 {
             self.s * ((t - self.c) * (t - self.c) - self.e)
         }
         fn within_boundary(&mut self, _t: f64) -> bool {
             true
-        }
-        fn curvature_sign(&mut self, _piece: Interval) -> Option<f64> {
-            Some(self.s)
         }
         fn point_slope(&mut self, t: f64) -> (f64, f64) {
             (self.point(t), self.s * 2.0 * (t - self.c))

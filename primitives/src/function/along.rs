@@ -79,16 +79,6 @@ impl AlongRay for LeafAlong<'_> {
         }
     }
 
-    fn jet(&mut self, piece: Interval) -> Jet<Enclosure> {
-        match coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) {
-            Some(c) => {
-                let tape = self.tape_for(&c);
-                tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets)
-            }
-            None => Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE),
-        }
-    }
-
     fn point(&mut self, t: f64) -> f64 {
         if t == self.last.0 {
             return self.last.1;
@@ -103,34 +93,20 @@ impl AlongRay for LeafAlong<'_> {
         true
     }
 
-    /// From second-order jets (`g`, `g′`, `g′`, `g″` as a jet of jets) over the piece, on tapes
-    /// without `min`, `max` or `abs` only: their kinks put into `g″` what no jet sees.
-    fn curvature_sign(&mut self, piece: Interval) -> Option<f64> {
-        let c = coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max)?;
-        let tape = self.tape_for(&c);
-        if tape.has_branches() {
-            return None;
-        }
-        sign_of_curvature(self.second_order(tape, c).slope.slope)
-    }
-
-    /// On tapes without branches, the jet of jets gives `g` and `g′` too: its first-order part
-    /// is computed by the same operations as [`AlongRay::jet`]'s (the same numbers), so one
-    /// evaluation answers both where the curvature is likely to be asked (the leaf's gradient
-    /// did not prove the ray monotone, so the piece's slope rarely does).
-    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Option<f64>>) {
+    /// On tapes without `min`, `max` or `abs`, from second-order jets (`g`, `g′`, `g′`, `g″` as
+    /// a jet of jets) over the piece: one evaluation, whose first-order part is computed by the
+    /// same operations as a jet's. On other tapes `g″` is not enclosed (their kinks put into `g″`
+    /// what no jet sees): the jet alone.
+    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<f64>) {
         let Some(c) = coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) else {
-            return (Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE), Some(None));
+            return (Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE), None);
         };
         let tape = self.tape_for(&c);
         if tape.has_branches() {
-            return (
-                tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets),
-                Some(None),
-            );
+            return (tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets), None);
         }
         let second = self.second_order(tape, c);
-        (second.value, Some(sign_of_curvature(second.slope.slope)))
+        (second.value, sign_of_curvature(second.slope.slope))
     }
 
     fn point_slope(&mut self, t: f64) -> (f64, f64) {
