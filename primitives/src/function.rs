@@ -61,6 +61,7 @@ struct Scratch {
     enclosures: Vec<Enclosure>,
     jets: Vec<Jet<Enclosure>>,
     curvatures: Vec<Jet<Jet<Enclosure>>>,
+    hessians: Vec<crate::expr::hessian::SecondOrder>,
     gradients: Vec<Jet<f64, [f64; 3]>>,
     slopes: Vec<Jet<f64>>,
     lanes: Vec<Lanes>,
@@ -185,7 +186,7 @@ impl Compiled {
         let (lo, hi) = leaf.grown();
         let mut along = LeafAlong {
             ray,
-            leaf: leaf.tape(),
+            leaf,
             full: &self.tape,
             cell_lo: lo,
             cell_hi: hi,

@@ -28,6 +28,7 @@
 //! coherent rays walks it together ([`CellTree::walk_packet`]), each ray handed exactly the
 //! leaves and pieces of its own walk.
 
+use super::hessian::{enclose_hessian, Hessian, SecondOrder};
 use super::tape::{Choice, Tape};
 use super::Jet;
 use crate::math::enclosure::Enclosure;
@@ -130,6 +131,8 @@ pub struct Leaf {
     hi: DVec3,
     tape: Arc<Tape>,
     gradient: [Enclosure; 3],
+    /// Its Hessian over the grown cell, enclosed when first asked for ([`Leaf::hessian`]).
+    hessian: OnceLock<Option<Box<Hessian>>>,
 }
 
 impl Leaf {
@@ -149,6 +152,15 @@ impl Leaf {
     #[must_use]
     pub fn gradient(&self) -> &[Enclosure; 3] {
         &self.gradient
+    }
+
+    /// Enclosures of Φ's second derivatives over the grown cell (from the pruned tape; `None`
+    /// where [`enclose_hessian`] gives none), enclosed by the first caller.
+    pub fn hessian(&self, slots: &mut Vec<SecondOrder>) -> Option<&Hessian> {
+        let made = self
+            .hessian
+            .get_or_init(|| enclose_hessian(&self.tape, self.lo, self.hi, slots).map(Box::new));
+        made.as_deref()
     }
 }
 
@@ -227,6 +239,7 @@ fn classify(tape: &Arc<Tape>, lo: DVec3, hi: DVec3, margin: f64, depth: u32, scr
                 hi: hi + m,
                 tape: pruned,
                 gradient,
+                hessian: OnceLock::new(),
             }));
         }
     }

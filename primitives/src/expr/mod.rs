@@ -28,6 +28,7 @@
 pub mod cells;
 pub(crate) mod distance;
 pub mod faces;
+pub mod hessian;
 pub mod lanes;
 mod parse;
 pub(crate) mod record;

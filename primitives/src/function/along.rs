@@ -3,6 +3,8 @@
 
 use super::{defined_or_outside, Scratch};
 use crate::bounds::Aabb;
+use crate::expr::cells::Leaf;
+use crate::expr::hessian::curvature_sign;
 use crate::expr::tape::Tape;
 use crate::expr::{coordinates_along, jets_along, Jet};
 use crate::isolation::AlongRay;
@@ -14,7 +16,7 @@ use glam::DVec3;
 /// the points lie in its grown cell (the full tape's values there), the full tape elsewhere.
 pub(super) struct LeafAlong<'a> {
     pub(super) ray: &'a Ray,
-    pub(super) leaf: &'a Tape,
+    pub(super) leaf: &'a Leaf,
     pub(super) full: &'a Tape,
     pub(super) cell_lo: DVec3,
     pub(super) cell_hi: DVec3,
@@ -29,7 +31,7 @@ impl<'a> LeafAlong<'a> {
     /// The leaf's tape where the point `p` lies in its grown cell, the full tape elsewhere.
     fn tape_at(&self, p: DVec3) -> &'a Tape {
         if (p.cmpge(self.cell_lo) & p.cmple(self.cell_hi)).all() {
-            self.leaf
+            self.leaf.tape()
         } else {
             self.full
         }
@@ -38,7 +40,7 @@ impl<'a> LeafAlong<'a> {
     fn tape_for(&self, c: &[Enclosure; 3]) -> &'a Tape {
         let inside = (0..3).all(|a| c[a].lo >= self.cell_lo[a] && c[a].hi <= self.cell_hi[a]);
         if inside {
-            self.leaf
+            self.leaf.tape()
         } else {
             self.full
         }
@@ -93,17 +95,31 @@ impl AlongRay for LeafAlong<'_> {
         true
     }
 
-    /// On tapes without `min`, `max` or `abs`, from second-order jets (`g`, `g′`, `g′`, `g″` as
-    /// a jet of jets) over the piece: one evaluation, whose first-order part is computed by the
-    /// same operations as a jet's. On other tapes `g″` is not enclosed (their kinks put into `g″`
-    /// what no jet sees): the jet alone.
+    /// On tapes without `min`, `max` or `abs`: the sign of `g″` from the leaf's Hessian where
+    /// the piece lies in its grown cell and the Hessian proves one (the jet alone is evaluated
+    /// then), else from second-order jets (`g`, `g′`, `g′`, `g″` as a jet of jets) over the
+    /// piece: one evaluation, whose first-order part is computed by the same operations as a
+    /// jet's. On other tapes `g″` is not enclosed (their kinks put into `g″` what no jet sees):
+    /// the jet alone.
     fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<f64>) {
         let Some(c) = coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) else {
             return (Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE), None);
         };
         let tape = self.tape_for(&c);
-        if tape.has_branches() {
-            return (tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets), None);
+        let in_leaf = std::ptr::eq(tape, self.leaf.tape());
+        let leaf_sign = if in_leaf && !tape.has_branches() {
+            let d = self.ray.dir;
+            self.leaf
+                .hessian(&mut self.scratch.hessians)
+                .and_then(|hessian| curvature_sign(hessian, d))
+        } else {
+            None
+        };
+        if tape.has_branches() || leaf_sign.is_some() {
+            return (
+                tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets),
+                leaf_sign,
+            );
         }
         let second = self.second_order(tape, c);
         (second.value, sign_of_curvature(second.slope.slope))
