@@ -19,6 +19,12 @@
 //!    (a Newton step towards the minimum) and both halves are examined front first, a negative
 //!    value there bracketing the first root. After 16 steps, or on a piece no wider than the
 //!    tolerance, the piece goes on to step 4 undecided.
+//!
+//!    Where `g = max(u, v)` (or `min`, with `h = −g`) and jets of `u` and `v` prove one strictly
+//!    increasing and the other strictly decreasing on the piece, `h` is strictly **unimodal**:
+//!    strictly decreasing, then strictly increasing. `{h ≤ 0}` is again one interval, so the end
+//!    values decide as above, but two positive ends send the piece to step 4 (no tangent bounds
+//!    a unimodal `h`).
 //! 4. **Subdivide** otherwise, at the midpoint, front half first.
 //! 5. A piece no wider than the tolerance that can be neither pruned nor certified is
 //!    - a **root** if `g` changes sign across it (a crossing within the tolerance);
@@ -90,11 +96,12 @@ fn differ(ga: f64, gb: f64) -> bool {
 pub(crate) trait AlongRay {
     /// An enclosure of `g` over `piece` (`ENTIRE` when none is known).
     fn value(&mut self, piece: Interval) -> Enclosure;
-    /// Enclosures of `g` and `g′` over `piece`, with the sign of `g″` there where it is known
-    /// (one evaluation may give all three): `Some(1.0)` where an enclosure of `g″` over `piece`
-    /// is certainly positive, `Some(-1.0)` where certainly negative, `None` otherwise or where no
-    /// enclosure of `g″` is known (then [`AlongRay::point_slope`] is never asked).
-    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<f64>);
+    /// Enclosures of `g` and `g′` over `piece`, with what is known of its shape there (one
+    /// evaluation may give all of it): [`Shape::Convex`] where an enclosure of `g″` has one
+    /// strict sign, [`Shape::Unimodal`] where `g` is a `max` or `min` of two functions proven
+    /// strictly monotone in opposite directions, `None` otherwise (then
+    /// [`AlongRay::point_slope`] is never asked).
+    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Shape>);
     /// `g(t)` in f64.
     fn point(&mut self, t: f64) -> f64;
     /// Whether the zero-set point at `t` belongs to the surface.
@@ -116,7 +123,7 @@ impl<I: Implicit + ?Sized> AlongRay for ImplicitAlong<'_, I> {
             .enclose_value_along(self.ray, piece)
             .unwrap_or(Enclosure::ENTIRE)
     }
-    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<f64>) {
+    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Shape>) {
         let jet = self
             .surface
             .enclose_along(self.ray, piece)
@@ -172,7 +179,7 @@ pub(crate) fn isolate_in<P: AlongRay>(
         if !value.undefined() && !value.contains_zero() {
             continue; // 1. root-free
         }
-        let (enclosure, curvature) = along.jet_and_curvature(piece);
+        let (enclosure, shape) = along.jet_and_curvature(piece);
         let value = enclosure.value;
         let defined = !value.undefined();
         if defined && !value.contains_zero() {
@@ -183,7 +190,7 @@ pub(crate) fn isolate_in<P: AlongRay>(
         let monotone = defined && !enclosure.slope.contains_zero();
         // 3. strictly convex or concave (where g″ is enclosed)
         let curved = if defined && !monotone {
-            curvature.map(|sign| convex_root(along, a, b, sign, tolerance, evaluations))
+            shape.map(|shape| convex_root(along, a, b, shape, tolerance, evaluations))
         } else {
             None
         };
@@ -270,6 +277,15 @@ pub(crate) fn monotone_ends((a, ga): (f64, f64), (b, gb): (f64, f64), tolerance:
     }
 }
 
+/// The shape of `h = sign·g` on a piece ([`AlongRay::jet_and_curvature`]), `sign` being ±1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Shape {
+    /// `h` strictly convex.
+    Convex(f64),
+    /// `h` strictly decreasing, then strictly increasing (either part possibly empty).
+    Unimodal(f64),
+}
+
 /// What [`convex_root`] decided about a piece.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum Curved {
@@ -281,17 +297,22 @@ pub(crate) enum Curved {
     Undecided,
 }
 
-/// The first root of `g` on `[a, b]` where `h = sign·g` is strictly convex there (step 3 of the
-/// module docs): brackets by the end values, then Newton steps towards the minimum of `h` from
-/// the tangents at the ends of each piece. Point values are counted in `evaluations`.
+/// The first root of `g` on `[a, b]` where `h = sign·g` is strictly convex or strictly unimodal
+/// there (step 3 of the module docs): brackets by the end values, then, for a convex `h`, Newton
+/// steps towards the minimum of `h` from the tangents at the ends of each piece. Point values
+/// are counted in `evaluations`.
 pub(crate) fn convex_root<P: AlongRay>(
     along: &mut P,
     a: f64,
     b: f64,
-    sign: f64,
+    shape: Shape,
     tolerance: f64,
     evaluations: &mut u32,
 ) -> Curved {
+    let (sign, convex) = match shape {
+        Shape::Convex(sign) => (sign, true),
+        Shape::Unimodal(sign) => (sign, false),
+    };
     const STEPS: u32 = 16;
     let tolerance = tolerance.max(f64::MIN_POSITIVE);
     let bracket = |along: &mut P, (t0, h0): (f64, f64), (t1, h1): (f64, f64), evaluations: &mut u32| {
@@ -322,7 +343,10 @@ pub(crate) fn convex_root<P: AlongRay>(
     if hb < 0.0 {
         return bracket(along, (a, ha), (b, hb), evaluations);
     }
-    // h(a) > 0, h(b) ≥ 0: the minimum of h decides
+    // h(a) > 0, h(b) ≥ 0: the minimum of h decides, bounded below by tangents if h is convex
+    if !convex {
+        return Curved::Undecided;
+    }
     let slope = |along: &mut P, t: f64, evaluations: &mut u32| {
         *evaluations = evaluations.saturating_add(1);
         let (g, dg) = along.point_slope(t);
@@ -489,8 +513,11 @@ mod tests {
         fn value(&mut self, _piece: Interval) -> Enclosure {
             Enclosure::ENTIRE
         }
-        fn jet_and_curvature(&mut self, _piece: Interval) -> (Jet<Enclosure>, Option<f64>) {
-            (Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE), Some(self.s))
+        fn jet_and_curvature(&mut self, _piece: Interval) -> (Jet<Enclosure>, Option<Shape>) {
+            (
+                Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE),
+                Some(Shape::Convex(self.s)),
+            )
         }
         fn point(&mut self, t: f64) -> f64 {
             self.s * ((t - self.c) * (t - self.c) - self.e)
@@ -515,7 +542,7 @@ mod tests {
                 for &e in &[-0.3, -1e-6, 1e-9, 1e-6, 0.01, 0.05, 0.2, 0.6] {
                     let mut g = Parabola { c, e, s };
                     let mut evaluations = 0;
-                    let got = convex_root(&mut g, 0.0, 1.0, s, tolerance, &mut evaluations);
+                    let got = convex_root(&mut g, 0.0, 1.0, Shape::Convex(s), tolerance, &mut evaluations);
                     let expected = if e < 0.0 {
                         None
                     } else {
@@ -537,10 +564,74 @@ mod tests {
         assert_eq!(checked, 112);
         // a double root at 0.5: never reported as root-free
         let mut touch = Parabola { c: 0.5, e: 0.0, s: 1.0 };
-        let got = convex_root(&mut touch, 0.0, 1.0, 1.0, tolerance, &mut 0);
+        let got = convex_root(&mut touch, 0.0, 1.0, Shape::Convex(1.0), tolerance, &mut 0);
         assert!(
             matches!(got, Curved::Undecided) || matches!(got, Curved::Root(t) if (t - 0.5).abs() < 1e-6),
             "{got:?}"
         );
+    }
+    /// `g(t) = s·(max(c − t, 2·(t − c)) − e)`: for `s = 1` a max of a decreasing and an
+    /// increasing line, for `s = −1` a min of an increasing and a decreasing one; roots
+    /// `c − e` and `c + e/2`.
+    struct Vee {
+        c: f64,
+        e: f64,
+        s: f64,
+    }
+
+    impl AlongRay for Vee {
+        fn value(&mut self, _piece: Interval) -> Enclosure {
+            Enclosure::ENTIRE
+        }
+        fn jet_and_curvature(&mut self, _piece: Interval) -> (Jet<Enclosure>, Option<Shape>) {
+            (
+                Jet::new(Enclosure::ENTIRE, Enclosure::ENTIRE),
+                Some(Shape::Unimodal(self.s)),
+            )
+        }
+        fn point(&mut self, t: f64) -> f64 {
+            self.s * ((self.c - t).max(2.0 * (t - self.c)) - self.e)
+        }
+        fn within_boundary(&mut self, _t: f64) -> bool {
+            true
+        }
+    }
+
+    /// A unimodal piece: ends of opposite signs give the one root between them (against the
+    /// closed form), two ends on the inside side give none, two on the outside side are left
+    /// undecided (to be split), never answered.
+    #[test]
+    fn unimodal_pieces_decide_only_from_their_ends() {
+        let tolerance = 1e-9;
+        let mut outcomes = [0; 3];
+        for &s in &[1.0, -1.0] {
+            for &c in &[0.05, 0.3, 0.5, 0.77, 0.98, 1.4, -0.2] {
+                for &e in &[-0.3, -1e-6, 1e-9, 1e-6, 0.01, 0.05, 0.2, 0.6, 1.5, 3.0] {
+                    let mut g = Vee { c, e, s };
+                    let (h0, h1) = (g.point(0.0) * s, g.point(1.0) * s);
+                    let got = convex_root(&mut g, 0.0, 1.0, Shape::Unimodal(s), tolerance, &mut 0);
+                    let first = [c - e, c + 0.5 * e].into_iter().find(|t| (0.0..=1.0).contains(t));
+                    match got {
+                        Curved::Root(t) => {
+                            let ends_decide = h0 == 0.0 || h1 == 0.0 || (h0 < 0.0) != (h1 < 0.0);
+                            assert!(ends_decide, "{s} {c} {e}: root from ends {h0} {h1}");
+                            let x = first.expect("a root");
+                            assert!((t - x).abs() <= 2.0 * tolerance, "{s} {c} {e}: {t} vs {x}");
+                            outcomes[0] += 1;
+                        }
+                        Curved::NoRoot => {
+                            assert!(h0 < 0.0 && h1 < 0.0, "{s} {c} {e}: no root from ends {h0} {h1}");
+                            assert!(first.is_none(), "{s} {c} {e}: missed {first:?}");
+                            outcomes[1] += 1;
+                        }
+                        Curved::Undecided => {
+                            assert!(h0 > 0.0 && h1 > 0.0, "{s} {c} {e}: undecided from ends {h0} {h1}");
+                            outcomes[2] += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(outcomes.iter().all(|&n| n > 10), "{outcomes:?}");
     }
 }

@@ -13,11 +13,11 @@
 //! slope `∇Φ·d` they prove non-zero is monotone across the whole leaf). A pruned tape gives
 //! the full tape's values bit for bit inside its grown cell ([`crate::expr::tape`]).
 //!
-//! **Made on demand**: only the root is classified when the tree is made; a cell's eight
-//! children are classified when a walk first reaches it (the first walk does the work, others
-//! reaching it meanwhile wait), so cells no ray reaches (behind the first surface, outside the
-//! view) cost nothing. The cells made are the cells an eager build would make, with the same
-//! tapes and enclosures.
+//! **Made on demand**: only the root is classified when the tree is made; any other cell is
+//! classified when a walk first enters it (the first walk does the work, others entering it
+//! meanwhile wait), so cells no ray enters (behind the first surface, outside the view, the
+//! siblings a ray passes by) cost nothing. The cells made are cells an eager build would make,
+//! with the same tapes and enclosures.
 //!
 //! **Walked** front to back along a ray ([`CellTree::walk`]): the ray's parameter range is cut
 //! at the cells' mid-planes, and every `t` of the range is handed to exactly one leaf or empty
@@ -59,13 +59,12 @@ enum Cell {
 }
 
 /// An inner cell: the tape pruned over it, its depth, and its eight children (bit 0: upper x
-/// half, 1: y, 2: z), classified by the first walk that reaches them (`None` where all eight
-/// are empty).
+/// half, 1: y, 2: z), each classified by the first walk that enters it.
 #[derive(Debug)]
 struct Node {
     tape: Arc<Tape>,
     depth: u32,
-    children: OnceLock<Option<Box<[Cell; 8]>>>,
+    children: Box<[OnceLock<Cell>; 8]>,
 }
 
 /// The octree (see the module docs).
@@ -108,17 +107,21 @@ impl<'a> CellView<'a> {
         match self.cell {
             Cell::Empty => Opened::Empty,
             Cell::Leaf(leaf) => Opened::Leaf(leaf),
-            Cell::Inner(node) => match node.children(self.lo, self.hi, tree.margin) {
-                None => Opened::Empty,
-                Some(children) => Opened::Children(std::array::from_fn(|bits| {
+            Cell::Inner(node) => {
+                let children: [CellView<'a>; 8] = std::array::from_fn(|bits| {
                     let (lo, hi) = child_box(self.lo, self.hi, bits);
                     CellView {
-                        cell: &children[bits],
+                        cell: node.child(bits, lo, hi, tree.margin),
                         lo,
                         hi,
                     }
-                })),
-            },
+                });
+                if children.iter().all(|c| matches!(c.cell, Cell::Empty)) {
+                    Opened::Empty
+                } else {
+                    Opened::Children(children)
+                }
+            }
         }
     }
 }
@@ -246,39 +249,31 @@ fn classify(tape: &Arc<Tape>, lo: DVec3, hi: DVec3, margin: f64, depth: u32, scr
     Cell::Inner(Node {
         tape: pruned,
         depth,
-        children: OnceLock::new(),
+        children: Box::new(std::array::from_fn(|_| OnceLock::new())),
     })
 }
 
 impl Node {
-    /// The children of this node, whose cell is `[lo, hi]` (`None`: all empty), classified by
-    /// the first caller (other callers meanwhile wait; the work calls no thread pool).
+    /// Child `bits` of this node, whose box is `[lo, hi]`, classified by the first caller
+    /// (other callers meanwhile wait; the work calls no thread pool).
     #[inline]
-    fn children(&self, lo: DVec3, hi: DVec3, margin: f64) -> Option<&[Cell; 8]> {
-        match self.children.get() {
-            Some(made) => made.as_deref(),
-            None => self.make_children(lo, hi, margin),
+    fn child(&self, bits: usize, lo: DVec3, hi: DVec3, margin: f64) -> &Cell {
+        match self.children[bits].get() {
+            Some(made) => made,
+            None => self.make_child(bits, lo, hi, margin),
         }
     }
 
     #[cold]
     #[inline(never)]
-    fn make_children(&self, lo: DVec3, hi: DVec3, margin: f64) -> Option<&[Cell; 8]> {
-        self.children
-            .get_or_init(|| {
-                let make = |scratch: &mut Scratch| {
-                    let children: Box<[Cell; 8]> = Box::new(std::array::from_fn(|bits| {
-                        let (l, h) = child_box(lo, hi, bits);
-                        classify(&self.tape, l, h, margin, self.depth + 1, scratch)
-                    }));
-                    (!children.iter().all(|c| matches!(c, Cell::Empty))).then_some(children)
-                };
-                BUILD_SCRATCH.with(|cell| match cell.try_borrow_mut() {
-                    Ok(mut scratch) => make(&mut scratch),
-                    Err(_) => make(&mut Scratch::default()),
-                })
+    fn make_child(&self, bits: usize, lo: DVec3, hi: DVec3, margin: f64) -> &Cell {
+        self.children[bits].get_or_init(|| {
+            let make = |scratch: &mut Scratch| classify(&self.tape, lo, hi, margin, self.depth + 1, scratch);
+            BUILD_SCRATCH.with(|cell| match cell.try_borrow_mut() {
+                Ok(mut scratch) => make(&mut scratch),
+                Err(_) => make(&mut Scratch::default()),
             })
-            .as_deref()
+        })
     }
 }
 
@@ -325,12 +320,11 @@ impl CellTree {
                     return (p.cmpge(leaf.lo) & p.cmple(leaf.hi)).all().then(|| leaf.tape());
                 }
                 Cell::Inner(node) => {
-                    let children = node.children.get()?.as_deref()?;
                     let mid = 0.5 * (lo + hi);
                     let upper = p.cmpge(mid);
                     let bits = usize::from(upper.x) | usize::from(upper.y) << 1 | usize::from(upper.z) << 2;
                     (lo, hi) = child_box_at(lo, mid, hi, bits);
-                    cell = &children[bits];
+                    cell = node.children[bits].get()?;
                 }
             }
         }
@@ -361,7 +355,7 @@ impl CellTree {
                 }
                 Cell::Inner(node) => {
                     inner += 1;
-                    stack.extend(node.children.get().into_iter().flatten().flat_map(|c| c.iter()));
+                    stack.extend(node.children.iter().filter_map(OnceLock::get));
                 }
             }
         }
@@ -402,9 +396,6 @@ impl CellTree {
             Cell::Empty => false,
             Cell::Leaf(leaf) => visit(leaf, t0, t1),
             Cell::Inner(node) => {
-                let Some(children) = node.children(lo, hi, self.margin) else {
-                    return false;
-                };
                 let mid = 0.5 * (lo + hi);
                 // where the ray crosses each mid-plane (never, along an axis it does not move on)
                 let mut cut = [f64::INFINITY; 3];
@@ -432,12 +423,10 @@ impl CellTree {
                             next = c;
                         }
                     }
-                    let child = &children[bits];
-                    if !matches!(child, Cell::Empty) {
-                        let (l, h) = child_box_at(lo, mid, hi, bits);
-                        if self.walk_cell(child, l, h, origin, dir, inv, t, next, visit) {
-                            return true;
-                        }
+                    let (l, h) = child_box_at(lo, mid, hi, bits);
+                    let child = node.child(bits, l, h, self.margin);
+                    if !matches!(child, Cell::Empty) && self.walk_cell(child, l, h, origin, dir, inv, t, next, visit) {
+                        return true;
                     }
                     if next >= t1 {
                         return false;
@@ -633,19 +622,12 @@ impl CellTree {
                 visit(leaf, lanes, &ta, &tb) & lanes
             }
             Cell::Inner(node) => {
-                let Some(children) = node.children(lo, hi, self.margin) else {
-                    return 0;
-                };
                 let mid = 0.5 * (lo + hi);
                 let halves = beam.halves(lo, mid, hi, range);
                 let mut active = active;
                 let mut ended = 0;
                 for order in 0..8 {
                     let bits = order ^ flip;
-                    let child = &children[bits];
-                    if matches!(child, Cell::Empty) {
-                        continue;
-                    }
                     let (mut a, mut b) = range;
                     for (axis, halves) in halves.iter().enumerate() {
                         let (near, far) = halves[bits >> axis & 1];
@@ -657,6 +639,10 @@ impl CellTree {
                     }
                     let within = (a, b);
                     let (l, h) = child_box_at(lo, mid, hi, bits);
+                    let child = node.child(bits, l, h, self.margin);
+                    if matches!(child, Cell::Empty) {
+                        continue;
+                    }
                     let faces = child_faces(faces, bits);
                     let done = self.walk_cell_packet(child, l, h, faces, beam, flip, within, t0, t1, active, visit);
                     ended |= done;
@@ -718,77 +704,4 @@ fn lane_pieces(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::expr::Expr;
-
-    /// Every `t` of a ray's range lands in exactly one cell, in order, and the cells handed out
-    /// contain the points (up to the margin); empty cells hold no sign change of Φ.
-    #[test]
-    fn walks_cover_the_range_and_skip_only_empty_cells() {
-        let e = Expr::parse("min(sqrt(x^2 + y^2 + z^2) - 0.5, sqrt((x - 0.8)^2 + y^2 + z^2) - 0.2)").unwrap();
-        let tape = e.compile();
-        let (lo, hi) = (DVec3::splat(-1.0), DVec3::splat(1.0));
-        let tree = CellTree::new(&tape, lo, hi);
-        assert_eq!(tree.sizes(), (0, 1), "only the root is made before a walk");
-        let mut rng = 0x1234_5678_u64;
-        let mut next = || {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            (rng >> 11) as f64 / (1u64 << 53) as f64
-        };
-        for _ in 0..300 {
-            let o = DVec3::new(next() * 6.0 - 3.0, next() * 6.0 - 3.0, 3.0);
-            let target = DVec3::new(next() - 0.5, next() - 0.5, next() - 0.5);
-            let d = target - o;
-            let ray = crate::Ray::new(o, d);
-            let Some(range) = crate::Aabb::new(lo, hi).clip(&ray, crate::Interval::POSITIVE) else {
-                continue;
-            };
-            let mut pieces: Vec<(f64, f64)> = Vec::new();
-            tree.walk(o, d, range.min, range.max, &mut |leaf, ta, tb| {
-                assert!(ta <= tb);
-                let (l, h) = leaf.grown();
-                for t in [ta, 0.5 * (ta + tb), tb] {
-                    let p = ray.at(t);
-                    assert!((p.cmpge(l) & p.cmple(h)).all(), "{p} outside {l} {h}");
-                    // the leaf's tape, and the tape found for the point, have the full tape's
-                    // value here
-                    // (the ends lie on cell faces, where the point may be found in a neighbour)
-                    let mut s = Vec::new();
-                    let found = tree.tape_at(p);
-                    if t > ta && t < tb && tb - ta > 1e-9 {
-                        assert!(found.is_some(), "no leaf found for {p} inside a piece");
-                    }
-                    for tape in std::iter::once(leaf.tape()).chain(found) {
-                        assert_eq!(tape.eval_f64(p.to_array(), &mut s).to_bits(), e.eval(p).to_bits());
-                    }
-                }
-                pieces.push((ta, tb));
-                false
-            });
-            // ordered, disjoint
-            for w in pieces.windows(2) {
-                assert!(w[0].1 <= w[1].0);
-            }
-            // a sign change of Φ along the range lies in a piece handed out
-            let n = 2000;
-            let mut prev = e.eval(ray.at(range.min));
-            for k in 1..=n {
-                let t = range.min + (range.max - range.min) * f64::from(k) / f64::from(n);
-                let v = e.eval(ray.at(t));
-                if (v < 0.0) != (prev < 0.0) {
-                    let tp = range.min + (range.max - range.min) * f64::from(k - 1) / f64::from(n);
-                    assert!(
-                        pieces.iter().any(|&(a, b)| a <= t && tp <= b),
-                        "sign change in [{tp}, {t}] not in {pieces:?}"
-                    );
-                }
-                prev = v;
-            }
-        }
-        let (tapes, nodes) = tree.sizes();
-        assert!(tapes > 2 && nodes > 8, "{tapes} {nodes}");
-    }
-}
+mod tests;

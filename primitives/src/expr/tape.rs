@@ -107,6 +107,26 @@ pub struct Tape {
     branches: bool,
 }
 
+/// What pruning makes of an instruction: itself, an alias of an earlier slot, a negation.
+#[derive(Clone, Copy)]
+enum Fate {
+    Keep,
+    Alias(u32),
+    Negate(u32),
+}
+
+/// Per-instruction bookkeeping of [`Tape::pruned`], kept per thread across calls.
+#[derive(Default)]
+struct Pruning {
+    fate: Vec<Fate>,
+    live: Vec<bool>,
+    map: Vec<u32>,
+}
+
+thread_local! {
+    static PRUNING: std::cell::RefCell<Pruning> = std::cell::RefCell::new(Pruning::default());
+}
+
 /// Applies a one-argument function in any scalar type (the dispatch of the tree walk and of the
 /// tape alike).
 #[inline(always)]
@@ -307,6 +327,18 @@ impl Tape {
         self.branches
     }
 
+    /// The operands' slots of the result where it is a `max` (`Some((true, a, b))`) or a `min`
+    /// (`Some((false, a, b))`) of two different slots: the slots of [`Tape::eval`]'s scratch that
+    /// hold them after an evaluation.
+    #[must_use]
+    pub fn result_extremum(&self) -> Option<(bool, usize, usize)> {
+        match *self.ops.last()? {
+            Op::Call2(Func2::Max, a, b) if a != b => Some((true, a as usize, b as usize)),
+            Op::Call2(Func2::Min, a, b) if a != b => Some((false, a as usize, b as usize)),
+            _ => None,
+        }
+    }
+
     /// Evaluates in any scalar type with `slots` as scratch space (resized as needed); types of
     /// outward-rounded arithmetic ([`Scalar::DIRECTED`]) in the copy compiled for FMA where the
     /// CPU has it (the same results: the fused operation only computes exact rounding errors).
@@ -448,16 +480,20 @@ impl Tape {
         if !self.branches || choices.iter().all(|c| *c == Choice::Both) {
             return None;
         }
+        PRUNING.with(|cell| match cell.try_borrow_mut() {
+            Ok(mut scratch) => Some(self.pruned_with(choices, &mut scratch)),
+            Err(_) => Some(self.pruned_with(choices, &mut Pruning::default())),
+        })
+    }
+
+    /// [`Tape::pruned`] with `scratch` for its per-instruction bookkeeping.
+    fn pruned_with(&self, choices: &[Choice], scratch: &mut Pruning) -> Self {
         let n = self.ops.len();
-        // each instruction: what it becomes (itself, an alias of an earlier slot, a negation)
-        #[derive(Clone, Copy)]
-        enum Fate {
-            Keep,
-            Alias(u32),
-            Negate(u32),
-        }
-        let mut fate = vec![Fate::Keep; n];
-        let mut live = vec![false; n];
+        let Pruning { fate, live, map } = scratch;
+        fate.clear();
+        fate.resize(n, Fate::Keep);
+        live.clear();
+        live.resize(n, false);
         live[n - 1] = true;
         for i in (0..n).rev() {
             if !live[i] {
@@ -483,7 +519,8 @@ impl Tape {
                 }
             }
         }
-        let mut map = vec![u32::MAX; n];
+        map.clear();
+        map.resize(n, u32::MAX);
         let mut ops = Vec::with_capacity(n);
         for i in 0..n {
             if !live[i] {
@@ -497,7 +534,7 @@ impl Tape {
                 }
                 Fate::Keep => {
                     map[i] = ops.len() as u32;
-                    ops.push(self.ops[i].remapped(&map));
+                    ops.push(self.ops[i].remapped(map));
                 }
             }
         }
@@ -511,7 +548,7 @@ impl Tape {
                 ops.push(Op::Call2(Func2::Min, result, result));
             }
         }
-        Some(Self::from_ops(ops))
+        Self::from_ops(ops)
     }
 
     /// The tape without instructions the result does not use.

@@ -7,7 +7,7 @@ use crate::expr::cells::Leaf;
 use crate::expr::hessian::curvature_sign;
 use crate::expr::tape::Tape;
 use crate::expr::{coordinates_along, jets_along, Jet};
-use crate::isolation::AlongRay;
+use crate::isolation::{AlongRay, Shape};
 use crate::math::enclosure::Enclosure;
 use crate::ray::{Interval, Ray};
 use glam::DVec3;
@@ -70,6 +70,12 @@ fn sign_of_curvature(curvature: Enclosure) -> Option<f64> {
     }
 }
 
+/// Whether two slope enclosures prove one function strictly increasing and the other strictly
+/// decreasing.
+fn opposite(u: Enclosure, v: Enclosure) -> bool {
+    !u.undefined() && !v.undefined() && ((u.lo > 0.0 && v.hi < 0.0) || (u.hi < 0.0 && v.lo > 0.0))
+}
+
 impl AlongRay for LeafAlong<'_> {
     fn value(&mut self, piece: Interval) -> Enclosure {
         match coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) {
@@ -100,8 +106,9 @@ impl AlongRay for LeafAlong<'_> {
     /// then), else from second-order jets (`g`, `g′`, `g′`, `g″` as a jet of jets) over the
     /// piece: one evaluation, whose first-order part is computed by the same operations as a
     /// jet's. On other tapes `g″` is not enclosed (their kinks put into `g″` what no jet sees):
-    /// the jet alone.
-    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<f64>) {
+    /// the jet, and where the result is a `max` or `min` of two slots whose slopes (read from
+    /// the same evaluation) have strict opposite signs, [`Shape::Unimodal`].
+    fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Shape>) {
         let Some(c) = coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) else {
             return (Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE), None);
         };
@@ -115,14 +122,20 @@ impl AlongRay for LeafAlong<'_> {
         } else {
             None
         };
-        if tape.has_branches() || leaf_sign.is_some() {
-            return (
-                tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets),
-                leaf_sign,
-            );
+        if tape.has_branches() {
+            let jet = tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets);
+            let shape = tape.result_extremum().and_then(|(max, a, b)| {
+                let slots = &self.scratch.jets;
+                opposite(slots[a].slope, slots[b].slope).then_some(Shape::Unimodal(if max { 1.0 } else { -1.0 }))
+            });
+            return (jet, shape);
+        }
+        if let Some(sign) = leaf_sign {
+            let jet = tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets);
+            return (jet, Some(Shape::Convex(sign)));
         }
         let second = self.second_order(tape, c);
-        (second.value, sign_of_curvature(second.slope.slope))
+        (second.value, sign_of_curvature(second.slope.slope).map(Shape::Convex))
     }
 
     fn point_slope(&mut self, t: f64) -> (f64, f64) {
