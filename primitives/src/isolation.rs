@@ -18,7 +18,10 @@
 //!    piece's scale for rounding) excludes a root, else the piece is cut where the tangents meet
 //!    (a Newton step towards the minimum) and both halves are examined front first, a negative
 //!    value there bracketing the first root. After 16 steps, or on a piece no wider than the
-//!    tolerance, the piece goes on to step 4 undecided.
+//!    tolerance, the piece goes on to step 4 undecided. An evaluator that knows `g″`'s sign over
+//!    a region holding the piece ([`AlongRay::known_convex`]: an octree leaf's Hessian) takes
+//!    this step first and skips steps 1 and 2 (interval evaluations over the piece): convexity
+//!    alone lets the end values and tangents decide.
 //!
 //!    Where `g = max(u, v)` (or `min`, with `h = −g`) and jets of `u` and `v` prove one strictly
 //!    increasing and the other strictly decreasing on the piece, `h` is strictly **unimodal**:
@@ -102,6 +105,12 @@ pub(crate) trait AlongRay {
     /// strictly monotone in opposite directions, `None` otherwise (then
     /// [`AlongRay::point_slope`] is never asked).
     fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Shape>);
+    /// [`Shape::Convex`] where `g` is known to be strictly convex or concave over all of
+    /// `piece` and defined there without enclosing it over the piece (from what is known of a
+    /// region holding it); `None` by default.
+    fn known_convex(&mut self, _piece: Interval) -> Option<Shape> {
+        None
+    }
     /// `g(t)` in f64.
     fn point(&mut self, t: f64) -> f64;
     /// Whether the zero-set point at `t` belongs to the surface.
@@ -172,27 +181,38 @@ pub(crate) fn isolate_in<P: AlongRay>(
             out.exhausted = true;
             break;
         }
-        // the value alone first: most pieces (and whole rays that miss) are pruned by it
         *evaluations += 1;
         let piece = Interval::new(a, b);
-        let value = along.value(piece);
-        if !value.undefined() && !value.contains_zero() {
-            continue; // 1. root-free
-        }
-        let (enclosure, shape) = along.jet_and_curvature(piece);
-        let value = enclosure.value;
-        let defined = !value.undefined();
-        if defined && !value.contains_zero() {
-            continue; // 1. root-free
-        }
         let mid = 0.5 * (a + b);
         let splittable = b - a > tolerance && mid > a && mid < b;
-        let monotone = defined && !enclosure.slope.contains_zero();
-        // 3. strictly convex or concave (where g″ is enclosed)
-        let curved = if defined && !monotone {
-            shape.map(|shape| convex_root(along, a, b, shape, tolerance, evaluations))
+        let (defined, monotone, curved) = if let Some(convex) = along.known_convex(piece) {
+            // 3. strictly convex or concave, known without enclosing g over the piece: its
+            // point values decide at least as much as an enclosure would
+            (
+                true,
+                false,
+                Some(convex_root(along, a, b, convex, tolerance, evaluations)),
+            )
         } else {
-            None
+            // the value alone first: most pieces (and whole rays that miss) are pruned by it
+            let value = along.value(piece);
+            if !value.undefined() && !value.contains_zero() {
+                continue; // 1. root-free
+            }
+            let (enclosure, shape) = along.jet_and_curvature(piece);
+            let value = enclosure.value;
+            let defined = !value.undefined();
+            if defined && !value.contains_zero() {
+                continue; // 1. root-free
+            }
+            let monotone = defined && !enclosure.slope.contains_zero();
+            // 3. strictly convex or concave (where g″ is enclosed), or unimodal
+            let curved = if defined && !monotone {
+                shape.map(|shape| convex_root(along, a, b, shape, tolerance, evaluations))
+            } else {
+                None
+            };
+            (defined, monotone, curved)
         };
         let (t, uncertain) = if monotone {
             // 2. strictly monotone: a root iff the end values differ in sign

@@ -101,11 +101,22 @@ impl AlongRay for LeafAlong<'_> {
         true
     }
 
-    /// On tapes without `min`, `max` or `abs`: the sign of `g″` from the leaf's Hessian where
-    /// the piece lies in its grown cell and the Hessian proves one (the jet alone is evaluated
-    /// then), else from second-order jets (`g`, `g′`, `g′`, `g″` as a jet of jets) over the
-    /// piece: one evaluation, whose first-order part is computed by the same operations as a
-    /// jet's. On other tapes `g″` is not enclosed (their kinks put into `g″` what no jet sees):
+    /// Where the piece lies in the leaf's grown cell, its tape has no `min`, `max` or `abs`,
+    /// and the leaf's Hessian proves `dᵀ·H·d` of one strict sign for the ray's direction.
+    fn known_convex(&mut self, piece: Interval) -> Option<Shape> {
+        let c = coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max)?;
+        let tape = self.tape_for(&c);
+        if !std::ptr::eq(tape, self.leaf.tape()) || tape.has_branches() {
+            return None;
+        }
+        let d = self.ray.dir;
+        let hessian = self.leaf.hessian(&mut self.scratch.hessians)?;
+        curvature_sign(hessian, d).map(Shape::Convex)
+    }
+
+    /// On tapes without `min`, `max` or `abs`: the sign of `g″` from second-order jets (`g`,
+    /// `g′`, `g′`, `g″` as a jet of jets) over the piece: one evaluation, whose first-order part
+    /// is computed by the same operations as a jet's. On other tapes `g″` is not enclosed (their kinks put into `g″` what no jet sees):
     /// the jet, and where the result is a `max` or `min` of two slots whose slopes (read from
     /// the same evaluation) have strict opposite signs, [`Shape::Unimodal`].
     fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Shape>) {
@@ -113,15 +124,6 @@ impl AlongRay for LeafAlong<'_> {
             return (Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE), None);
         };
         let tape = self.tape_for(&c);
-        let in_leaf = std::ptr::eq(tape, self.leaf.tape());
-        let leaf_sign = if in_leaf && !tape.has_branches() {
-            let d = self.ray.dir;
-            self.leaf
-                .hessian(&mut self.scratch.hessians)
-                .and_then(|hessian| curvature_sign(hessian, d))
-        } else {
-            None
-        };
         if tape.has_branches() {
             let jet = tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets);
             let shape = tape.result_extremum().and_then(|(max, a, b)| {
@@ -129,10 +131,6 @@ impl AlongRay for LeafAlong<'_> {
                 opposite(slots[a].slope, slots[b].slope).then_some(Shape::Unimodal(if max { 1.0 } else { -1.0 }))
             });
             return (jet, shape);
-        }
-        if let Some(sign) = leaf_sign {
-            let jet = tape.eval(jets_along(c, self.ray.dir), &mut self.scratch.jets);
-            return (jet, Some(Shape::Convex(sign)));
         }
         let second = self.second_order(tape, c);
         (second.value, sign_of_curvature(second.slope.slope).map(Shape::Convex))
