@@ -98,22 +98,7 @@ fn defined_or_outside(v: f64) -> f64 {
 /// a bound farther than `8·ε·s` from 0 keeps its sign exactly (NaN and ∞ certify nothing).
 #[inline]
 fn monotone_along(gradient: &[Enclosure; 3], dir: DVec3) -> bool {
-    let (mut lo, mut hi, mut size) = (0.0f64, 0.0f64, 0.0f64);
-    for (g, d) in gradient.iter().zip(dir.to_array()) {
-        if g.undefined() {
-            return false;
-        }
-        let (a, b) = if d >= 0.0 {
-            (g.lo * d, g.hi * d)
-        } else {
-            (g.hi * d, g.lo * d)
-        };
-        lo += a;
-        hi += b;
-        size += a.abs().max(b.abs());
-    }
-    let slack = 8.0 * f64::EPSILON * size;
-    size.is_finite() && (lo > slack || hi < -slack)
+    Enclosure::weighted_sum_sign(gradient.iter().copied().zip(dir.to_array()), 8.0).is_some()
 }
 
 /// One ray's search through the octree's leaves.

@@ -45,27 +45,7 @@ pub fn curvature_sign(hessian: &Hessian, d: DVec3) -> Option<f64> {
         2.0 * d.x * d.z,
         2.0 * d.y * d.z,
     ];
-    let (mut lo, mut hi, mut size) = (0.0f64, 0.0f64, 0.0f64);
-    for (e, w) in hessian.iter().zip(weights) {
-        let (a, b) = if w >= 0.0 {
-            (e.lo * w, e.hi * w)
-        } else {
-            (e.hi * w, e.lo * w)
-        };
-        lo += a;
-        hi += b;
-        size += a.abs().max(b.abs());
-    }
-    let slack = 16.0 * f64::EPSILON * size;
-    if !size.is_finite() {
-        None
-    } else if lo > slack {
-        Some(1.0)
-    } else if hi < -slack {
-        Some(-1.0)
-    } else {
-        None
-    }
+    Enclosure::weighted_sum_sign(hessian.iter().copied().zip(weights), 16.0)
 }
 
 #[cfg(test)]

@@ -185,6 +185,40 @@ impl Enclosure {
         self.lo <= 0.0 && 0.0 <= self.hi
     }
 
+    /// `Some(±1.0)` where `Σ eᵢ·wᵢ` has one strict sign for every `eᵢ` in the enclosures
+    /// `terms` (weights `wᵢ` exact), else `None` (an undefined or unbounded term included). The
+    /// sum is taken in `f64`: `slack` times `ε` times the sum of the terms' magnitudes must
+    /// cover the rounding of the products and the sum (and of the weights, where they were
+    /// computed).
+    #[must_use]
+    #[inline]
+    pub fn weighted_sum_sign(terms: impl IntoIterator<Item = (Enclosure, f64)>, slack: f64) -> Option<f64> {
+        let (mut lo, mut hi, mut size) = (0.0f64, 0.0f64, 0.0f64);
+        for (e, w) in terms {
+            if e.undefined() {
+                return None;
+            }
+            let (a, b) = if w >= 0.0 {
+                (e.lo * w, e.hi * w)
+            } else {
+                (e.hi * w, e.lo * w)
+            };
+            lo += a;
+            hi += b;
+            size += a.abs().max(b.abs());
+        }
+        let slack = slack * f64::EPSILON * size;
+        if !size.is_finite() {
+            None
+        } else if lo > slack {
+            Some(1.0)
+        } else if hi < -slack {
+            Some(-1.0)
+        } else {
+            None
+        }
+    }
+
     /// Whether `x ∈ [lo, hi]`.
     #[must_use]
     #[inline]
