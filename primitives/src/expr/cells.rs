@@ -29,7 +29,7 @@
 //! leaves and pieces of its own walk.
 
 use super::hessian::{enclose_hessian, Hessian, SecondOrder};
-use super::tape::{Choice, Tape};
+use super::tape::{Choice, Pruning, Tape};
 use super::Jet;
 use crate::math::enclosure::Enclosure;
 use glam::DVec3;
@@ -183,6 +183,7 @@ fn child_box_at(lo: DVec3, mid: DVec3, hi: DVec3, bits: usize) -> (DVec3, DVec3)
 struct Scratch {
     slots: Vec<Enclosure>,
     choices: Vec<Choice>,
+    pruning: Pruning,
     jets: Vec<Jet<Enclosure, [Enclosure; 3]>>,
 }
 
@@ -229,7 +230,7 @@ fn classify(tape: &Arc<Tape>, lo: DVec3, hi: DVec3, margin: f64, depth: u32, scr
     if !value.undefined() && !value.contains_zero() {
         return Cell::Empty;
     }
-    let pruned = match tape.pruned(&scratch.choices) {
+    let pruned = match tape.pruned(&scratch.choices, &mut scratch.pruning) {
         Some(shorter) => Arc::new(shorter),
         None => Arc::clone(tape),
     };

@@ -115,16 +115,12 @@ enum Fate {
     Negate(u32),
 }
 
-/// Per-instruction bookkeeping of [`Tape::pruned`], kept per thread across calls.
+/// Per-instruction bookkeeping of [`Tape::pruned`], kept by its caller across calls.
 #[derive(Default)]
-struct Pruning {
+pub(crate) struct Pruning {
     fate: Vec<Fate>,
     live: Vec<bool>,
     map: Vec<u32>,
-}
-
-thread_local! {
-    static PRUNING: std::cell::RefCell<Pruning> = std::cell::RefCell::new(Pruning::default());
 }
 
 /// Applies a one-argument function in any scalar type (the dispatch of the tree walk and of the
@@ -475,19 +471,12 @@ impl Tape {
     }
 
     /// The tape with the branches `choices` (from [`Tape::eval_choices`] over a region) ruled
-    /// out dropped, or `None` when nothing was decided (the tape is already as short).
-    pub(crate) fn pruned(&self, choices: &[Choice]) -> Option<Self> {
+    /// out dropped, or `None` when nothing was decided (the tape is already as short);
+    /// `scratch` holds the per-instruction bookkeeping.
+    pub(crate) fn pruned(&self, choices: &[Choice], scratch: &mut Pruning) -> Option<Self> {
         if !self.branches || choices.iter().all(|c| *c == Choice::Both) {
             return None;
         }
-        PRUNING.with(|cell| match cell.try_borrow_mut() {
-            Ok(mut scratch) => Some(self.pruned_with(choices, &mut scratch)),
-            Err(_) => Some(self.pruned_with(choices, &mut Pruning::default())),
-        })
-    }
-
-    /// [`Tape::pruned`] with `scratch` for its per-instruction bookkeeping.
-    fn pruned_with(&self, choices: &[Choice], scratch: &mut Pruning) -> Self {
         let n = self.ops.len();
         let Pruning { fate, live, map } = scratch;
         fate.clear();
@@ -548,7 +537,7 @@ impl Tape {
                 ops.push(Op::Call2(Func2::Min, result, result));
             }
         }
-        Self::from_ops(ops)
+        Some(Self::from_ops(ops))
     }
 
     /// The tape without instructions the result does not use.
@@ -660,7 +649,9 @@ mod tests {
         ];
         let whole = t.eval_choices(vars, &mut slots, &mut choices);
         assert_eq!(whole, e.enclose(lo, hi));
-        let p = t.pruned(&choices).expect("the far sphere and the slab are pruned");
+        let p = t
+            .pruned(&choices, &mut Pruning::default())
+            .expect("the far sphere and the slab are pruned");
         // (x-1)^2 + y^2 + z^2, sqrt, -0.5: x, 1, x-1, ^2, y, ^2, +, z, ^2, +, sqrt, 0.5, -
         assert_eq!(p.len(), 13, "{p:?}");
         let mut s = Vec::new();
@@ -676,7 +667,7 @@ mod tests {
             Enclosure::new(-0.3, 0.3),
         ];
         t.eval_choices(wide, &mut slots, &mut choices);
-        let q = t.pruned(&choices).expect("the slab is pruned");
+        let q = t.pruned(&choices, &mut Pruning::default()).expect("the slab is pruned");
         assert!(q.len() < t.len(), "{} of {}", q.len(), t.len());
         assert!(q.len() > p.len(), "both spheres stay: {q:?}");
     }

@@ -59,21 +59,10 @@ impl LeafAlong<'_> {
     }
 }
 
-/// `Some(±1.0)` where the enclosure of `g″` has one strict sign, else `None`.
-fn sign_of_curvature(curvature: Enclosure) -> Option<f64> {
-    if curvature.undefined() || curvature.contains_zero() {
-        None
-    } else if curvature.lo > 0.0 {
-        Some(1.0)
-    } else {
-        Some(-1.0)
-    }
-}
-
 /// Whether two slope enclosures prove one function strictly increasing and the other strictly
 /// decreasing.
 fn opposite(u: Enclosure, v: Enclosure) -> bool {
-    !u.undefined() && !v.undefined() && ((u.lo > 0.0 && v.hi < 0.0) || (u.hi < 0.0 && v.lo > 0.0))
+    matches!((u.strict_sign(), v.strict_sign()), (Some(a), Some(b)) if a != b)
 }
 
 impl AlongRay for LeafAlong<'_> {
@@ -104,9 +93,12 @@ impl AlongRay for LeafAlong<'_> {
     /// Where the piece lies in the leaf's grown cell, its tape has no `min`, `max` or `abs`,
     /// and the leaf's Hessian proves `dᵀ·H·d` of one strict sign for the ray's direction.
     fn known_convex(&mut self, piece: Interval) -> Option<Shape> {
+        // a leaf tape with kinks has no Hessian, and the full tape then has them too
+        if self.leaf.tape().has_branches() {
+            return None;
+        }
         let c = coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max)?;
-        let tape = self.tape_for(&c);
-        if !std::ptr::eq(tape, self.leaf.tape()) || tape.has_branches() {
+        if !std::ptr::eq(self.tape_for(&c), self.leaf.tape()) {
             return None;
         }
         let d = self.ray.dir;
@@ -116,9 +108,10 @@ impl AlongRay for LeafAlong<'_> {
 
     /// On tapes without `min`, `max` or `abs`: the sign of `g″` from second-order jets (`g`,
     /// `g′`, `g′`, `g″` as a jet of jets) over the piece: one evaluation, whose first-order part
-    /// is computed by the same operations as a jet's. On other tapes `g″` is not enclosed (their kinks put into `g″` what no jet sees):
-    /// the jet, and where the result is a `max` or `min` of two slots whose slopes (read from
-    /// the same evaluation) have strict opposite signs, [`Shape::Unimodal`].
+    /// is computed by the same operations as a jet's. On other tapes `g″` is not enclosed
+    /// (their kinks put into `g″` what no jet sees): the jet, and where the result is a `max`
+    /// or `min` of two slots whose slopes (read from the same evaluation) have strict opposite
+    /// signs, [`Shape::Unimodal`].
     fn jet_and_curvature(&mut self, piece: Interval) -> (Jet<Enclosure>, Option<Shape>) {
         let Some(c) = coordinates_along(self.ray, piece, self.bounds.min, self.bounds.max) else {
             return (Jet::new(Enclosure::point(f64::INFINITY), Enclosure::ENTIRE), None);
@@ -133,7 +126,7 @@ impl AlongRay for LeafAlong<'_> {
             return (jet, shape);
         }
         let second = self.second_order(tape, c);
-        (second.value, sign_of_curvature(second.slope.slope).map(Shape::Convex))
+        (second.value, second.slope.slope.strict_sign().map(Shape::Convex))
     }
 
     fn point_slope(&mut self, t: f64) -> (f64, f64) {

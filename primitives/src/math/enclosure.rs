@@ -185,6 +185,22 @@ impl Enclosure {
         self.lo <= 0.0 && 0.0 <= self.hi
     }
 
+    /// `Some(1.0)` where every value enclosed is positive, `Some(-1.0)` where every one is
+    /// negative, else `None` (an undefined enclosure included).
+    #[must_use]
+    #[inline]
+    pub fn strict_sign(&self) -> Option<f64> {
+        if self.undefined() {
+            None
+        } else if self.lo > 0.0 {
+            Some(1.0)
+        } else if self.hi < 0.0 {
+            Some(-1.0)
+        } else {
+            None
+        }
+    }
+
     /// `Some(±1.0)` where `Σ eᵢ·wᵢ` has one strict sign for every `eᵢ` in the enclosures
     /// `terms` (weights `wᵢ` exact), else `None` (an undefined or unbounded term included). The
     /// sum is taken in `f64`: `slack` times `ε` times the sum of the terms' magnitudes must
